@@ -1,0 +1,1 @@
+"""Sub-commands of ``dftl-warp``; see :mod:`dftl_warp.cli`."""

@@ -1,0 +1,78 @@
+"""Time-varying simulation data: :class:`State` (per particle) and :class:`Control` (per strand).
+
+States are swapped between steps (``solver.step(state_in, state_out, ...)``); a step may also run
+in place with ``state_in is state_out``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+
+@dataclass(eq=False)
+class State:
+    """Particle state in the model's layout, relative to ``model.origin``.
+
+    positions: m; velocities: m/s; corrections: m, the prior form's carried ``x - p`` of the last
+    step (``None`` when the solver does not carry it).
+    """
+
+    positions: wp.array
+    velocities: wp.array
+    corrections: wp.array | None
+
+    @classmethod
+    def at_rest(cls, model, *, with_corrections: bool = True) -> State:
+        def zeros():
+            return wp.zeros(model.num_points, dtype=model.vec3, device=model.device)
+
+        return cls(
+            positions=wp.array(model.rest_positions, dtype=model.vec3, device=model.device),
+            velocities=zeros(),
+            corrections=zeros() if with_corrections else None,
+        )
+
+    def assign(self, other: State) -> None:
+        """Copy ``other`` into this state (same model)."""
+        wp.copy(self.positions, other.positions)
+        wp.copy(self.velocities, other.velocities)
+        if self.corrections is not None:
+            if other.corrections is not None:
+                wp.copy(self.corrections, other.corrections)
+            else:
+                self.corrections.zero_()
+
+    def bytes_per_particle(self) -> int:
+        arrays = [a for a in (self.positions, self.velocities, self.corrections) if a is not None]
+        n = max(self.positions.shape[0], 1)
+        return int(sum(a.capacity for a in arrays) // n)
+
+
+@dataclass(eq=False)
+class Control:
+    """Kinematic root targets per device strand, relative to ``model.origin`` (m).
+
+    During a frame the root moves linearly from ``root_start`` to ``root_end``; a step with
+    ``root_alpha`` places it at ``root_start + root_alpha (root_end - root_start)``.
+    """
+
+    model: object
+    root_start: wp.array
+    root_end: wp.array
+
+    @classmethod
+    def at_rest(cls, model) -> Control:
+        return cls(model=model, root_start=wp.clone(model.root_rest), root_end=wp.clone(model.root_rest))
+
+    def set_root_targets(self, start, end=None) -> None:
+        """Set the frame's root targets from world positions (S, 3) in input strand order."""
+        m = self.model
+        self.root_start.assign(m.roots_to_device(start))
+        self.root_end.assign(m.roots_to_device(start if end is None else end))
+
+    def hold(self) -> None:
+        """Keep the roots where the last frame ended (start = end)."""
+        wp.copy(self.root_start, self.root_end)

@@ -1,0 +1,6 @@
+"""Warp kernels of dftl-warp, grouped by concern. Installed as ``dftl_warp.kernels``.
+
+- :mod:`.layout`: the one indexing helper that hides the particle layout;
+- :mod:`.ftl`: the follow-the-leader step (posterior and prior velocity correction);
+- :mod:`.diagnostics`: energy, stretch and speed reductions.
+"""

@@ -1,0 +1,208 @@
+"""Core DFTL solver: inextensibility, the two correction forms, dynamics, roots, robustness."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+import dftl_warp as dw
+from dftl_warp import baseline
+from dftl_warp.layout import make_layout
+
+from conftest import chain, segment_lengths
+
+G = (0.0, -9.81, 0.0)
+
+
+def random_groom(rng, counts, spacing=0.02):
+    pts = []
+    for n in counts:
+        steps = rng.normal(size=(n, 3))
+        steps /= np.linalg.norm(steps, axis=1, keepdims=True)
+        steps[0] = rng.uniform(-0.1, 0.1, size=3) / spacing
+        pts.append(np.cumsum(steps * spacing, axis=0))
+    return np.concatenate(pts), np.asarray(counts)
+
+
+@pytest.mark.parametrize("precision,tol", [("float32", 1e-5), ("float64", 1e-12)])
+@pytest.mark.parametrize("dt", [1 / 24, 1e-5])
+@pytest.mark.parametrize("correction", ["prior", "posterior"])
+def test_segment_lengths_exact_after_1000_steps(precision, tol, dt, correction, rng):
+    pts, counts = random_groom(rng, [2, 5, 16, 31])
+    rest = segment_lengths(pts, counts)
+    rec = dw.simulate_strands(pts, counts, steps=1000, dt=dt, gravity=G, correction=correction,
+                              precision=precision, record_every=1000)
+    rel = np.abs(segment_lengths(rec.positions[-1], counts) / rest - 1.0)
+    assert rec.positions.shape == (2, counts.sum(), 3)
+    assert np.isfinite(rec.positions).all()
+    assert rel.max() < tol
+    # it moved: the strands fell under gravity
+    assert np.abs(rec.positions[-1] - pts).max() > (1e-9 if dt < 1e-3 else 1e-2)
+
+
+def test_prior_and_posterior_positions_agree():
+    pts = chain(100, spacing=0.01)
+    kw = dict(steps=500, dt=1e-3, gravity=G, precision="float64", record_every=10)
+    prior = dw.simulate_strands(pts, [100], correction="prior", **kw)
+    posterior = dw.simulate_strands(pts, [100], correction="posterior", **kw)
+    assert np.abs(prior.positions - posterior.positions).max() < 1e-10
+    # ... while their velocities differ: the posterior form subtracts s dx/dt
+    assert np.abs(prior.velocities - posterior.velocities).max() > 1e-3
+
+
+@pytest.mark.parametrize("correction", ["prior", "posterior"])
+def test_pendulum_small_amplitude_period(correction):
+    length, g, theta0 = 0.5, 9.81, 0.05
+    pts = np.array([[0.0, 0.0, 0.0], [length * np.sin(theta0), -length * np.cos(theta0), 0.0]])
+    dt = 1e-4
+    steps = 40000  # about 2.8 periods
+    rec = dw.simulate_strands(pts, [2], steps=steps, dt=dt, gravity=(0, -g, 0), correction=correction,
+                              precision="float64")
+    x = rec.positions[:, 1, 0]
+    t = np.arange(x.shape[0]) * dt
+    # upward zero crossings of x, linearly interpolated
+    i = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+    crossings = t[i] - x[i] * dt / (x[i + 1] - x[i])
+    period = np.mean(np.diff(crossings))
+    expected = 2 * np.pi * np.sqrt(length / g)
+    assert len(crossings) >= 2
+    assert abs(period / expected - 1) < 0.005
+
+
+def test_roots_follow_kinematic_targets_exactly(rng):
+    pts, counts = random_groom(rng, [1, 4, 9, 3])
+    steps = 40
+    t = np.arange(steps + 1)[:, None, None] * 0.01
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    roots = pts[starts][None] + np.concatenate([np.sin(3 * t), np.cos(2 * t) - 1, 0.5 * t], axis=2) * 0.125
+    for precision in ("float32", "float64"):
+        rec = dw.simulate_strands(pts, counts, steps=steps, dt=0.01, gravity=G, precision=precision, roots=roots)
+        expected = roots.astype(precision).astype(np.float64)
+        assert np.array_equal(rec.positions[:, starts], expected)
+        # the one-vertex strand is its root and nothing else
+        assert np.array_equal(rec.positions[:, 0], expected[:, 0])
+        rest = segment_lengths(pts, counts)
+        assert np.abs(segment_lengths(rec.positions[-1], counts) / rest - 1).max() < 1e-5
+
+
+def test_identical_runs_are_bitwise_identical(rng):
+    pts, counts = random_groom(rng, [7, 3, 12])
+    a = dw.simulate_strands(pts, counts, steps=200, dt=1 / 240, gravity=G)
+    b = dw.simulate_strands(pts, counts, steps=200, dt=1 / 240, gravity=G)
+    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.velocities, b.velocities)
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+@pytest.mark.parametrize("offset", [0.0, 1e-20, 1e-9])
+def test_degenerate_predictions_stay_finite(precision, offset):
+    """Velocities that carry every particle exactly (or nearly) onto its leader."""
+    n, dt = 6, 1e-2
+    pts = chain(n, spacing=0.05)
+    vel = np.zeros_like(pts)
+    vel[1:] = (pts[:-1] - pts[1:]) / dt
+    vel[1:, 1] += offset / dt
+    rec = dw.simulate_strands(pts, [n], steps=20, dt=dt, gravity=(0, 0, 0), precision=precision,
+                              velocities=vel)
+    assert np.isfinite(rec.positions).all() and np.isfinite(rec.velocities).all()
+    tol = 1e-5 if precision == "float32" else 1e-12
+    assert np.abs(segment_lengths(rec.positions, [n]) / 0.05 - 1).max() < tol
+
+
+def test_coincident_input_points_stay_finite():
+    """Zero-length rest segments: the followers sit on their leader, without NaN."""
+    pts = np.array([[0, 0, 0], [0, 0, 0], [0.1, 0, 0], [0.1, 0, 0]], dtype=float)
+    rec = dw.simulate_strands(pts, [4], steps=50, dt=1e-2, gravity=G)
+    assert np.isfinite(rec.positions).all() and np.isfinite(rec.velocities).all()
+    lengths = segment_lengths(rec.positions[-1], [4])
+    assert np.allclose(lengths, [0.0, 0.1, 0.0], atol=1e-6)
+
+
+@pytest.mark.parametrize("correction", ["prior", "posterior"])
+def test_numpy_baseline_agrees(correction, rng):
+    pts, counts = random_groom(rng, [1, 2, 5, 9, 17])
+    for layout in ("strand-major", "particle-major"):
+        rec = dw.simulate_strands(pts, counts, steps=100, dt=1 / 120, gravity=G, correction=correction,
+                                  precision="float64", layout=layout, record_every=100)
+        x, v = baseline.simulate(pts, counts, steps=100, dt=1 / 120, gravity=G, correction=correction)
+        assert np.abs(rec.positions[-1] - x).max() < 1e-10
+        assert np.abs(rec.velocities[-1] - v).max() < 1e-10
+
+
+def test_layouts_give_bitwise_identical_results(rng):
+    pts, counts = random_groom(rng, [3, 8, 3, 1, 8, 5])
+    runs = [dw.simulate_strands(pts, counts, steps=60, dt=1 / 60, gravity=G, layout=name)
+            for name in ("strand-major", "particle-major")]
+    assert np.array_equal(runs[0].positions, runs[1].positions)
+    assert np.array_equal(runs[0].velocities, runs[1].velocities)
+
+
+def test_particle_major_layout_is_coalesced():
+    lay = make_layout(np.array([3, 2, 3]), "particle-major")
+    assert lay.groups == ((2, 0, 1), (3, 1, 2))
+    # particle i of the two 3-vertex strands sit side by side
+    slots = lay.slot_of_point
+    assert list(slots) == [2, 4, 6, 0, 1, 3, 5, 7]
+    assert sorted(slots) == list(range(8))
+
+
+def test_ftl_solver_is_dftl_without_damping(rng):
+    pts, counts = random_groom(rng, [6, 4])
+    ftl = dw.simulate_strands(pts, counts, steps=50, dt=1 / 60, gravity=G, solver="ftl", precision="float64")
+    s0 = dw.simulate_strands(pts, counts, steps=50, dt=1 / 60, gravity=G, damping=0.0, precision="float64")
+    assert np.array_equal(ftl.positions, s0.positions)
+    s1 = dw.simulate_strands(pts, counts, steps=50, dt=1 / 60, gravity=G, damping=1.0, precision="float64")
+    assert np.abs(ftl.positions - s1.positions).max() > 1e-3
+
+
+def test_far_from_origin_float32_keeps_lengths():
+    pts = chain(20, spacing=0.01, origin=(1e5, 2e5, -1e5))
+    rec = dw.simulate_strands(pts, [20], steps=200, dt=1 / 240, gravity=G, precision="float32", record_every=200)
+    assert np.abs(segment_lengths(rec.positions[-1], [20]) / 0.01 - 1).max() < 1e-4
+    assert rec.positions[-1, -1, 1] < 2e5 - 0.05  # it fell
+
+
+def test_state_memory_per_particle():
+    pts = chain(10)
+    for precision, prior_bytes in (("float32", 36), ("float64", 72)):
+        model = dw.Model.from_strands(pts, [10], precision=precision)
+        assert dw.DFTLSolver(model, correction="prior").state().bytes_per_particle() == prior_bytes
+        assert dw.DFTLSolver(model, correction="posterior").state().bytes_per_particle() == prior_bytes * 2 // 3
+
+
+def test_solver_step_between_two_states(rng):
+    pts, counts = random_groom(rng, [5, 7])
+    model = dw.Model.from_strands(pts, counts, precision="float64")
+    solver = dw.DFTLSolver(model, gravity=G)
+    a, b = solver.state(), solver.state()
+    control = model.control()
+    for _ in range(10):
+        solver.step(a, b, control, 0.01)
+        a, b = b, a
+    in_place = solver.state()
+    for _ in range(10):
+        solver.step(in_place, in_place, control, 0.01)
+    assert np.array_equal(a.positions.numpy(), in_place.positions.numpy())
+    assert np.array_equal(a.velocities.numpy(), in_place.velocities.numpy())
+
+
+def test_diagnostics_report_energy_stretch_speed():
+    pts = chain(10, spacing=0.1)
+    model = dw.Model.from_strands(pts, [10], precision="float64")
+    solver = dw.DFTLSolver(model, gravity=G)
+    state, control = solver.state(), model.control()
+    d0 = solver.diagnostics(state)
+    assert d0["max_speed"] == 0.0 and d0["max_stretch"] < 1e-12 and d0["energy"] == pytest.approx(0.0)
+    solver.advance(state, control, 1e-3, 100)
+    d1 = solver.diagnostics(state)
+    assert d1["max_speed"] > 0.5 and d1["max_stretch"] < 1e-12
+    assert d1["energy"] < 1e-9  # DFTL dissipates, never creates energy here
+
+
+def test_bad_arguments_are_refused():
+    with pytest.raises(ValueError, match="strand 1 has 0 vertices"):
+        dw.Model.from_strands(chain(3), [3, 0])
+    with pytest.raises(ValueError, match="point 1 is not finite"):
+        dw.Model.from_strands(np.array([[0, 0, 0], [np.nan, 0, 0]]), [2])
+    with pytest.raises(ValueError, match="damping"):
+        dw.DFTLSolver(dw.Model.from_strands(chain(3), [3]), damping=1.5)
+    with pytest.raises(ValueError, match="unknown solver"):
+        dw.make_solver(dw.Model.from_strands(chain(3), [3]), "rk4")
