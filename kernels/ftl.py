@@ -30,10 +30,8 @@ CORRECTIONS = ("prior", "posterior")
 
 
 @functools.cache
-def step_kernel(scalar, correction: str):
-    """The DFTL step kernel for ``scalar`` precision and ``correction`` form (cached)."""
-    if correction not in CORRECTIONS:
-        raise ValueError(f"unknown correction {correction!r}")
+def follow_func(scalar):
+    """The follow-the-leader projection for ``scalar`` precision (cached ``wp.func``)."""
     vec3 = wp.types.vector(3, scalar)
     # relative length below which a prediction is treated as degenerate (no usable direction)
     degenerate = 1.0e-6 if scalar == wp.float32 else 1.0e-12
@@ -55,6 +53,17 @@ def step_kernel(scalar, correction: str):
         if d2 > scalar(1.0e-30):
             return leader + d * (rest / wp.sqrt(d2))
         return leader + vec3(rest, scalar(0.0), scalar(0.0))
+
+    return follow
+
+
+@functools.cache
+def step_kernel(scalar, correction: str):
+    """The DFTL step kernel for ``scalar`` precision and ``correction`` form (cached)."""
+    if correction not in CORRECTIONS:
+        raise ValueError(f"unknown correction {correction!r}")
+    vec3 = wp.types.vector(3, scalar)
+    follow = follow_func(scalar)
 
     if correction == "prior":
 
