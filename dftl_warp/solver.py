@@ -42,7 +42,13 @@ class DFTLSolver:
         self.damping = float(damping)
         self.correction = correction
         self.gravity = model.vec3(*np.asarray(gravity, dtype=np.float64).reshape(3))
-        self._kernel = step_kernel(model.scalar, correction)
+        # the step specialized to the model's features; a gravity-only model gets the bare kernel
+        self._kernel = step_kernel(model.scalar, correction, model.feature_flags)
+        self._features = None
+        if model.feature_flags:
+            from .feature_data import FeatureStep
+
+            self._features = FeatureStep(model, self._kernel)
         self._graphs: dict = {}
 
     @property
@@ -59,6 +65,13 @@ class DFTLSolver:
         Roots are placed at ``control``'s targets interpolated by ``root_alpha`` in [0, 1].
         """
         m = self.model
+        if self.carries_corrections and (state_in.corrections is None or state_out.corrections is None):
+            raise ValueError("the prior correction form needs states with corrections (solver.state())")
+        if self._features is not None:
+            head = [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
+                    root_alpha, m.rest_lengths, self.gravity, dt, self.damping]
+            self._features.launch(state_in, state_out, control, dt, root_alpha, head, self.damping)
+            return
         inputs = [
             m.strand_base, m.strand_stride, m.strand_count,
             control.root_start, control.root_end, root_alpha,
@@ -92,7 +105,8 @@ class DFTLSolver:
         key = (id(state), id(control), float(dt), int(substeps))
         graph = self._graphs.get(key)
         if graph is None:
-            self._kernel.module.load(m.device)  # compile before capturing
+            for kernel in self._features.kernels() if self._features is not None else [self._kernel]:
+                kernel.module.load(m.device)  # compile before capturing
             with wp.ScopedCapture(device=m.device) as capture:
                 run()
             graph = self._graphs[key] = capture.graph

@@ -1,0 +1,204 @@
+"""Collision of hair particles with rigid or animated colliders: spheres, capsules, boxes, meshes.
+
+Every collider has a pose (a rigid transform, collider-local -> device world) for the current
+substep, ``pose``, and for the previous one, ``pose_prev``; :func:`collider_pose_kernel` moves
+them along a frame (translation lerp, rotation slerp). Geometry lives in collider-local space:
+
+- sphere: ``size[0]`` radius (m);
+- capsule: ``size[0]`` radius, ``size[1]`` half height of the core segment (m), along the unit
+  local ``axis``;
+- box: ``size`` half extents (m);
+- mesh: a :class:`warp.Mesh` in local coordinates (its id per collider).
+
+A particle of radius ``radius`` (m, half the hair width) is in contact when its signed distance
+``d`` to the surface is below ``radius``. The response (:func:`collide_funcs`):
+
+1. *continuous* (``ccd``): the particle's path from its previous position (in the collider's
+   previous pose) to its new one (in the current pose) is swept against the surface (sphere
+   tracing for the analytic shapes, a ray query for meshes), and the particle stops at the
+   first contact, so a fast particle cannot tunnel through;
+2. *projection*: it is moved along the outward normal to ``d = radius``;
+3. *Coulomb friction* (position-based): the tangential displacement relative to the collider
+   surface during the step is removed up to ``friction * depth`` (static friction below that,
+   kinetic above), ``depth`` being the projection distance of step 2.
+
+The follow-the-leader sweep then restores the segment's rest length (see ``kernels/featured.py``).
+"""
+
+
+import functools
+
+import warp as wp
+
+#: sphere-tracing iterations of the continuous test for analytic shapes
+TRACE_ITERATIONS = 16
+
+
+def transform_type(scalar):
+    return wp.types.transformation(dtype=scalar)
+
+
+@functools.cache
+def collider_pose_kernel(scalar):
+    """Kernel moving each collider to ``start`` -> ``end`` at ``alpha`` (the previous pose kept)."""
+    vec3 = wp.types.vector(3, scalar)
+    transform = transform_type(scalar)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def update_collider_poses(
+        pose_start: wp.array(dtype=transform),
+        pose_end: wp.array(dtype=transform),
+        alpha: scalar,
+        pose: wp.array(dtype=transform),
+        pose_prev: wp.array(dtype=transform),
+    ):
+        c = wp.tid()
+        pose_prev[c] = pose[c]
+        a = pose_start[c]
+        b = pose_end[c]
+        pa = wp.transform_get_translation(a)
+        pb = wp.transform_get_translation(b)
+        q = wp.quat_slerp(wp.transform_get_rotation(a), wp.transform_get_rotation(b), alpha)
+        pose[c] = transform(pa + alpha * (pb - pa), q)
+
+    return update_collider_poses
+
+
+@functools.cache
+def collide_funcs(scalar):
+    """``(collide_sphere, collide_capsule, collide_box, collide_mesh)`` for ``scalar`` precision.
+
+    Each returns the particle's new position (device world space, m)."""
+    vec3 = wp.types.vector(3, scalar)
+    transform = transform_type(scalar)
+    zero = scalar(0.0)
+    one = scalar(1.0)
+    tiny = scalar(1.0e-12) if scalar == wp.float64 else scalar(1.0e-7)
+
+    @wp.func
+    def respond(q: vec3, q_old: vec3, dist: scalar, n: vec3, radius: scalar, mu: scalar):
+        """Project ``q`` (collider-local) out to ``radius`` along ``n``, then apply friction."""
+        depth = radius - dist
+        if depth <= zero:
+            return q
+        q_new = q + depth * n
+        rel = q_new - q_old
+        rel_t = rel - wp.dot(rel, n) * n
+        lt = wp.length(rel_t)
+        limit = mu * depth
+        if lt <= limit:
+            q_new = q_new - rel_t
+        else:
+            q_new = q_new - rel_t * (limit / lt)
+        return q_new
+
+    @wp.func
+    def sphere_sdf(q: vec3, size: vec3, axis: vec3):
+        d = wp.length(q)
+        n = vec3(zero, one, zero)
+        if d > tiny:
+            n = q / d
+        return d - size[0], n
+
+    @wp.func
+    def capsule_sdf(q: vec3, size: vec3, axis: vec3):
+        a = wp.clamp(wp.dot(q, axis), -size[1], size[1])
+        r = q - a * axis
+        d = wp.length(r)
+        n = vec3(zero, one, zero)
+        if d > tiny:
+            n = r / d
+        return d - size[0], n
+
+    @wp.func
+    def box_sdf(q: vec3, size: vec3, axis: vec3):
+        e = vec3(wp.abs(q[0]) - size[0], wp.abs(q[1]) - size[1], wp.abs(q[2]) - size[2])
+        s = vec3(wp.sign(q[0]), wp.sign(q[1]), wp.sign(q[2]))
+        outside = vec3(wp.max(e[0], zero), wp.max(e[1], zero), wp.max(e[2], zero))
+        lo = wp.length(outside)
+        if lo > zero:
+            return lo, wp.cw_mul(s, outside) / lo
+        # inside: the nearest face
+        if e[0] >= e[1] and e[0] >= e[2]:
+            return e[0], vec3(s[0], zero, zero)
+        if e[1] >= e[2]:
+            return e[1], vec3(zero, s[1], zero)
+        return e[2], vec3(zero, zero, s[2])
+
+    def make_analytic(sdf):
+        """The three analytic colliders share one body; each is its own func (distinct names)."""
+
+        def body(x: vec3, x_old: vec3, ccd: bool, radius: scalar, pose: transform, pose_prev: transform,
+                 size: vec3, axis: vec3, mu: scalar):
+            inv = wp.transform_inverse(pose)
+            q = wp.transform_point(inv, x)
+            q_old = wp.transform_point(wp.transform_inverse(pose_prev), x_old)
+            if ccd:
+                # sphere-trace the relative path q_old -> q; stop at the first contact
+                d_old, n_old = sdf(q_old, size, axis)
+                path = q - q_old
+                length = wp.length(path)
+                if d_old > radius and length > tiny:
+                    direction = path / length
+                    t = zero
+                    for _ in range(TRACE_ITERATIONS):
+                        d, n = sdf(q_old + t * direction, size, axis)
+                        gap = d - radius
+                        if gap <= radius * scalar(1.0e-3):
+                            q = q_old + t * direction
+                            break
+                        t = t + gap
+                        if t >= length:
+                            break
+            dist, n = sdf(q, size, axis)
+            if dist >= radius:
+                return x
+            return wp.transform_point(pose, respond(q, q_old, dist, n, radius, mu))
+
+        return body
+
+    def analytic_func(sdf, name):
+        body = make_analytic(sdf)
+        body.__name__ = name
+        body.__qualname__ = f"collide_funcs.<locals>.{name}"
+        return wp.func(body)
+
+    collide_sphere = analytic_func(sphere_sdf, "collide_sphere")
+    collide_capsule = analytic_func(capsule_sdf, "collide_capsule")
+    collide_box = analytic_func(box_sdf, "collide_box")
+
+    @wp.func
+    def collide_mesh(x: vec3, x_old: vec3, ccd: bool, radius: scalar, pose: transform, pose_prev: transform,
+                     mesh: wp.uint64, depth_band: scalar, mu: scalar):
+        inv = wp.transform_inverse(pose)
+        q = wp.transform_point(inv, x)
+        q_old = wp.transform_point(wp.transform_inverse(pose_prev), x_old)
+        if ccd:
+            path = q - q_old
+            length = wp.length(path)
+            if length > tiny:
+                direction = path / length
+                hit = wp.mesh_query_ray(mesh, wp.vec3f(q_old), wp.vec3f(direction), wp.float32(length))
+                # a hit on the front of a face: the particle crossed the surface from outside
+                if hit.result and hit.sign > wp.float32(0.0):
+                    q = q_old + scalar(hit.t) * direction + radius * vec3(hit.normal)
+        query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(radius + depth_band))
+        if not query.result:
+            return x
+        closest = vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v))
+        r = q - closest
+        d = wp.length(r)
+        n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
+        if d > tiny:
+            n = r / d
+        dist = d
+        if query.sign < wp.float32(0.0):
+            dist = -d
+            n = -n
+            if d <= tiny:
+                n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
+        if dist >= radius:
+            return x
+        return wp.transform_point(pose, respond(q, q_old, dist, n, radius, mu))
+
+    return collide_sphere, collide_capsule, collide_box, collide_mesh
