@@ -20,9 +20,14 @@ A particle of radius ``radius`` (m, half the hair width) is in contact when its 
 2. *projection*: it is moved along the outward normal to ``d = radius``;
 3. *Coulomb friction* (position-based): the tangential displacement relative to the collider
    surface during the step is removed up to ``friction * depth`` (static friction below that,
-   kinetic above), ``depth`` being the projection distance of step 2.
+   kinetic above), ``depth`` being the projection distance of step 2;
+4. *back to the rest length on the contact plane*: the particle goes to the point of the contact
+   plane (tangent at the closest surface point, offset by ``radius``) at the rest length from its
+   leader, in the direction it had from the leader -- exact for a locally flat surface.
 
-The follow-the-leader sweep then restores the segment's rest length (see ``kernels/featured.py``).
+The follow-the-leader sweep then restores the segment's rest length exactly (see
+``kernels/featured.py``), so a collision never stretches a segment; the residual penetration on
+curved surfaces is what the iterations leave (measured in ``tests/test_features.py``).
 """
 
 
@@ -76,8 +81,10 @@ def collide_funcs(scalar):
     tiny = scalar(1.0e-12) if scalar == wp.float64 else scalar(1.0e-7)
 
     @wp.func
-    def respond(q: vec3, q_old: vec3, dist: scalar, n: vec3, radius: scalar, mu: scalar):
-        """Project ``q`` (collider-local) out to ``radius`` along ``n``, then apply friction."""
+    def respond(q: vec3, q_old: vec3, leader: vec3, rest: scalar, dist: scalar, n: vec3, radius: scalar,
+                mu: scalar):
+        """Move ``q`` (collider-local) out to the contact plane ``n . y = n . q + radius - dist``,
+        apply friction, then put it back at ``rest`` from ``leader`` on that plane."""
         depth = radius - dist
         if depth <= zero:
             return q
@@ -90,6 +97,13 @@ def collide_funcs(scalar):
             q_new = q_new - rel_t
         else:
             q_new = q_new - rel_t * (limit / lt)
+        # the point of the contact plane at distance rest from the leader, toward q_new
+        h = wp.dot(leader - q_new, n)
+        arm = q_new - leader
+        arm_t = arm - wp.dot(arm, n) * n
+        at = wp.length(arm_t)
+        if h > -rest and h < rest and at > tiny:
+            q_new = leader - h * n + wp.sqrt(rest * rest - h * h) * (arm_t / at)
         return q_new
 
     @wp.func
@@ -128,10 +142,11 @@ def collide_funcs(scalar):
     def make_analytic(sdf):
         """The three analytic colliders share one body; each is its own func (distinct names)."""
 
-        def body(x: vec3, x_old: vec3, ccd: bool, radius: scalar, pose: transform, pose_prev: transform,
-                 size: vec3, axis: vec3, mu: scalar):
+        def body(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
+                 pose_prev: transform, size: vec3, axis: vec3, mu: scalar):
             inv = wp.transform_inverse(pose)
             q = wp.transform_point(inv, x)
+            lead = wp.transform_point(inv, leader)
             q_old = wp.transform_point(wp.transform_inverse(pose_prev), x_old)
             if ccd:
                 # sphere-trace the relative path q_old -> q; stop at the first contact
@@ -151,9 +166,7 @@ def collide_funcs(scalar):
                         if t >= length:
                             break
             dist, n = sdf(q, size, axis)
-            if dist >= radius:
-                return x
-            return wp.transform_point(pose, respond(q, q_old, dist, n, radius, mu))
+            return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu))
 
         return body
 
@@ -168,10 +181,11 @@ def collide_funcs(scalar):
     collide_box = analytic_func(box_sdf, "collide_box")
 
     @wp.func
-    def collide_mesh(x: vec3, x_old: vec3, ccd: bool, radius: scalar, pose: transform, pose_prev: transform,
-                     mesh: wp.uint64, depth_band: scalar, mu: scalar):
+    def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
+                     pose_prev: transform, mesh: wp.uint64, depth_band: scalar, mu: scalar):
         inv = wp.transform_inverse(pose)
         q = wp.transform_point(inv, x)
+        lead = wp.transform_point(inv, leader)
         q_old = wp.transform_point(wp.transform_inverse(pose_prev), x_old)
         if ccd:
             path = q - q_old
@@ -184,7 +198,7 @@ def collide_funcs(scalar):
                     q = q_old + scalar(hit.t) * direction + radius * vec3(hit.normal)
         query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(radius + depth_band))
         if not query.result:
-            return x
+            return wp.transform_point(pose, q)
         closest = vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v))
         r = q - closest
         d = wp.length(r)
@@ -197,8 +211,6 @@ def collide_funcs(scalar):
             n = -n
             if d <= tiny:
                 n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
-        if dist >= radius:
-            return x
-        return wp.transform_point(pose, respond(q, q_old, dist, n, radius, mu))
+        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu))
 
     return collide_sphere, collide_capsule, collide_box, collide_mesh

@@ -135,22 +135,22 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     one = scalar(1.0)
 
     @wp.func
-    def collide_all(f: Features, x: vec3, x_old: vec3, ccd: bool, radius: scalar):
+    def collide_all(f: Features, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar):
         if wp.static(SPHERES):
             for c in range(f.spheres_begin, f.spheres_end):
-                x = collide_sphere(x, x_old, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
+                x = collide_sphere(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
                                    f.collider_size[c], f.collider_axis[c], f.collider_friction[c])
         if wp.static(CAPSULES):
             for c in range(f.capsules_begin, f.capsules_end):
-                x = collide_capsule(x, x_old, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
+                x = collide_capsule(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
                                     f.collider_size[c], f.collider_axis[c], f.collider_friction[c])
         if wp.static(BOXES):
             for c in range(f.boxes_begin, f.boxes_end):
-                x = collide_box(x, x_old, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
+                x = collide_box(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
                                 f.collider_size[c], f.collider_axis[c], f.collider_friction[c])
         if wp.static(MESHES):
             for c in range(f.meshes_begin, f.meshes_end):
-                x = collide_mesh(x, x_old, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
+                x = collide_mesh(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
                                  f.collider_mesh[c], f.collider_depth_band[c], f.collider_friction[c])
         return x
 
@@ -241,7 +241,7 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
             if wp.static(COLLIDE):
                 radius = features.particle_radius[k]
                 for it in range(features.collider_iterations):
-                    x = collide_all(features, x, x_old, it == 0, radius)
+                    x = collide_all(features, x, x_old, leader, rest, it == 0, radius)
                     x = follow(leader, x, rest, leader_old, x_old)
             if wp.static(SHAPE):
                 if rest > scalar(0.0):
