@@ -158,17 +158,17 @@ class DFTLSolver:
 def fused_capacity(count: int) -> int:
     """Capacity of the fused kernel serving strands of ``count`` vertices: a multiple of 8, so
     that few kernels serve grooms of many lengths."""
-    return max(8, -(-int(count) // 8) * 8)
+    return int(max(8, -(-int(count) // 8) * 8))
 
 
 def fused_runs(strand_count, scalar, correction):
     """(kernel, first device strand, number of strands) for each run of consecutive device
-    strands that share a fused-kernel capacity."""
-    caps = [fused_capacity(c) for c in strand_count]
+    strands that share a fused kernel: its capacity, and whether they fill it exactly."""
+    keys = [(fused_capacity(c), bool(fused_capacity(c) == c)) for c in strand_count]
     runs, first = [], 0
-    for s in range(1, len(caps) + 1):
-        if s == len(caps) or caps[s] != caps[first]:
-            runs.append((fused_step_kernel(scalar, correction, caps[first]), first, s - first))
+    for s in range(1, len(keys) + 1):
+        if s == len(keys) or keys[s] != keys[first]:
+            runs.append((fused_step_kernel(scalar, correction, *keys[first]), first, s - first))
             first = s
     return runs
 

@@ -1,17 +1,24 @@
 """Fused substeps: ``substeps`` DFTL steps in one launch, each strand's state kept on chip.
 
-One kernel per strand *capacity* ``N`` (a compile-time constant): the strand's positions,
-velocities, carried corrections and rest lengths are loaded once into per-thread matrices whose
-rows are addressed by unrolled, constant indices (registers; the compiler spills what does not
-fit to local memory), advanced ``substeps`` times, and stored once. Global memory is touched once
-per launch instead of once per substep.
+One kernel per strand *capacity* ``N`` (a compile-time constant). Each thread keeps two rows per
+particle on chip, in per-thread matrices addressed by unrolled constant indices (registers):
 
-The arithmetic is exactly that of :mod:`.ftl`'s step kernels, operation for operation, so the
-results are identical to the unfused path. Roots move by linear interpolation inside the loop:
-substep ``j`` places them at ``alpha = (j + 1) / substeps``.
+- ``x``: its position;
+- ``b``: its next prediction, ``x + dt v + dt^2 g`` (prior form: minus ``s`` times its follower's
+  correction, subtracted as soon as the follower has been swept).
 
-A strand with fewer than ``N`` vertices may use a capacity-``N`` kernel: rows past its count are
-skipped.
+That is 6 values per particle instead of the 9 (x, v, correction) a step reads, which keeps
+strands of 32 vertices in registers. Velocities and corrections are written to global memory only
+by the last substep; positions once at the end. Global memory is read and written once per
+launch instead of once per substep.
+
+The arithmetic is that of :mod:`.ftl`'s step kernels, operation for operation (only computed at
+another point of the loop), so the results are identical to the unfused path. Roots move by
+linear interpolation inside the loop: substep ``j`` places them at ``alpha = (j + 1) / substeps``.
+
+A strand with fewer than ``N`` vertices may use a capacity-``N`` kernel (``exact=False``): rows
+past its count are skipped. ``exact=True`` kernels serve strands of exactly ``N`` vertices and
+compile the guards away.
 """
 
 import functools
@@ -23,22 +30,20 @@ from .layout import particle
 
 
 @functools.cache
-def fused_step_kernel(scalar, correction: str, capacity: int):
-    """Kernel advancing strands of at most ``capacity`` vertices by ``substeps`` steps (cached).
-
-    Launch with ``dim`` = number of strands in the group; thread ``t`` advances device strand
-    ``first_strand + t``.
-    """
+def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = False):
+    """Kernel advancing strands of at most (``exact``: exactly) ``capacity`` vertices by
+    ``substeps`` steps (cached). Launch with ``dim`` = number of strands in the run; thread ``t``
+    advances device strand ``first_strand + t``."""
     if correction not in CORRECTIONS:
         raise ValueError(f"unknown correction {correction!r}")
     N = int(capacity)
+    exact = bool(exact)
     vec3 = wp.types.vector(3, scalar)
     rows = wp.types.matrix(shape=(N, 3), dtype=scalar)
-    # corrections get one extra, always-zero row so that row i + 1 exists for every i
-    rows_c = wp.types.matrix(shape=(N + 1, 3), dtype=scalar)
     column = wp.types.vector(N, dtype=scalar)
     follow = follow_func(scalar)
     prior = correction == "prior"
+    rest_on_chip = N <= 16  # longer strands re-read rest lengths (cached) to save registers
     options = {"max_unroll": 4 * N + 16}
 
     @wp.kernel(enable_backward=False, module="unique", module_options=options)
@@ -61,58 +66,73 @@ def fused_step_kernel(scalar, correction: str, capacity: int):
         s = first_strand + wp.tid()
         base = strand_base[s]
         stride = strand_stride[s]
-        n = strand_count[s]
+        n = wp.where(wp.static(exact), wp.static(N), strand_count[s])
+        inv_dt = scalar(1.0) / dt
+        gdt2 = gravity * (dt * dt)
         x = rows()
-        v = rows()
-        c = rows_c()
+        b = rows()
         rest = column()
         for i in range(wp.static(N)):
             if i < n:
                 k = particle(base, stride, i)
                 x[i] = positions[k]
-                v[i] = velocities[k]
-                rest[i] = rest_lengths[k]
+                b[i] = x[i] + dt * velocities[k] + gdt2
+                if wp.static(rest_on_chip):
+                    rest[i] = rest_lengths[k]
                 if wp.static(prior):
-                    c[i] = corrections[k]
-        inv_dt = scalar(1.0) / dt
-        gdt2 = gravity * (dt * dt)
+                    if i > 0:
+                        b[i - 1] = b[i - 1] - damping * corrections[k]
         r0 = root_start[s]
         r1 = root_end[s]
+        root_velocity = vec3()
         for j in range(substeps):
+            last = j + 1 == substeps
             alpha = scalar(j + 1) / scalar(substeps)
             root = r0 + alpha * (r1 - r0)
             leader_old = x[0]
             x[0] = root
-            v[0] = (root - leader_old) * inv_dt
+            root_velocity = (root - leader_old) * inv_dt
             leader = root
+            k_prev = base
             for i in range(1, wp.static(N)):
                 if i < n:
+                    k = particle(base, stride, i)
                     x_old = x[i]
-                    p = x_old + dt * v[i] + gdt2
-                    if wp.static(prior):
-                        if i + 1 < n:
-                            p = p - damping * c[i + 1]
-                    xi = follow(leader, p, rest[i], leader_old, x_old)
+                    p = b[i]
+                    if wp.static(rest_on_chip):
+                        xi = follow(leader, p, rest[i], leader_old, x_old)
+                    else:
+                        xi = follow(leader, p, rest_lengths[k], leader_old, x_old)
                     x[i] = xi
                     if wp.static(prior):
-                        v[i] = (xi - x_old) * inv_dt
-                        c[i] = xi - p
+                        vi = (xi - x_old) * inv_dt
+                        ci = xi - p
+                        b[i] = xi + dt * vi + gdt2
+                        if i > 1:
+                            b[i - 1] = b[i - 1] - damping * ci
+                        if last:
+                            velocities[k] = vi
+                            corrections[k] = ci
                     else:
                         if i > 1:
-                            v[i - 1] = (leader - leader_old) * inv_dt - (damping * inv_dt) * (xi - p)
+                            v_leader = (leader - leader_old) * inv_dt - (damping * inv_dt) * (xi - p)
+                            b[i - 1] = leader + dt * v_leader + gdt2
+                            if last:
+                                velocities[k_prev] = v_leader
                         if i + 1 == n:
-                            v[i] = (xi - x_old) * inv_dt
+                            vi = (xi - x_old) * inv_dt
+                            b[i] = xi + dt * vi + gdt2
+                            if last:
+                                velocities[k] = vi
                     leader = xi
                     leader_old = x_old
+                    k_prev = k
         for i in range(wp.static(N)):
             if i < n:
-                k = particle(base, stride, i)
-                positions[k] = x[i]
-                velocities[k] = v[i]
-                if wp.static(prior):
-                    if i == 0:
-                        corrections[k] = vec3()
-                    else:
-                        corrections[k] = c[i]
+                positions[particle(base, stride, i)] = x[i]
+        if substeps > 0:
+            velocities[base] = root_velocity
+            if wp.static(prior):
+                corrections[base] = vec3()
 
     return dftl_fused

@@ -34,3 +34,15 @@ def straight_strands_kernel(scalar):
                 rest_lengths[k] = spacing
 
     return straight_strands
+
+
+@functools.cache
+def copy_kernel():
+    """Element-wise vec4 copy: the bandwidth ceiling's second measure (beside ``wp.copy``)."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def copy_elements(src: wp.array(dtype=wp.vec4), dst: wp.array(dtype=wp.vec4)):
+        i = wp.tid()
+        dst[i] = src[i]
+
+    return copy_elements

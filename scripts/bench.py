@@ -41,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import baseline  # noqa: E402
+from dftl_warp.kernels.synthetic import copy_kernel  # noqa: E402
 from dftl_warp.synthetic import uniform_groom  # noqa: E402
 
 G = (0.0, -9.81, 0.0)
@@ -92,11 +93,15 @@ def graph_of(device, fn):
 
 
 def bench_copy(device, timer):
-    nbytes = (512 if wp.get_device(device).is_cuda else 64) << 20
-    a = wp.zeros(nbytes // 4, dtype=wp.float32, device=device)
+    """The ceiling: the faster of ``wp.copy`` (memcpy) and a vec4-per-thread copy kernel."""
+    nbytes = (2048 if wp.get_device(device).is_cuda else 64) << 20
+    a = wp.zeros(nbytes // 16, dtype=wp.vec4, device=device)
     b = wp.empty_like(a)
-    t = timer(graph_of(device, lambda: [wp.copy(b, a) for _ in range(10)]))
-    return {"bytes": nbytes, "bandwidth_Bps": 2 * nbytes * 10 / t}
+    t_memcpy = timer(lambda: wp.copy(b, a), repeats=9)
+    kernel = copy_kernel()
+    t_kernel = timer(lambda: wp.launch(kernel, dim=a.shape[0], inputs=[a], outputs=[b]), repeats=9)
+    return {"bytes": nbytes, "memcpy_Bps": 2 * nbytes / t_memcpy, "kernel_Bps": 2 * nbytes / t_kernel,
+            "bandwidth_Bps": 2 * nbytes / min(t_memcpy, t_kernel)}
 
 
 def step_problem(device):
@@ -113,7 +118,7 @@ def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "f
                                              with_corrections=correction == "prior")
                 solver = dw.DFTLSolver(model, correction=correction, gravity=G, fused=False)
                 control = model.control()
-                t = timer(graph_of(device, lambda: solver.advance(state, control, DT, steps)), repeats=5) / steps
+                t = timer(lambda: solver.advance(state, control, DT, steps), repeats=5) / steps  # advance uses a CUDA graph
                 n = strands * count
                 mb = minimal_bytes(precision, correction)
                 rows.append({"precision": precision, "layout": layout, "correction": correction,
@@ -144,33 +149,36 @@ def bench_numpy(strands, count, steps=3):
             "particle_steps_per_s": strands * count / t}
 
 
-def bench_fused(device, timer, strands, count, ks=(1, 2, 4, 8, 16), precisions=("float32", "float64"),
-                corrections=("prior",)):
+def bench_fused(device, timer, strands_times_count, ks=(1, 4, 8, 16, 32)):
+    """Fused substeps against one step per launch, for several strand lengths."""
+    cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 32),
+             ("float32", "posterior", 32), ("float64", "prior", 32)]
     rows = []
-    for precision in precisions:
-        for correction in corrections:
-            model, state = uniform_groom(strands, count, device=device, precision=precision,
-                                         with_corrections=correction == "prior")
-            control = model.control()
-            unfused = dw.DFTLSolver(model, correction=correction, gravity=G, fused=False)
-            fused = dw.DFTLSolver(model, correction=correction, gravity=G, fused=True)
-            per_step = timer(graph_of(device, lambda: unfused.advance(state, control, DT, 8))) / 8
-            n = strands * count
-            # equality: one frame of 8 substeps both ways from the same start
-            start = [wp.clone(a) for a in (state.positions, state.velocities, state.corrections) if a is not None]
-            unfused.advance(state, control, DT, 8)
-            ref = state.positions.numpy().copy()
-            for dst, src in zip([a for a in (state.positions, state.velocities, state.corrections) if a is not None], start):
-                wp.copy(dst, src)
-            fused.advance(state, control, DT, 8)
-            diff = float(np.abs(state.positions.numpy().astype(np.float64) - ref).max())
-            for k in ks:
-                t = timer(graph_of(device, lambda: fused.advance(state, control, DT, k))) / k
-                rows.append({"precision": precision, "correction": correction, "strands": strands,
-                             "particles_per_strand": count, "substeps_per_launch": k,
-                             "particle_substeps_per_s": n / t, "per_step_particle_steps_per_s": n / per_step,
-                             "speedup_vs_per_step": per_step / t, "max_abs_diff_vs_unfused_m": diff})
-            del model, state
+    for precision, correction, count in cases:
+        strands = strands_times_count // count
+        model, state = uniform_groom(strands, count, device=device, precision=precision,
+                                     with_corrections=correction == "prior")
+        control = model.control()
+        unfused = dw.DFTLSolver(model, correction=correction, gravity=G, fused=False)
+        fused = dw.DFTLSolver(model, correction=correction, gravity=G, fused=True)
+        per_step = timer(lambda: unfused.advance(state, control, DT, 8)) / 8
+        n = strands * count
+        # equality: one frame of 8 substeps both ways from the same start
+        arrays = [a for a in (state.positions, state.velocities, state.corrections) if a is not None]
+        start = [wp.clone(a) for a in arrays]
+        unfused.advance(state, control, DT, 8)
+        ref = [a.numpy().copy() for a in arrays]
+        for dst, src in zip(arrays, start):
+            wp.copy(dst, src)
+        fused.advance(state, control, DT, 8)
+        diff = max(float(np.abs(a.numpy().astype(np.float64) - r).max()) for a, r in zip(arrays, ref))
+        for k in ks:
+            t = timer(lambda: fused.advance(state, control, DT, k)) / k
+            rows.append({"precision": precision, "correction": correction, "strands": strands,
+                         "particles_per_strand": count, "substeps_per_launch": k,
+                         "particle_substeps_per_s": n / t, "per_step_particle_steps_per_s": n / per_step,
+                         "speedup_vs_per_step": per_step / t, "max_abs_diff_vs_unfused": diff})
+        del model, state, start
     return rows
 
 
@@ -202,21 +210,25 @@ def bench_memory(device):
                                                    model.root_rest)) / model.num_strands + 2 * 3 * (4 if precision == "float32" else 8)
             out[f"{precision}/{correction}"] = {"bytes_per_particle": per_particle, "bytes_per_strand": per_strand}
     if device.is_cuda:
-        free = device.free_memory
-        count = 32
-        per = out["float32/prior"]
-        per_strand_total = per["bytes_per_particle"] * count + per["bytes_per_strand"]
-        strands = int(0.97 * free / per_strand_total)
-        model, state = uniform_groom(strands, count, device=device)
-        solver = dw.DFTLSolver(model, gravity=G, fused=False)
-        control = model.control()
-        solver.advance(state, control, DT, 1)
-        wp.synchronize_device(device)
-        diag = solver.diagnostics(state)
-        out["largest"] = {"strands": strands, "particles_per_strand": count, "particles": strands * count,
-                          "free_bytes_before": free, "stepped": bool(np.isfinite(diag["energy"])),
-                          "max_stretch_after_step": diag["max_stretch"]}
+        out["largest"] = [largest_groom(device, precision, out[f"{precision}/prior"]) for precision in ("float32", "float64")]
     return out
+
+
+def largest_groom(device, precision, per, count=32):
+    """Allocate and step the largest groom of ``count``-vertex strands that fits: bounded by the
+    free memory and by Warp's 2^31 - 1 elements per array."""
+    free = device.free_memory
+    by_memory = int(0.97 * free / (per["bytes_per_particle"] * count + per["bytes_per_strand"]))
+    by_index = (2**31 - 1) // count
+    strands = min(by_memory, by_index)
+    model, state = uniform_groom(strands, count, device=device, precision=precision)
+    solver = dw.DFTLSolver(model, gravity=G, fused=False)
+    solver.advance(state, model.control(), DT, 1)
+    wp.synchronize_device(device)
+    diag = solver.diagnostics(state)
+    return {"precision": precision, "strands": strands, "particles_per_strand": count, "particles": strands * count,
+            "free_bytes_before": free, "limited_by": "memory" if by_memory < by_index else "2^31 elements per array",
+            "stepped": bool(np.isfinite(diag["energy"])), "max_stretch_after_step": diag["max_stretch"]}
 
 
 def machine_line(device):
@@ -240,8 +252,10 @@ def fmt(x, unit=""):
 def to_markdown(res):
     lines = [f"### {res['machine']}", "", f"Date {res['date']}. Command: `{res['command']}`", ""]
     if "copy" in res:
-        lines += [f"Copy bandwidth (`wp.copy`, {res['copy']['bytes'] >> 20} MiB, read + write): "
-                  f"**{fmt(res['copy']['bandwidth_Bps'], 'B/s')}**", ""]
+        c = res["copy"]
+        lines += [f"Copy bandwidth ({c['bytes'] >> 20} MiB float32, bytes read + written): `wp.copy` "
+                  f"{fmt(c['memcpy_Bps'], 'B/s')}, copy kernel {fmt(c['kernel_Bps'], 'B/s')}; ceiling used: "
+                  f"**{fmt(c['bandwidth_Bps'], 'B/s')}**", ""]
     if "step" in res:
         lines += ["One step per launch, " + f"{res['step'][0]['strands']} strands x {res['step'][0]['particles_per_strand']} particles:", "",
                   "| precision | layout | correction | particle-steps/s | minimal B/particle | bandwidth | of copy |",
@@ -255,11 +269,14 @@ def to_markdown(res):
         lines += [f"numpy baseline (vectorized over strands, float64, prior), {r['strands']} x {r['particles_per_strand']}: "
                   f"**{fmt(r['particle_steps_per_s'])} particle-steps/s**", ""]
     if "fused" in res:
-        lines += ["Fused substeps (state on chip), against one step per launch in the same run:", "",
-                  "| precision | correction | k | particle-substeps/s | x per-step | max diff vs unfused (m) |",
-                  "|---|---|---|---|---|---|"]
-        lines += [f"| {r['precision']} | {r['correction']} | {r['substeps_per_launch']} | {fmt(r['particle_substeps_per_s'])} | "
-                  f"{r['speedup_vs_per_step']:.2f} | {r['max_abs_diff_vs_unfused_m']:.2g} |" for r in res["fused"]]
+        lines += ["Fused substeps (state on chip), against one step per launch in the same run "
+                  f"({res['fused'][0]['strands'] * res['fused'][0]['particles_per_strand'] / 1e6:.0f} M particles); "
+                  "the last column is the largest difference of any state value after one 8-substep frame:", "",
+                  "| precision | correction | particles/strand | k | particle-substeps/s | x per-step | max diff vs unfused |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {r['precision']} | {r['correction']} | {r['particles_per_strand']} | {r['substeps_per_launch']} | "
+                  f"{fmt(r['particle_substeps_per_s'])} | {r['speedup_vs_per_step']:.2f} | {r['max_abs_diff_vs_unfused']:.2g} |"
+                  for r in res["fused"]]
         lines.append("")
     if "scaling" in res:
         lines += ["Scaling (float32, prior, a frame of 10 substeps per graph launch):", "",
@@ -268,14 +285,15 @@ def to_markdown(res):
                   f"{fmt(r['particle_steps_per_s'])} | {100 * r['of_copy']:.1f}% |" for r in res["scaling"]]
         lines.append("")
     if "memory" in res:
-        lines += ["Device memory:", "", "| precision/correction | B/particle | B/strand |", "|---|---|---|"]
+        lines += ["Device memory (state + model arrays, measured from the allocations):", "",
+                  "| precision/correction | B/particle | B/strand |", "|---|---|---|"]
         lines += [f"| {k} | {v['bytes_per_particle']:.0f} | {v['bytes_per_strand']:.0f} |"
                   for k, v in res["memory"].items() if k != "largest"]
-        if "largest" in res["memory"]:
-            big = res["memory"]["largest"]
-            lines += ["", f"Largest groom allocated and stepped (float32, prior): **{big['strands']:,} strands x "
-                      f"{big['particles_per_strand']} = {big['particles'] / 1e9:.2f} G particles** "
-                      f"(stepped: {big['stepped']}, max stretch {big['max_stretch_after_step']:.1e})"]
+        for big in res["memory"].get("largest", []):
+            lines += ["", f"Largest groom allocated and stepped ({big['precision']}, prior): **{big['strands']:,} strands x "
+                      f"{big['particles_per_strand']} = {big['particles'] / 1e9:.2f} G particles**, limited by "
+                      f"{big['limited_by']} ({big['free_bytes_before'] / 2**30:.0f} GiB free before; stepped: "
+                      f"{big['stepped']}, max stretch after the step {big['max_stretch_after_step']:.1e})"]
         lines.append("")
     return "\n".join(lines)
 
@@ -332,9 +350,11 @@ def main(argv=None):
             res["numpy"] = bench_numpy(*((20000, 32) if device.is_cuda else (strands, count)))
             print(f"numpy: {fmt(res['numpy']['particle_steps_per_s'])} particle-steps/s", flush=True)
         if "fused" in sections:
-            res["fused"] = bench_fused(device, timer, strands, count)
+            res["fused"] = bench_fused(device, timer, strands * count)
             for r in res["fused"]:
-                print(f"fused {r['precision']} k={r['substeps_per_launch']}: x{r['speedup_vs_per_step']:.2f}", flush=True)
+                print(f"fused {r['precision']} {r['correction']} n={r['particles_per_strand']} "
+                      f"k={r['substeps_per_launch']}: x{r['speedup_vs_per_step']:.2f} "
+                      f"(diff {r['max_abs_diff_vs_unfused']:.1g})", flush=True)
         if "scaling" in sections:
             res["scaling"] = bench_scaling(device, timer, copy_bw)
             print("scaling: done", flush=True)
