@@ -67,6 +67,13 @@ def _qbetween(a, b):
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
+def _inverse_poses(poses):
+    """Inverses of (C, 7) poses ``(p, q xyzw)``."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 7)
+    conj = poses[:, 3:] * np.array([-1.0, -1.0, -1.0, 1.0])
+    return np.concatenate([-_qrot(conj, poses[:, :3]), conj], axis=1)
+
+
 def rest_frames(points, counts):
     """Rest frame of each strand's first segment (S, 4) and each particle's rest direction in
     the frame of the segment before it (N, 3), by parallel transport along the rest shape."""
@@ -269,7 +276,7 @@ class FeatureControl:
     """Per-frame animated data of the features (``control.features``), device coordinates.
 
     Collider poses move from ``start`` to ``end`` across a frame like the roots; the current and
-    previous substep's poses (``pose``, ``pose_prev``) are updated by each step.
+    previous substep's poses (``pose``, ``pose_prev``, and their inverses) are updated by each step.
     """
 
     def __init__(self, model, control):
@@ -285,16 +292,25 @@ class FeatureControl:
             rest = mf.arrays["collider_rest_pose"]
             self.pose_start, self.pose_end, self.pose, self.pose_prev = (
                 wp.array(rest, dtype=transform, device=device) for _ in range(4))
+            inverse = _inverse_poses(rest).astype(rest.dtype)
+            self.inv_pose, self.inv_pose_prev = (wp.array(inverse, dtype=transform, device=device) for _ in range(2))
             ids = np.zeros(len(rest), dtype=np.uint64)
+            lower = np.zeros((len(rest), 3))
+            upper = np.zeros((len(rest), 3))
             for user_index, s in enumerate(mf.colliders.shapes):
                 if s.kind == "meshes":
                     mesh = wp.Mesh(points=wp.array(s.points.astype(np.float32), dtype=wp.vec3, device=device),
                                    indices=wp.array(s.indices.reshape(-1), dtype=wp.int32, device=device))
                     self.meshes.append(mesh)
-                    ids[mf.collider_order[user_index]] = mesh.id
+                    c = mf.collider_order[user_index]
+                    ids[c] = mesh.id
+                    lower[c], upper[c] = s.points.min(0), s.points.max(0)
                 else:
                     self.meshes.append(None)
             self.mesh_ids = wp.array(ids, dtype=wp.uint64, device=device)
+            f = numpy_type(model.precision)
+            self.mesh_lower = wp.array(lower.astype(f), dtype=model.vec3, device=device)
+            self.mesh_upper = wp.array(upper.astype(f), dtype=model.vec3, device=device)
         self.wind = find(mf.features, Wind)
         self.wind_velocity = self.wind_time = None
         if self.wind is not None:
@@ -334,6 +350,12 @@ class FeatureControl:
             raise ValueError(f"mesh collider {index}: expected {mesh.points.shape[0]} points, got {pts.shape[0]}")
         mesh.points.assign(pts)
         mesh.refit()
+        c = int(self.model.feature_data.collider_order[index])
+        f = numpy_type(self.model.precision)
+        lower, upper = self.mesh_lower.numpy(), self.mesh_upper.numpy()
+        lower[c], upper[c] = pts.min(0).astype(f), pts.max(0).astype(f)
+        self.mesh_lower.assign(lower)
+        self.mesh_upper.assign(upper)
 
     # -- wind ----------------------------------------------------------------------------------------
 
@@ -412,7 +434,8 @@ class FeatureStep:
         if flags & set(SHAPE_KINDS):
             st.particle_radius = a["particle_radius"]
             st.collider_pose = fc.pose
-            st.collider_pose_prev = fc.pose_prev
+            st.collider_inv_pose = fc.inv_pose
+            st.collider_inv_pose_prev = fc.inv_pose_prev
             st.collider_size = a["collider_size"]
             st.collider_axis = a["collider_axis"]
             st.collider_friction = a["collider_friction"]
@@ -425,6 +448,8 @@ class FeatureStep:
             if "meshes" in flags:
                 st.collider_mesh = fc.mesh_ids
                 st.collider_depth_band = a["collider_depth_band"]
+                st.collider_lower = fc.mesh_lower
+                st.collider_upper = fc.mesh_upper
         if "drag" in flags:
             st.drag = a["drag"]
         if "wind" in flags:
@@ -463,7 +488,7 @@ class FeatureStep:
         st = self._struct(control)
         if fc.pose is not None:
             wp.launch(collider_pose_kernel(m.scalar), dim=fc.pose.shape[0], device=device,
-                      inputs=[fc.pose_start, fc.pose_end, root_alpha], outputs=[fc.pose, fc.pose_prev])
+                      inputs=[fc.pose_start, fc.pose_end, root_alpha], outputs=[fc.pose, fc.pose_prev, fc.inv_pose, fc.inv_pose_prev])
         if self.grid is not None:
             g = self.grid
             mf = m.feature_data

@@ -130,10 +130,12 @@ class Box(_Shape):
 class TriangleMesh(_Shape):
     """A triangle mesh in its local coordinates: ``points`` (P, 3), m, ``indices`` (T, 3).
 
-    Faces wind counter-clockwise seen from outside (their normal points out). Closed meshes
-    push particles out from inside up to ``depth_band`` (m, default 10% of the mesh's bounding
-    diagonal) below the surface; an open mesh (a ground) has an inside below its faces. The
-    continuous test stops particles crossing the surface from the front within a step.
+    Faces wind counter-clockwise seen from outside (their normal points out); an open mesh (a
+    ground) has its inside behind its faces. The continuous test stops a particle whose path in
+    the mesh's frame crosses the surface from the front within a step, however fast; particles
+    found inside at the start of a step are pushed out from up to ``depth_band`` (m, default 1%
+    of the mesh's bounding diagonal) plus their step's path below the surface. The closest-point
+    query reaches that far, and its cost grows with it.
     """
 
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -155,7 +157,7 @@ class TriangleMesh(_Shape):
         object.__setattr__(self, "indices", idx.astype(np.int32))
         band = self.depth_band
         if band is None:
-            band = 0.1 * float(np.linalg.norm(pts.max(0) - pts.min(0)))
+            band = 0.01 * float(np.linalg.norm(pts.max(0) - pts.min(0)))
         object.__setattr__(self, "depth_band", _nonnegative(band, f"{self._label()} depth_band"))
 
     def size_axis(self):

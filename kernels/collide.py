@@ -45,7 +45,8 @@ def transform_type(scalar):
 
 @functools.cache
 def collider_pose_kernel(scalar):
-    """Kernel moving each collider to ``start`` -> ``end`` at ``alpha`` (the previous pose kept)."""
+    """Kernel moving each collider to ``start`` -> ``end`` at ``alpha`` (the previous pose kept),
+    writing both poses and their inverses."""
     vec3 = wp.types.vector(3, scalar)
     transform = transform_type(scalar)
 
@@ -56,15 +57,21 @@ def collider_pose_kernel(scalar):
         alpha: scalar,
         pose: wp.array(dtype=transform),
         pose_prev: wp.array(dtype=transform),
+        inv_pose: wp.array(dtype=transform),
+        inv_pose_prev: wp.array(dtype=transform),
     ):
         c = wp.tid()
-        pose_prev[c] = pose[c]
+        previous = pose[c]
+        pose_prev[c] = previous
+        inv_pose_prev[c] = wp.transform_inverse(previous)
         a = pose_start[c]
         b = pose_end[c]
         pa = wp.transform_get_translation(a)
         pb = wp.transform_get_translation(b)
         q = wp.quat_slerp(wp.transform_get_rotation(a), wp.transform_get_rotation(b), alpha)
-        pose[c] = transform(pa + alpha * (pb - pa), q)
+        current = transform(pa + alpha * (pb - pa), q)
+        pose[c] = current
+        inv_pose[c] = wp.transform_inverse(current)
 
     return update_collider_poses
 
@@ -73,7 +80,8 @@ def collider_pose_kernel(scalar):
 def collide_funcs(scalar):
     """``(collide_sphere, collide_capsule, collide_box, collide_mesh)`` for ``scalar`` precision.
 
-    Each returns the particle's new position (device world space, m)."""
+    Each returns the particle's new position (device world space, m) and whether it touched; a
+    particle that did not touch is returned unchanged, bit for bit."""
     vec3 = wp.types.vector(3, scalar)
     transform = transform_type(scalar)
     zero = scalar(0.0)
@@ -143,30 +151,36 @@ def collide_funcs(scalar):
         """The three analytic colliders share one body; each is its own func (distinct names)."""
 
         def body(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
-                 pose_prev: transform, size: vec3, axis: vec3, mu: scalar):
-            inv = wp.transform_inverse(pose)
-            q = wp.transform_point(inv, x)
-            lead = wp.transform_point(inv, leader)
-            q_old = wp.transform_point(wp.transform_inverse(pose_prev), x_old)
+                 inv_pose: transform, inv_pose_prev: transform, size: vec3, axis: vec3, mu: scalar):
+            q = wp.transform_point(inv_pose, x)
+            dist, n = sdf(q, size, axis)
+            q_old = wp.transform_point(inv_pose_prev, x_old)
+            moved = bool(False)
             if ccd:
-                # sphere-trace the relative path q_old -> q; stop at the first contact
-                d_old, n_old = sdf(q_old, size, axis)
                 path = q - q_old
                 length = wp.length(path)
-                if d_old > radius and length > tiny:
-                    direction = path / length
-                    t = zero
-                    for _ in range(TRACE_ITERATIONS):
-                        d, n = sdf(q_old + t * direction, size, axis)
-                        gap = d - radius
-                        if gap <= radius * scalar(1.0e-3):
-                            q = q_old + t * direction
-                            break
-                        t = t + gap
-                        if t >= length:
-                            break
-            dist, n = sdf(q, size, axis)
-            return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu))
+                # the SDF is 1-Lipschitz: a path ending farther than its length from contact never touched
+                if dist - radius < length and length > tiny:
+                    d_old, n_old = sdf(q_old, size, axis)
+                    if d_old > radius:
+                        # sphere-trace the relative path q_old -> q; stop at the first contact
+                        direction = path / length
+                        t = zero
+                        for _ in range(TRACE_ITERATIONS):
+                            d, n_t = sdf(q_old + t * direction, size, axis)
+                            gap = d - radius
+                            if gap <= radius * scalar(1.0e-3) + scalar(1.0e-6):
+                                q = q_old + t * direction
+                                dist, n = sdf(q, size, axis)
+                                moved = True
+                                break
+                            t = t + gap
+                            if t >= length:
+                                break
+            if dist >= radius and not moved:
+                return x, False
+            lead = wp.transform_point(inv_pose, leader)
+            return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True
 
         return body
 
@@ -182,23 +196,45 @@ def collide_funcs(scalar):
 
     @wp.func
     def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
-                     pose_prev: transform, mesh: wp.uint64, depth_band: scalar, mu: scalar):
-        inv = wp.transform_inverse(pose)
-        q = wp.transform_point(inv, x)
-        lead = wp.transform_point(inv, leader)
-        q_old = wp.transform_point(wp.transform_inverse(pose_prev), x_old)
+                     inv_pose: transform, inv_pose_prev: transform, mesh: wp.uint64, lower: vec3, upper: vec3,
+                     depth_band: scalar, mu: scalar):
+        q = wp.transform_point(inv_pose, x)
+        q_old = wp.transform_point(inv_pose_prev, x_old)
+        # broad phase: the path's box against the mesh's box grown by the contact distance
+        reach = radius + depth_band
+        lo = wp.min(q, q_old)
+        hi = wp.max(q, q_old)
+        if (lo[0] > upper[0] + reach or lo[1] > upper[1] + reach or lo[2] > upper[2] + reach
+                or hi[0] < lower[0] - reach or hi[1] < lower[1] - reach or hi[2] < lower[2] - reach):
+            return x, False
+        moved = bool(False)
+        path = q - q_old
+        length = wp.length(path)
+        # the query reaches as far as the path could have crossed the surface (the relative
+        # motion in the collider's frame, so a moving collider is covered too), plus the band
         if ccd:
-            path = q - q_old
-            length = wp.length(path)
-            if length > tiny:
+            reach = reach + length
+        query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(reach))
+        if ccd:
+            # distance from q to the surface (at least reach when nothing was found): a path shorter
+            # than it cannot have crossed the surface, so the ray is cast only when it could have
+            clearance = reach
+            if query.result:
+                clearance = wp.length(q - vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v)))
+                if query.sign < wp.float32(0.0):
+                    clearance = zero
+            if length > tiny and length > clearance - radius:
                 direction = path / length
                 hit = wp.mesh_query_ray(mesh, wp.vec3f(q_old), wp.vec3f(direction), wp.float32(length))
                 # a hit on the front of a face: the particle crossed the surface from outside
                 if hit.result and hit.sign > wp.float32(0.0):
                     q = q_old + scalar(hit.t) * direction + radius * vec3(hit.normal)
-        query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(radius + depth_band))
+                    moved = True
+                    query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(reach))
         if not query.result:
-            return wp.transform_point(pose, q)
+            if moved:
+                return wp.transform_point(pose, q), True
+            return x, False
         closest = vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v))
         r = q - closest
         d = wp.length(r)
@@ -211,6 +247,9 @@ def collide_funcs(scalar):
             n = -n
             if d <= tiny:
                 n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
-        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu))
+        if dist >= radius and not moved:
+            return x, False
+        lead = wp.transform_point(inv_pose, leader)
+        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True
 
     return collide_sphere, collide_capsule, collide_box, collide_mesh

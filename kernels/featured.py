@@ -13,7 +13,8 @@ Flags (:data:`FLAGS`) and where they act in the sweep of particle ``i`` (root ex
   (``kernels/grid.py``), from the particle's previous position;
 - ``drag`` (1/s, per strand) toward the air velocity: ``v = w + (v - w) exp(-drag dt)``, with
   ``w`` zero, or the frame's ``wind`` velocity (interpolated across the frame), plus
-  ``wind_noise`` (curl noise in space and time);
+  ``wind_noise`` (curl noise in space and time, sampled every :data:`NOISE_STRIDE` particles
+  along a strand and held in between: the noise is the costliest term of the step);
 - prediction ``p = x + dt v + dt^2 g`` (and the prior form's carried correction);
 - ``shape``: ``p += stiffness (target - p)``, ``target`` the rest direction of the segment in the
   frame of the segment before it (``kernels/shape.py``);
@@ -35,6 +36,8 @@ from .layout import particle
 from .shape import shape_funcs
 
 COLLIDER_FLAGS = ("spheres", "capsules", "boxes", "meshes")
+#: the wind's curl noise is sampled at every NOISE_STRIDE-th particle of a strand and held between
+NOISE_STRIDE = 8
 FLAGS = COLLIDER_FLAGS + ("drag", "wind", "wind_noise", "hair_hair", "shape")
 
 
@@ -60,7 +63,8 @@ def feature_struct(scalar, flags: frozenset):
         fields.update(
             particle_radius=wp.array(dtype=scalar),
             collider_pose=wp.array(dtype=transform_type(scalar)),
-            collider_pose_prev=wp.array(dtype=transform_type(scalar)),
+            collider_inv_pose=wp.array(dtype=transform_type(scalar)),
+            collider_inv_pose_prev=wp.array(dtype=transform_type(scalar)),
             collider_size=wp.array(dtype=vec3),
             collider_axis=wp.array(dtype=vec3),
             collider_friction=wp.array(dtype=scalar),
@@ -71,7 +75,8 @@ def feature_struct(scalar, flags: frozenset):
                 fields[f"{kind}_begin"] = int
                 fields[f"{kind}_end"] = int
         if "meshes" in flags:
-            fields.update(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar))
+            fields.update(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar),
+                          collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3))
     if "drag" in flags:
         fields["drag"] = wp.array(dtype=scalar)
     if "wind" in flags:
@@ -136,23 +141,32 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
 
     @wp.func
     def collide_all(f: Features, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar):
+        touched = bool(False)
         if wp.static(SPHERES):
             for c in range(f.spheres_begin, f.spheres_end):
-                x = collide_sphere(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
-                                   f.collider_size[c], f.collider_axis[c], f.collider_friction[c])
+                x, hit = collide_sphere(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                                        f.collider_inv_pose_prev[c], f.collider_size[c], f.collider_axis[c],
+                                        f.collider_friction[c])
+                touched = touched or hit
         if wp.static(CAPSULES):
             for c in range(f.capsules_begin, f.capsules_end):
-                x = collide_capsule(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
-                                    f.collider_size[c], f.collider_axis[c], f.collider_friction[c])
+                x, hit = collide_capsule(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
+                                         f.collider_inv_pose[c], f.collider_inv_pose_prev[c], f.collider_size[c],
+                                         f.collider_axis[c], f.collider_friction[c])
+                touched = touched or hit
         if wp.static(BOXES):
             for c in range(f.boxes_begin, f.boxes_end):
-                x = collide_box(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
-                                f.collider_size[c], f.collider_axis[c], f.collider_friction[c])
+                x, hit = collide_box(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                                     f.collider_inv_pose_prev[c], f.collider_size[c], f.collider_axis[c],
+                                     f.collider_friction[c])
+                touched = touched or hit
         if wp.static(MESHES):
             for c in range(f.meshes_begin, f.meshes_end):
-                x = collide_mesh(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_pose_prev[c],
-                                 f.collider_mesh[c], f.collider_depth_band[c], f.collider_friction[c])
-        return x
+                x, hit = collide_mesh(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                                      f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c],
+                                      f.collider_upper[c], f.collider_depth_band[c], f.collider_friction[c])
+                touched = touched or hit
+        return x, touched
 
     @wp.kernel(enable_backward=False, module="unique")
     def dftl_step_featured(
@@ -200,6 +214,7 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                 t0 = features.wind_time[0]
                 time = t0 + root_alpha * (features.wind_time[1] - t0)
                 noise_state = wp.uint32(features.noise_seed)
+                gust = vec3()
         if wp.static(HAIR_HAIR):
             blend_grid = one - wp.exp(-features.grid_friction * dt)
             push = features.grid_repulsion * features.grid_h * dt
@@ -221,11 +236,13 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
             if wp.static(DRAG):
                 w = air
                 if wp.static(WIND_NOISE):
-                    xyzt = wp.vec4f(wp.float32(x_old[0] * features.noise_inv_scale),
-                                    wp.float32(x_old[1] * features.noise_inv_scale),
-                                    wp.float32(x_old[2] * features.noise_inv_scale),
-                                    wp.float32(time * features.noise_frequency))
-                    w = w + features.noise_amplitude * vec3(wp.curlnoise(noise_state, xyzt))
+                    if (i - 1) % NOISE_STRIDE == 0:
+                        xyzt = wp.vec4f(wp.float32(x_old[0] * features.noise_inv_scale),
+                                        wp.float32(x_old[1] * features.noise_inv_scale),
+                                        wp.float32(x_old[2] * features.noise_inv_scale),
+                                        wp.float32(time * features.noise_frequency))
+                        gust = features.noise_amplitude * vec3(wp.curlnoise(noise_state, xyzt))
+                    w = w + gust
                 v = w + (v - w) * decay
             p = x_old + dt * v + gdt2
             if wp.static(PRIOR):
@@ -241,7 +258,9 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
             if wp.static(COLLIDE):
                 radius = features.particle_radius[k]
                 for it in range(features.collider_iterations):
-                    x = collide_all(features, x, x_old, leader, rest, it == 0, radius)
+                    x, touched = collide_all(features, x, x_old, leader, rest, it == 0, radius)
+                    if not touched:
+                        break
                     x = follow(leader, x, rest, leader_old, x_old)
             if wp.static(SHAPE):
                 if rest > scalar(0.0):

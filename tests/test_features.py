@@ -295,3 +295,34 @@ def test_bad_feature_input_is_refused():
         F.ShapeRetention(1.5)
     with pytest.raises(ValueError, match="one per strand"):
         dw.Model.from_strands(pts, [3], features=[F.Drag([1.0, 2.0])])
+
+
+@pytest.mark.parametrize("precision,correction", [("float64", "posterior"), ("float32", "prior")])
+def test_all_features_together_keep_lengths(precision, correction):
+    """Every feature at once, both precisions and correction forms: finite, inextensible, outside."""
+    rng = np.random.default_rng(3)
+    n, strands = 12, 16
+    roots = np.stack([rng.uniform(-0.05, 0.05, strands), np.full(strands, 0.13), rng.uniform(-0.05, 0.05, strands)], 1)
+    pts = np.concatenate([r + np.arange(n)[:, None] * [0.01, 0.0, 0.0] for r in roots])
+    counts = np.full(strands, n)
+    mesh_pts, mesh_tris = box_mesh((0.3, 0.01, 0.3))
+    feats = [
+        F.Colliders([F.Sphere(radius=0.1, friction=0.2), F.Capsule(radius=0.02, half_height=0.05, position=(0, 0, 0.15)),
+                     F.Box(half_extents=(0.05, 0.05, 0.05), position=(0.12, 0.0, 0.0)),
+                     F.TriangleMesh(points=mesh_pts, indices=mesh_tris, position=(0.0, -0.2, 0.0))]),
+        F.Drag(0.5), F.Wind(velocity=[[0.0, 0.5, 0.0, 0.0], [1.0, 0.0, 0.0, 1.0]], noise_amplitude=0.3),
+        F.HairHair(cell_size=0.01), F.ShapeRetention(0.5),
+    ]
+    model = dw.Model.from_strands(pts, counts, widths=0.002, precision=precision, features=feats)
+    assert model.feature_flags == {"spheres", "capsules", "boxes", "meshes", "drag", "wind", "wind_noise",
+                                   "hair_hair", "shape"}
+    solver = dw.DFTLSolver(model, gravity=G, correction=correction)
+    state, control = solver.state(), model.control()
+    for f in range(24):
+        control.features.set_frame_time(f / FPS, (f + 1) / FPS)
+        solver.advance(state, control, 1.0 / FPS / 5, 5)
+    x = model.points_from_device(state.positions)
+    assert np.isfinite(x).all()
+    assert np.abs(segment_lengths(x, counts) / 0.01 - 1).max() < (1e-10 if precision == "float64" else 1e-5)
+    assert (np.linalg.norm(x, axis=1) > 0.1 + 0.001 - 0.002).all()  # outside the sphere (2% of its radius)
+    assert x[:, 1].min() > -0.2 + 0.01  # above the ground slab
