@@ -117,8 +117,9 @@ class DFTLSolver:
             if self.fused:
                 self._launch_fused(state, control, dt, substeps)
                 return
+            real = np.dtype(m.precision).type  # alpha rounded as the fused kernels compute it
             for k in range(substeps):
-                self.step(state, state, control, dt, (k + 1) / substeps)
+                self.step(state, state, control, dt, float(real(k + 1) / real(substeps)))
 
         if not m.device.is_cuda:
             run()

@@ -25,7 +25,7 @@ import functools
 
 import warp as wp
 
-from .ftl import CORRECTIONS, follow_func
+from .ftl import CORRECTIONS, STEP_MODULE_OPTIONS, follow_func
 from .layout import particle
 
 
@@ -44,7 +44,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     follow = follow_func(scalar)
     prior = correction == "prior"
     rest_on_chip = N <= 16  # longer strands re-read rest lengths (cached) to save registers
-    options = {"max_unroll": 4 * N + 16}
+    options = {**STEP_MODULE_OPTIONS, "max_unroll": 4 * N + 16}
 
     @wp.kernel(enable_backward=False, module="unique", module_options=options)
     def dftl_fused(
