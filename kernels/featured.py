@@ -30,7 +30,7 @@ import functools
 import warp as wp
 
 from .collide import collide_funcs, transform_type
-from .ftl import follow_func
+from .ftl import STEP_MODULE_OPTIONS, follow_func
 from .grid import grid_sample_func
 from .layout import particle
 from .shape import shape_funcs
@@ -168,7 +168,7 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                 touched = touched or hit
         return x, touched
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_step_featured(
         strand_base: wp.array(dtype=wp.int32),
         strand_stride: wp.array(dtype=wp.int32),

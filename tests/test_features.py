@@ -326,3 +326,24 @@ def test_all_features_together_keep_lengths(precision, correction):
     assert np.abs(segment_lengths(x, counts) / 0.01 - 1).max() < (1e-10 if precision == "float64" else 1e-5)
     assert (np.linalg.norm(x, axis=1) > 0.1 + 0.001 - 0.002).all()  # outside the sphere (2% of its radius)
     assert x[:, 1].min() > -0.2 + 0.01  # above the ground slab
+
+
+def test_dftl_attributes_map_to_features():
+    from dftl_warp.feature_attrs import features_from_attributes
+
+    scene = {"dftl:drag": 1.5, "dftl:wind": [[0.0, 1.0, 0.0, 0.0], [2.0, 3.0, 0.0, 0.0]], "dftl:windNoise": 0.2,
+             "dftl:hairHair": True, "dftl:hairHairRepulsion": 8.0}
+    curves = [{"path": "/a", "dftl:shapeStiffness": 0.9}, {"path": "/b", "dftl:drag": 0.0}]
+    feats = features_from_attributes(scene, curves, [2, 3], mean_segment=0.01)
+    by_type = {type(f).__name__: f for f in feats}
+    assert set(by_type) == {"Drag", "Wind", "HairHair", "ShapeRetention"}
+    assert list(by_type["Drag"].rate) == [1.5, 1.5, 0.0, 0.0, 0.0]
+    assert list(by_type["ShapeRetention"].stiffness) == [0.9, 0.9, 0.0, 0.0, 0.0]
+    assert np.allclose(by_type["Wind"].at(1.0), [2.0, 0.0, 0.0])
+    assert by_type["Wind"].flags == {"wind", "wind_noise"}
+    assert by_type["HairHair"].cell_size == pytest.approx(0.04) and by_type["HairHair"].repulsion == 8.0
+    assert features_from_attributes({}, [{}], [4]) == []
+    with pytest.raises(ValueError, match="/b: dftl:shapeStiffness = 2.0: must be in"):
+        features_from_attributes({}, [{}, {"path": "/b", "dftl:shapeStiffness": 2.0}], [1, 1])
+    with pytest.raises(ValueError, match="author dftl:drag"):
+        features_from_attributes({"dftl:wind": (1.0, 0.0, 0.0)}, [{}], [1])
