@@ -504,3 +504,34 @@ class FeatureStep:
         wp.launch(self.kernel, dim=m.num_strands, device=device,
                   inputs=[*head_inputs, st, state_in.positions, state_in.velocities, state_in.corrections],
                   outputs=[state_out.positions, state_out.velocities, state_out.corrections])
+
+
+def memory_estimate(model, correction: str = "prior") -> dict:
+    """Device bytes the simulation of ``model`` holds: per strand (mean, strands of the model's
+    sizes), split into the bare solver's and the features', plus fixed-size feature memory.
+
+    Counts the State (positions, velocities, and corrections in the prior form), the Model's
+    rest lengths and strand tables, the Control's root targets, and the features' arrays.
+    """
+    f = np.dtype(model.precision).itemsize
+    points = model.num_points
+    strands = max(model.num_strands, 1)
+    vectors = 3 if correction == "prior" else 2
+    bare = points * (vectors * 3 * f + f) + model.num_strands * (3 * 4 + 3 * 3 * f)
+    mf = model.feature_data
+    feature = 0
+    fixed = 0
+    if mf is not None:
+        feature = points * mf.bytes_per_particle(model.precision) + model.num_strands * mf.bytes_per_strand(
+            model.precision)
+        fixed = mf.grid_bytes(model.precision)
+        if mf.colliders is not None:
+            shapes = mf.colliders.shapes
+            fixed += len(shapes) * (6 * 7 * f + 4 * 3 * f + 2 * f + 8)
+            fixed += sum(s.points.size * 4 + s.indices.size * 4 for s in shapes if s.kind == "meshes") * 2
+    return {
+        "bare_bytes_per_strand": bare / strands,
+        "feature_bytes_per_strand": feature / strands,
+        "bytes_per_strand": (bare + feature) / strands,
+        "fixed_feature_bytes": fixed,
+    }

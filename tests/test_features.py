@@ -347,3 +347,16 @@ def test_dftl_attributes_map_to_features():
         features_from_attributes({}, [{}, {"path": "/b", "dftl:shapeStiffness": 2.0}], [1, 1])
     with pytest.raises(ValueError, match="author dftl:drag"):
         features_from_attributes({"dftl:wind": (1.0, 0.0, 0.0)}, [{}], [1])
+
+
+def test_memory_estimate_counts_the_features():
+    from dftl_warp.feature_data import memory_estimate
+
+    pts = np.stack([np.arange(10) * 0.01, np.zeros(10), np.zeros(10)], 1)
+    bare = memory_estimate(dw.Model.from_strands(pts, [10]))
+    # State 36 B + rest length 4 B per particle, strand tables 12 B + root rest/targets 36 B
+    assert bare["bytes_per_strand"] == 10 * 40 + 48 and bare["feature_bytes_per_strand"] == 0
+    shaped = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.ShapeRetention(0.5)]))
+    assert shaped["feature_bytes_per_strand"] == 10 * 12 + 20  # rest directions; stiffness + frame
+    grid = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.HairHair(cell_size=0.01)]))
+    assert grid["fixed_feature_bytes"] > 0 and grid["feature_bytes_per_strand"] == 0
