@@ -117,6 +117,77 @@ def time_frames(fn, device, repeats):
     return statistics.median(times)
 
 
+def box_mesh(half):
+    """Closed box mesh of half extents ``half`` (8 points, 12 outward triangles)."""
+    hx, hy, hz = half
+    p = np.array([[x, y, z] for x in (-hx, hx) for y in (-hy, hy) for z in (-hz, hz)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return p, np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+
+
+def segment_stretch(x, counts, rest):
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    d = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    keep = np.ones(len(d), dtype=bool)
+    keep[starts[1:] - 1] = False
+    return np.abs(d[keep] / rest - 1).max()
+
+
+def collision_guarantees(device="cpu", precision="float32"):
+    """Worst penetration and stretch over every substep of the acceptance scenes (as in
+    tests/test_features.py): strands draped on a sphere, ploughed by a capsule at 1 m/s (10
+    substeps at 24 fps); a strand falling at 10 m/s onto a 2 cm mesh slab (1 substep at 24 fps)."""
+    out = {}
+    sphere_r, cap_r, cap_half, width, n = 0.1, 0.03, 0.1, 0.002, 40
+    pts = np.concatenate([np.stack([np.full(n, x), np.full(n, sphere_r + 0.005), np.arange(n) * 0.01 - 0.02], 1)
+                          for x in np.linspace(-0.04, 0.04, 9)])
+    counts = np.full(9, n)
+    start = np.array([0.3, -0.17, 0.11])
+    centre = lambda t: start + np.array([-1.0, 0.0, 0.0]) * max(t - 1.0, 0.0)  # noqa: E731
+    cols = F.Colliders([F.Sphere(radius=sphere_r), F.Capsule(radius=cap_r, half_height=cap_half, axis="Z",
+                                                               position=start)])
+    with wp.ScopedDevice(device):
+        model = dw.Model.from_strands(pts, counts, widths=width, features=[cols], device=device, precision=precision)
+        solver = dw.DFTLSolver(model, gravity=G)
+        state, control = solver.state(), model.control()
+        worst_s = worst_c = stretch = 0.0
+        for f in range(60):
+            ident = [0, 0, 0, 0, 0, 0, 1]
+            control.features.set_collider_poses([ident, [*centre(f / FPS), 0, 0, 0, 1]],
+                                                [ident, [*centre((f + 1) / FPS), 0, 0, 0, 1]])
+            for k in range(SUBSTEPS):
+                solver.step(state, state, control, 1 / FPS / SUBSTEPS, (k + 1) / SUBSTEPS)
+                x = model.points_from_device(state.positions)
+                q = x - centre((f + (k + 1) / SUBSTEPS) / FPS)
+                axial = np.clip(q[:, 2], -cap_half, cap_half)
+                dc = np.linalg.norm(q - axial[:, None] * [0, 0, 1], axis=1)
+                worst_s = max(worst_s, (sphere_r + width / 2 - np.linalg.norm(x, axis=1)).max())
+                worst_c = max(worst_c, (cap_r + width / 2 - dc).max())
+                stretch = max(stretch, segment_stretch(x, counts, 0.01))
+        out["sphere penetration / radius"] = max(worst_s, 0.0) / sphere_r
+        out["moving capsule penetration / radius"] = max(worst_c, 0.0) / cap_r
+        out["drape stretch"] = stretch
+        points, tris = box_mesh((1.0, 0.01, 1.0))
+        n = 20
+        pts = np.stack([np.linspace(-0.3, 0.3, n), np.full(n, 0.3), np.zeros(n)], 1)
+        model = dw.Model.from_strands(pts, [n], widths=width, device=device, precision=precision,
+                                      features=[F.Colliders([F.TriangleMesh(points=points, indices=tris)])])
+        solver = dw.DFTLSolver(model, gravity=G)
+        state, control = solver.state(), model.control()
+        v = np.zeros_like(pts)
+        v[1:, 1] = -10.0
+        state.velocities.assign(model.points_to_device(v, relative=False))
+        lowest, stretch = np.inf, 0.0
+        for _ in range(FPS):
+            solver.step(state, state, control, 1 / FPS)
+            x = model.points_from_device(state.positions)
+            lowest = min(lowest, x[:, 1].min())
+            stretch = max(stretch, segment_stretch(x, [n], np.linalg.norm(pts[1] - pts[0])))
+        out["slab penetration (10 m/s, 1 substep) / hair radius"] = max(0.01 + width / 2 - lowest, 0.0) / (width / 2)
+        out["slab stretch"] = stretch
+    return out
+
+
 def machine_line(device):
     d = wp.get_device(device)
     if d.is_cuda:
@@ -185,12 +256,15 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
         results.append(dict(scenario="bare, fused substeps (reference)", flags=[], seconds_per_step=seconds,
                             particle_steps_per_s=particles / seconds, vs_bare=seconds / bare, max_stretch=0.0))
 
+    guarantees = collision_guarantees(device)
     rows = ["| scenario | kernel flags | time per step | particle-steps/s | vs bare |",
             "|---|---|---:|---:|---:|"]
     for r in results:
         flags = ", ".join(r["flags"]) or "(none: bare kernel)"
         rows.append(f"| {r['scenario']} | {flags} | {r['seconds_per_step'] * 1e3:.3f} ms | "
                     f"{r['particle_steps_per_s']:.3g} | {r['vs_bare']:.2f}x |")
+    rows += ["", "| collision measure (worst over every substep) | value |", "|---|---:|"]
+    rows += [f"| {k} | {v:.3g} |" for k, v in guarantees.items()]
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -201,7 +275,8 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
                   f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.\n\n")
         (out / f"features-{tag}.md").write_text(header + "\n".join(rows) + "\n")
         (out / f"features-{tag}.json").write_text(json.dumps(
-            dict(device=machine_line(device), strands=strands, particles=particles, results=results), indent=2))
+            dict(device=machine_line(device), strands=strands, particles=particles, results=results,
+                 collision=guarantees), indent=2))
     return rows
 
 
