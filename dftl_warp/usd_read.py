@@ -143,7 +143,7 @@ def read_gravity(stage, info: StageInfo, file: str, warnings: list) -> np.ndarra
     from pxr import UsdPhysics
 
     earth = STANDARD_GRAVITY / info.meters_per_unit
-    default = -up_vector(info.up_axis) * earth
+    default = -up_vector(info.up_axis) * earth + 0.0  # + 0.0: no negative zeros
     scenes = [p for p in stage.Traverse() if p.IsA(UsdPhysics.Scene)]
     if not scenes:
         return default
@@ -160,7 +160,7 @@ def read_gravity(stage, info: StageInfo, file: str, warnings: list) -> np.ndarra
         raise UserError(f"{where}: gravityMagnitude {magnitude} is not finite")
     norm = float(np.linalg.norm(direction))
     unit = -up_vector(info.up_axis) if norm == 0.0 else direction / norm
-    return unit * (earth if magnitude < 0.0 else magnitude)
+    return unit * (earth if magnitude < 0.0 else magnitude) + 0.0
 
 
 # -- transforms ----------------------------------------------------------------------------------
