@@ -9,7 +9,13 @@
 Simulation happens in world space, in stage units. Each frame is ``substeps`` solver steps of
 ``dt = 1 / (timeCodesPerSecond * substeps)`` seconds; roots move linearly from where the prim's
 (possibly animated) local-to-world transform puts them at the frame's start to where it puts them
-at its end. Results go back to each prim's local space (velocities through the linear part only).
+at its end. Results go back to each prim's local space: points through the inverse transform;
+velocities are the motion *relative to the prim's frame* expressed in local space,
+``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity an animated
+transform gave a point fixed in the prim over the last frame. That is what USD's ``velocities``
+mean (the derivative of the local ``points``): renderers add the transform's own motion blur on
+top. For a static transform it is just the linear part's inverse. The first frame is the input at
+rest: zero velocities.
 """
 
 from __future__ import annotations
@@ -28,6 +34,9 @@ DEFAULT_SOLVER = "dftl"
 DEFAULT_DAMPING = 1.0
 DEFAULT_CORRECTION = "prior"
 DEFAULT_SUBSTEPS = 8
+def frame_velocity(matrix_rate: np.ndarray, local_points: np.ndarray) -> np.ndarray:
+    """World velocity (N, 3) that a moving frame gives points fixed in it: ``[p, 1] @ dM/dt``."""
+    return local_points @ matrix_rate[:3, :3] + matrix_rate[3, :3]
 
 
 @dataclass
@@ -172,6 +181,8 @@ class Simulation:
         self.groups = [_Group(s, m, scene, self.frame, options) for s, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         self._matrices = {}
+        #: True until the first advance: the state is the input at rest (zero velocities)
+        self._at_rest = True
 
     # -- geometry helpers ---------------------------------------------------------------------
 
@@ -210,8 +221,21 @@ class Simulation:
             for k, i in enumerate(g.members):
                 a, b = g.point_offsets[k], g.point_offsets[k + 1]
                 inv = np.linalg.inv(self._matrix(i, self.frame))
-                out[i] = (transform_points(inv, x[a:b]), transform_vectors(inv, v[a:b]))
+                local = transform_points(inv, x[a:b])
+                velocity = v[a:b]
+                if self.scene.curves[i].animated and not self._at_rest:
+                    velocity = velocity - frame_velocity(self._matrix_rate(i, self.frame), local)
+                out[i] = (local, transform_vectors(inv, velocity))
         return out
+
+    def _matrix_rate(self, index: int, frame: int) -> np.ndarray:
+        """How fast the prim's local-to-world matrix moved over the last frame, per second.
+
+        Roots move linearly in world space from frame to frame, so this backward difference is
+        exactly the velocity the simulation gave them: their local velocity comes out zero.
+        """
+        m1, m0 = self._matrix(index, frame), self._matrix(index, frame - 1)
+        return (m1 - m0) * self.scene.stage.time_codes_per_second
 
     def advance(self) -> None:
         """Simulate from the current frame to the next one."""
@@ -224,7 +248,8 @@ class Simulation:
                     g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
         self.frame = nxt
-        self._forget_before(nxt)
+        self._at_rest = False
+        self._forget_before(nxt - 1)
 
     # -- state for batch / resume ----------------------------------------------------------------
 
@@ -253,6 +278,7 @@ class Simulation:
                 target.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
         self.frame = int(state["frame"])
         self._matrices = {}
+        self._at_rest = False
 
 
 def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:
