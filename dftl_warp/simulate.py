@@ -118,6 +118,26 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int) -> Grou
     )
 
 
+#: largest world extent (stage units) a precision simulates without overflowing squared lengths
+MAX_EXTENT = {"float32": 1.0e15, "float64": 1.0e150}
+
+
+def _check_extent(points, offsets, curves, source, precision) -> None:
+    """Refuse scenes too large for the precision (squared lengths would overflow)."""
+    if points.shape[0] == 0:
+        return
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    distance = np.abs(points - centre).max(axis=1)
+    limit = 0.5 * MAX_EXTENT[precision]
+    if distance.max() > limit:
+        i = int(np.argmax(distance))
+        k = int(np.searchsorted(offsets, i, side="right") - 1)
+        raise UserError(
+            f"{source}: {curves[k].path}: points[{i - offsets[k]}] is {distance[i]:.3g} units from the centre "
+            f"of the hair: too far apart to simulate in {precision}"
+        )
+
+
 class _Group:
     """Prims simulated together: one Model, Solver, State and Control."""
 
@@ -133,6 +153,7 @@ class _Group:
         self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
         points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
+        _check_extent(points, self.point_offsets, curves, scene.source, options.precision)
         with wp.ScopedDevice(options.device):
             self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision)
             try:
