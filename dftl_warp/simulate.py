@@ -357,7 +357,7 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=False, dynamic_ncols=True)
+        bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=True, dynamic_ncols=True)
     try:
         with UsdWriter.create(output, scene, frames=(first, last)) as writer:
             times = run_frames(sim, writer, last, progress=bar.update if bar else None)
