@@ -30,7 +30,7 @@ from .errors import UserError
 
 OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
 #: save (and so release) the in-memory samples once this many new bytes have accumulated
-DEFAULT_FLUSH_BYTES = 64 << 20
+DEFAULT_FLUSH_BYTES = 4 << 20
 
 
 def partial_path(output) -> Path:
