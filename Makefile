@@ -14,6 +14,10 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+demo: $(STAMP)
+	mkdir -p out
+	$(BIN)/dftl-warp simulate scenes/default.usda -o out/demo.usdc
+
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 

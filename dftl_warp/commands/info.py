@@ -1,0 +1,130 @@
+"""``dftl-warp info SCENE``: what a USD stage holds for dftl-warp, without simulating it."""
+
+from __future__ import annotations
+
+import json
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "info",
+        help="describe a USD stage: hair prims, strands, particles, colliders, gravity, units, frames",
+        description="Read SCENE the way `dftl-warp simulate` does and describe what it would simulate.",
+    )
+    p.add_argument("scene", metavar="SCENE", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    p.add_argument("--prim", action="append", metavar="PATH", help="only the BasisCurves prims at or below PATH")
+    p.add_argument("--json", action="store_true", help="print the description as JSON")
+    p.set_defaults(run=run)
+
+
+def device_bytes(scene, precision: str, correction: str = "prior") -> int:
+    """Device memory (bytes) a simulation of ``scene``'s strands allocates: model, state and
+    control arrays, measured by building them on the CPU device (the layout does not change the
+    total)."""
+    import numpy as np
+    import warp as wp
+
+    from ..model import Model
+    from ..solver import make_solver
+
+    points = np.concatenate([c.points for c in scene.curves])
+    counts = np.concatenate([c.counts for c in scene.curves])
+    model = Model.from_strands(points, counts, device="cpu", precision=precision)
+    state = make_solver(model, "dftl", correction=correction).state()
+    control = model.control()
+    total = 0
+    for obj in (model, state, control):
+        for value in vars(obj).values():
+            if isinstance(value, wp.array):
+                total += value.capacity
+    return int(total)
+
+
+def describe(scene) -> dict:
+    """A JSON-able description of a :class:`~dftl_warp.scene.Scene`."""
+    import numpy as np
+
+    info = scene.stage
+    counts = np.concatenate([c.counts for c in scene.curves])
+    strands = int(counts.size)
+    memory = {p: device_bytes(scene, p) for p in ("float32", "float64")}
+    return {
+        "file": scene.source,
+        "up_axis": info.up_axis,
+        "meters_per_unit": info.meters_per_unit,
+        "time_codes_per_second": info.time_codes_per_second,
+        "frames": None if info.start_time_code is None else [info.start_time_code, info.end_time_code],
+        "default_prim": info.default_prim,
+        "gravity": [float(g) for g in scene.gravity],
+        "gravity_m_per_s2": float(np.linalg.norm(scene.gravity_si)),
+        "strands": strands,
+        "particles": int(counts.sum()),
+        "vertices_per_strand": [int(counts.min()), float(counts.mean()), int(counts.max())],
+        "device_bytes_per_strand": {p: b / max(strands, 1) for p, b in memory.items()},
+        "device_bytes": memory,
+        "curves": [
+            {
+                "path": c.path,
+                "type": c.type,
+                "basis": c.basis if c.type == "cubic" else None,
+                "wrap": c.wrap,
+                "strands": c.num_strands,
+                "particles": c.num_points,
+                "animated_transform": c.animated,
+                "settings": {k: v for k, v in vars(c.settings).items() if v is not None and k != "simulate"},
+            }
+            for c in scene.curves
+        ],
+        "colliders": [
+            {"path": c.path, "kind": c.kind, "friction": c.friction, "animated_transform": c.animated}
+            for c in scene.colliders
+        ],
+        "warnings": list(scene.warnings),
+    }
+
+
+def _bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return str(n)
+
+
+def run(args) -> int:
+    from ..usd_read import read_scene
+
+    scene = read_scene(args.scene, prims=args.prim)
+    d = describe(scene)
+    if args.json:
+        print(json.dumps(d, indent=2))
+        return 0
+    frames = "none authored (give --start/--end to simulate)" if d["frames"] is None else (
+        f"{d['frames'][0]:g}..{d['frames'][1]:g} at {d['time_codes_per_second']:g} per second")
+    g = d["gravity"]
+    print(f"{d['file']}")
+    print(f"  units       {d['meters_per_unit']:g} m per unit, up axis {d['up_axis']}"
+          + (f", defaultPrim {d['default_prim']}" if d["default_prim"] else ""))
+    print(f"  frames      {frames}")
+    print(f"  gravity     ({g[0]:g}, {g[1]:g}, {g[2]:g}) units/s^2 = {d['gravity_m_per_s2']:.3g} m/s^2")
+    lo, mean, hi = d["vertices_per_strand"]
+    print(f"  hair        {d['strands']} strands, {d['particles']} particles, "
+          f"{lo}..{hi} vertices per strand (mean {mean:.1f})")
+    per = d["device_bytes_per_strand"]
+    print(f"  memory      {_bytes(per['float32'])} per strand in float32, {_bytes(per['float64'])} in float64 "
+          f"(total {_bytes(d['device_bytes']['float32'])} / {_bytes(d['device_bytes']['float64'])})")
+    print(f"  curves      {len(d['curves'])} prim(s)")
+    for c in d["curves"]:
+        kind = c["type"] + (f" {c['basis']}" if c["basis"] else "") + f", {c['wrap']}"
+        extra = ", animated transform" if c["animated_transform"] else ""
+        settings = "".join(f", dftl:{k}={v:g}" if isinstance(v, float) else f", dftl:{k}={v}"
+                           for k, v in c["settings"].items())
+        print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}")
+    print(f"  colliders   {len(d['colliders'])}")
+    for c in d["colliders"]:
+        friction = "" if c["friction"] is None else f", friction {c['friction']:g}"
+        extra = ", animated transform" if c["animated_transform"] else ""
+        print(f"    {c['path']}: {c['kind']}{friction}{extra}")
+    for w in d["warnings"]:
+        print(f"  warning     {w}")
+    return 0

@@ -1,0 +1,384 @@
+"""Host orchestration: Scene -> Model/Solver/Control per settings group -> frame loop -> writer.
+
+- :func:`simulate_usd` is the one-call API behind ``dftl-warp simulate``.
+- :class:`Simulation` steps a scene frame by frame and can export / import its complete state
+  (:meth:`Simulation.save_state`, :meth:`Simulation.load_state`), so that a batch or resume
+  feature can start at any frame and continue a partial output with
+  :meth:`~dftl_warp.usd_write.UsdWriter.reopen`.
+
+Simulation happens in world space, in stage units. Each frame is ``substeps`` solver steps of
+``dt = 1 / (timeCodesPerSecond * substeps)`` seconds; roots move linearly from where the prim's
+(possibly animated) local-to-world transform puts them at the frame's start to where it puts them
+at its end. Results go back to each prim's local space: points through the inverse transform;
+velocities are the motion *relative to the prim's frame* expressed in local space,
+``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity an animated
+transform gave a point fixed in the prim over the last frame. That is what USD's ``velocities``
+mean (the derivative of the local ``points``): renderers add the transform's own motion blur on
+top. For a static transform it is just the linear part's inverse. The first frame is the input at
+rest: zero velocities.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from .errors import UserError
+from .scene import Scene, transform_points, transform_vectors
+
+#: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise
+DEFAULT_SOLVER = "dftl"
+DEFAULT_DAMPING = 1.0
+DEFAULT_CORRECTION = "prior"
+DEFAULT_SUBSTEPS = 8
+def frame_velocity(matrix_rate: np.ndarray, local_points: np.ndarray) -> np.ndarray:
+    """World velocity (N, 3) that a moving frame gives points fixed in it: ``[p, 1] @ dM/dt``."""
+    return local_points @ matrix_rate[:3, :3] + matrix_rate[3, :3]
+
+
+@dataclass
+class SimulationOptions:
+    """Settings of a run. ``None`` defers to the prims' ``dftl:`` attributes, then the defaults.
+
+    Command-line values override ``dftl:`` attributes.
+    """
+
+    start: int | None = None
+    end: int | None = None
+    substeps: int | None = None
+    damping: float | None = None
+    correction: str | None = None
+    solver: str | None = None
+    precision: str = "float32"
+    device: str = "cpu"
+    prims: list[str] | None = None
+
+
+@dataclass(frozen=True)
+class GroupSettings:
+    """The solver settings shared by every prim of one simulation group."""
+
+    solver: str
+    damping: float
+    correction: str
+    substeps: int
+
+
+@dataclass
+class Summary:
+    """What :func:`simulate_usd` did. Times in seconds."""
+
+    output: str
+    prims: int
+    strands: int
+    particles: int
+    frames: int
+    first_frame: int
+    last_frame: int
+    colliders: int
+    seconds_loading: float
+    seconds_simulating: float
+    seconds_writing: float
+    groups: list[dict] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
+    """First and last integer frame: the flags, else the stage's start/end time codes."""
+    info = scene.stage
+    if start is None and info.start_time_code is None:
+        raise UserError(f"{scene.source}: the stage has no startTimeCode/endTimeCode; give --start and --end")
+    if end is None and info.end_time_code is None:
+        raise UserError(f"{scene.source}: the stage has no endTimeCode; give --end")
+    first = int(start) if start is not None else math.ceil(info.start_time_code - 1e-9)
+    last = int(end) if end is not None else math.floor(info.end_time_code + 1e-9)
+    if last < first:
+        raise UserError(f"{scene.source}: frame range {first}..{last} is empty (end before start)")
+    return first, last
+
+
+def group_settings(scene: Scene, options: SimulationOptions, index: int) -> GroupSettings:
+    """Settings of ``scene.curves[index]``: command line, else ``dftl:`` attributes, else defaults."""
+    s = scene.curves[index].settings
+
+    def pick(flag, attr, default):
+        return flag if flag is not None else attr if attr is not None else default
+
+    return GroupSettings(
+        solver=pick(options.solver, s.solver, DEFAULT_SOLVER),
+        damping=float(pick(options.damping, s.damping, DEFAULT_DAMPING)),
+        correction=pick(options.correction, s.correction, DEFAULT_CORRECTION),
+        substeps=int(pick(options.substeps, s.substeps, DEFAULT_SUBSTEPS)),
+    )
+
+
+#: largest world extent (stage units) a precision simulates without overflowing squared lengths
+MAX_EXTENT = {"float32": 1.0e15, "float64": 1.0e150}
+
+
+def _check_extent(points, offsets, curves, source, precision) -> None:
+    """Refuse scenes too large for the precision (squared lengths would overflow)."""
+    if points.shape[0] == 0:
+        return
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    distance = np.abs(points - centre).max(axis=1)
+    limit = 0.5 * MAX_EXTENT[precision]
+    if distance.max() > limit:
+        i = int(np.argmax(distance))
+        k = int(np.searchsorted(offsets, i, side="right") - 1)
+        raise UserError(
+            f"{source}: {curves[k].path}: points[{i - offsets[k]}] is {distance[i]:.3g} units from the centre "
+            f"of the hair: too far apart to simulate in {precision}"
+        )
+
+
+class _Group:
+    """Prims simulated together: one Model, Solver, State and Control."""
+
+    def __init__(self, settings: GroupSettings, members: list[int], scene: Scene, frame: int, options):
+        import warp as wp
+
+        from .model import Model
+        from .solver import make_solver
+
+        self.settings = settings
+        self.members = members
+        curves = [scene.curves[i] for i in members]
+        self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
+        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
+        counts = np.concatenate([c.counts for c in curves])
+        _check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        with wp.ScopedDevice(options.device):
+            self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision)
+            try:
+                self.solver = make_solver(
+                    self.model, settings.solver, damping=settings.damping,
+                    correction=settings.correction, gravity=scene.gravity,
+                )
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
+            self.state = self.solver.state()
+            self.control = self.model.control()
+        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+
+    @property
+    def num_strands(self) -> int:
+        return self.model.num_strands
+
+    @property
+    def num_points(self) -> int:
+        return int(self.point_offsets[-1])
+
+
+class Simulation:
+    """A scene being simulated, one frame at a time, starting at ``frame``.
+
+    ``samples()`` gives the current frame's points and velocities per prim in local space;
+    ``advance()`` steps to the next frame.
+    """
+
+    def __init__(self, scene: Scene, options: SimulationOptions, frame: int):
+        import warp as wp
+
+        self.scene = scene
+        self.options = options
+        self.frame = int(frame)
+        try:
+            self.device = wp.get_device(options.device)
+        except (ValueError, RuntimeError, KeyError) as exc:
+            available = ", ".join(d.alias for d in wp.get_devices())
+            raise UserError(f"--device {options.device}: not available here ({available}): {exc}") from None
+        options = replace(options, device=str(self.device))
+        self.options = options
+        by_settings: dict[GroupSettings, list[int]] = {}
+        for i in range(len(scene.curves)):
+            by_settings.setdefault(group_settings(scene, options, i), []).append(i)
+        self.groups = [_Group(s, m, scene, self.frame, options) for s, m in by_settings.items()]
+        self._roots_local = [c.points[c.root_indices] for c in scene.curves]
+        self._matrices = {}
+        #: True until the first advance: the state is the input at rest (zero velocities)
+        self._at_rest = True
+
+    # -- geometry helpers ---------------------------------------------------------------------
+
+    def _matrix(self, index: int, frame: int) -> np.ndarray:
+        key = (index, frame)
+        m = self._matrices.get(key)
+        if m is None:
+            m = self._matrices[key] = self.scene.curves[index].transform(frame)
+        return m
+
+    def _forget_before(self, frame: int) -> None:
+        self._matrices = {k: v for k, v in self._matrices.items() if k[1] >= frame}
+
+    def _roots_world(self, group: _Group, frame: int) -> np.ndarray:
+        return np.concatenate([
+            transform_points(self._matrix(i, frame), self._roots_local[i]) for i in group.members
+        ])
+
+    # -- stepping -----------------------------------------------------------------------------
+
+    @property
+    def num_strands(self) -> int:
+        return sum(g.num_strands for g in self.groups)
+
+    @property
+    def num_points(self) -> int:
+        return sum(g.num_points for g in self.groups)
+
+    def samples(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
+        prim's local space (stage units, stage units per second)."""
+        out: list = [None] * len(self.scene.curves)
+        for g in self.groups:
+            x = g.model.points_from_device(g.state.positions)
+            v = g.model.points_from_device(g.state.velocities, relative=False)
+            for k, i in enumerate(g.members):
+                a, b = g.point_offsets[k], g.point_offsets[k + 1]
+                inv = np.linalg.inv(self._matrix(i, self.frame))
+                local = transform_points(inv, x[a:b])
+                velocity = v[a:b]
+                if self.scene.curves[i].animated and not self._at_rest:
+                    velocity = velocity - frame_velocity(self._matrix_rate(i, self.frame), local)
+                out[i] = (local, transform_vectors(inv, velocity))
+        return out
+
+    def _matrix_rate(self, index: int, frame: int) -> np.ndarray:
+        """How fast the prim's local-to-world matrix moved over the last frame, per second.
+
+        Roots move linearly in world space from frame to frame, so this backward difference is
+        exactly the velocity the simulation gave them: their local velocity comes out zero.
+        """
+        m1, m0 = self._matrix(index, frame), self._matrix(index, frame - 1)
+        return (m1 - m0) * self.scene.stage.time_codes_per_second
+
+    def advance(self) -> None:
+        """Simulate from the current frame to the next one."""
+        import warp as wp
+
+        nxt = self.frame + 1
+        with wp.ScopedDevice(self.device):
+            for g in self.groups:
+                if any(self.scene.curves[i].animated for i in g.members):
+                    g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
+                g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
+        self.frame = nxt
+        self._at_rest = False
+        self._forget_before(nxt - 1)
+
+    # -- state for batch / resume ----------------------------------------------------------------
+
+    def save_state(self) -> dict:
+        """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
+        state = {"frame": np.array(self.frame)}
+        for k, g in enumerate(self.groups):
+            state[f"group{k}.positions"] = g.state.positions.numpy()
+            state[f"group{k}.velocities"] = g.state.velocities.numpy()
+            if g.state.corrections is not None:
+                state[f"group{k}.corrections"] = g.state.corrections.numpy()
+        return state
+
+    def load_state(self, state: dict) -> None:
+        """Continue from a :meth:`save_state` of the same scene and options."""
+        import warp as wp
+
+        for k, g in enumerate(self.groups):
+            for name in ("positions", "velocities", "corrections"):
+                target = getattr(g.state, name)
+                key = f"group{k}.{name}"
+                if target is None:
+                    continue
+                if key not in state:
+                    raise ValueError(f"saved state has no {key}")
+                target.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
+        self.frame = int(state["frame"])
+        self._matrices = {}
+        self._at_rest = False
+
+
+def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:
+    """Write the current frame (if ``write_first``), then advance and write up to ``last_frame``.
+
+    ``progress`` (optional) is called with the number of frames done after each one. Returns
+    seconds spent simulating and writing.
+    """
+    t_sim = t_write = 0.0
+
+    def emit():
+        nonlocal t_sim, t_write
+        a = time.perf_counter()
+        samples = sim.samples()
+        b = time.perf_counter()
+        writer.write_frame(sim.frame, samples)
+        c = time.perf_counter()
+        t_sim += b - a
+        t_write += c - b
+        if progress is not None:
+            progress(1)
+
+    if write_first:
+        emit()
+    while sim.frame < last_frame:
+        a = time.perf_counter()
+        sim.advance()
+        t_sim += time.perf_counter() - a
+        emit()
+    return {"simulating": t_sim, "writing": t_write}
+
+
+def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary:
+    """Simulate the hair of the USD stage ``input`` and write ``output``.
+
+    Keyword options are the fields of :class:`SimulationOptions` (start, end, substeps, damping,
+    correction, solver, precision, device, prims). ``progress=True`` shows a tqdm bar on stderr.
+    Bad input raises :class:`~dftl_warp.errors.UserError`; no output file is left behind on any
+    failure.
+    """
+    from .usd_read import read_scene
+    from .usd_write import UsdWriter, check_output_path
+    from .warp_setup import init_warp
+
+    opts = SimulationOptions(**options)
+    init_warp()
+    t0 = time.perf_counter()
+    check_output_path(output, input)
+    scene = read_scene(input, prims=opts.prims, time=opts.start)
+    first, last = resolve_frames(scene, opts.start, opts.end)
+    sim = Simulation(scene, opts, first)
+    t_load = time.perf_counter() - t0
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=True, dynamic_ncols=True)
+    try:
+        with UsdWriter.create(output, scene, frames=(first, last)) as writer:
+            times = run_frames(sim, writer, last, progress=bar.update if bar else None)
+            a = time.perf_counter()
+            writer.commit()
+            times["writing"] += time.perf_counter() - a
+    finally:
+        if bar is not None:
+            bar.close()
+    return Summary(
+        output=str(output),
+        prims=len(scene.curves),
+        strands=sim.num_strands,
+        particles=sim.num_points,
+        frames=last - first + 1,
+        first_frame=first,
+        last_frame=last,
+        colliders=len(scene.colliders),
+        seconds_loading=t_load,
+        seconds_simulating=times["simulating"],
+        seconds_writing=times["writing"],
+        groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands} for g in sim.groups],
+        warnings=list(scene.warnings),
+    )
