@@ -154,8 +154,16 @@ class _Group:
         points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
         _check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        from .scene_features import group_features
+
+        self.curves = curves
+        features, widths = group_features(scene, curves, frame)
         with wp.ScopedDevice(options.device):
-            self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision)
+            try:
+                self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision,
+                                                widths=widths, features=features)
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
             try:
                 self.solver = make_solver(
                     self.model, settings.solver, damping=settings.damping,
@@ -196,10 +204,12 @@ class Simulation:
             raise UserError(f"--device {options.device}: not available here ({available}): {exc}") from None
         options = replace(options, device=str(self.device))
         self.options = options
-        by_settings: dict[GroupSettings, list[int]] = {}
-        for i in range(len(scene.curves)):
-            by_settings.setdefault(group_settings(scene, options, i), []).append(i)
-        self.groups = [_Group(s, m, scene, self.frame, options) for s, m in by_settings.items()]
+        # prims are grouped by solver settings and by the mesh their roots are bound to, if any
+        by_settings: dict[tuple, list[int]] = {}
+        for i, c in enumerate(scene.curves):
+            key = (group_settings(scene, options, i), c.root_mesh.path if c.root_mesh is not None else None)
+            by_settings.setdefault(key, []).append(i)
+        self.groups = [_Group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)
@@ -262,11 +272,14 @@ class Simulation:
         """Simulate from the current frame to the next one."""
         import warp as wp
 
+        from .scene_features import update_frame
+
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
             for g in self.groups:
                 if any(self.scene.curves[i].animated for i in g.members):
                     g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
+                update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
         self.frame = nxt
         self._at_rest = False
@@ -379,6 +392,7 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
         seconds_loading=t_load,
         seconds_simulating=times["simulating"],
         seconds_writing=times["writing"],
-        groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands} for g in sim.groups],
+        groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
+                 "features": sorted(g.model.feature_flags)} for g in sim.groups],
         warnings=list(scene.warnings),
     )
