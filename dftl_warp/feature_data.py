@@ -30,7 +30,7 @@ from .features import (
 from .kernels.binding import bind_roots_kernel, closest_face
 from .kernels.collide import collider_pose_kernel, transform_type
 from .kernels.featured import feature_struct
-from .kernels.grid import grid_bounds_kernel, grid_splat_kernel
+from .kernels.grid import grid_bounds_kernel, grid_reset_kernel, grid_splat_kernel
 from .precision import numpy_type
 
 
@@ -286,6 +286,7 @@ class FeatureControl:
         device = model.device
         transform = transform_type(model.scalar)
         self.pose_start = self.pose_end = self.pose = self.pose_prev = None
+        self._synced = False
         self.meshes = []
         self.mesh_ids = None
         if mf.colliders is not None and mf.colliders.shapes:
@@ -327,7 +328,10 @@ class FeatureControl:
 
     def set_collider_poses(self, start, end=None) -> None:
         """Poses of all colliders for this frame: (C, 7) rows ``(px, py, pz, qx, qy, qz, qw)``,
-        world space, in the Colliders' order; ``end`` defaults to ``start``."""
+        world space, in the Colliders' order; ``end`` defaults to ``start``.
+
+        The first call (and the first after :meth:`resync`) also places the colliders at
+        ``start`` for the previous substep, so that they do not sweep from their rest pose."""
         mf = self.model.feature_data
         n = len(mf.colliders.shapes) if mf.colliders is not None else 0
         for dst, rows in ((self.pose_start, start), (self.pose_end, start if end is None else end)):
@@ -339,6 +343,17 @@ class FeatureControl:
             device_rows = np.empty_like(rows)
             device_rows[mf.collider_order] = rows
             dst.assign(device_rows.astype(numpy_type(self.model.precision)))
+            if dst is self.pose_start and not self._synced:
+                inverse = _inverse_poses(device_rows).astype(numpy_type(self.model.precision))
+                for a, v in ((self.pose, device_rows), (self.pose_prev, device_rows), (self.inv_pose, inverse),
+                             (self.inv_pose_prev, inverse)):
+                    a.assign(v.astype(numpy_type(self.model.precision)))
+        self._synced = True
+
+    def resync(self) -> None:
+        """Forget the colliders' previous pose (after restoring a saved state): the next
+        :meth:`set_collider_poses` places them at its start without sweeping."""
+        self._synced = False
 
     def set_mesh_points(self, index: int, points) -> None:
         """New local points (P, 3) of mesh collider ``index`` (Colliders order), from now on."""
@@ -417,7 +432,8 @@ class FeatureStep:
         if self.model.feature_data.colliders is not None:
             ks.append(collider_pose_kernel(self.model.scalar))
         if self.grid is not None:
-            ks += [grid_bounds_kernel(self.model.scalar), grid_splat_kernel(self.model.scalar)]
+            ks += [grid_reset_kernel(self.model.scalar), grid_bounds_kernel(self.model.scalar),
+                   grid_splat_kernel(self.model.scalar)]
         return ks
 
     def _struct(self, control):
@@ -479,7 +495,7 @@ class FeatureStep:
         self._structs[key] = (control, st)
         return st
 
-    def launch(self, state_in, state_out, control, dt, root_alpha, head_inputs, damping):
+    def launch(self, state_in, state_out, control, dt, root_alpha, head_inputs):
         m = self.model
         device = m.device
         if control.features is None:
@@ -492,7 +508,7 @@ class FeatureStep:
         if self.grid is not None:
             g = self.grid
             mf = m.feature_data
-            g["lower"].fill_(np.finfo(numpy_type(m.precision)).max)
+            wp.launch(grid_reset_kernel(m.scalar), dim=1, device=device, outputs=[g["lower"]])
             wp.launch(grid_bounds_kernel(m.scalar), dim=m.num_points, device=device,
                       inputs=[state_in.positions], outputs=[g["lower"]])
             g["density"].zero_()

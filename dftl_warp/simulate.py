@@ -313,6 +313,9 @@ class Simulation:
         self.frame = int(state["frame"])
         self._matrices = {}
         self._at_rest = False
+        for g in self.groups:
+            if g.control.features is not None:
+                g.control.features.resync()  # colliders start the next frame where it says
 
 
 def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:

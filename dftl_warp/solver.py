@@ -88,7 +88,7 @@ class DFTLSolver:
         if self._features is not None:
             head = [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
                     root_alpha, m.rest_lengths, self.gravity, dt, self.damping]
-            self._features.launch(state_in, state_out, control, dt, root_alpha, head, self.damping)
+            self._features.launch(state_in, state_out, control, dt, root_alpha, head)
             return
         inputs = [
             m.strand_base, m.strand_stride, m.strand_count,

@@ -26,6 +26,20 @@ import warp as wp
 
 
 @functools.cache
+def grid_reset_kernel(scalar):
+    """Kernel (one thread): ``lower[0..2]`` <- the largest finite value, before :func:`grid_bounds_kernel`."""
+    big = scalar(3.0e38)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def grid_reset(lower: wp.array(dtype=scalar)):
+        lower[0] = big
+        lower[1] = big
+        lower[2] = big
+
+    return grid_reset
+
+
+@functools.cache
 def grid_bounds_kernel(scalar):
     """Kernel: ``lower[0..2]`` <- component-wise minimum of all ``positions`` (m)."""
     vec3 = wp.types.vector(3, scalar)
