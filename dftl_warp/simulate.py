@@ -321,30 +321,43 @@ class Simulation:
 def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:
     """Write the current frame (if ``write_first``), then advance and write up to ``last_frame``.
 
+    Simulating and writing overlap: the next frame's substeps are launched before the current
+    frame is authored, so on a GPU (where launches return at once) the device simulates frame
+    ``f + 1`` while the host writes frame ``f``; :meth:`Simulation.samples` then waits for it.
+    On the CPU device the two simply alternate.
+
     ``progress`` (optional) is called with the number of frames done after each one. Returns
-    seconds spent simulating and writing.
+    seconds spent simulating (launching and waiting for results) and writing.
     """
     t_sim = t_write = 0.0
+    pending = None  # (time code, samples) fetched but not yet written
 
-    def emit():
-        nonlocal t_sim, t_write
+    def write(frame_and_samples):
+        nonlocal t_write
         a = time.perf_counter()
-        samples = sim.samples()
-        b = time.perf_counter()
-        writer.write_frame(sim.frame, samples)
-        c = time.perf_counter()
-        t_sim += b - a
-        t_write += c - b
+        writer.write_frame(*frame_and_samples)
+        t_write += time.perf_counter() - a
         if progress is not None:
             progress(1)
 
+    def fetch():
+        nonlocal t_sim
+        a = time.perf_counter()
+        samples = sim.samples()
+        t_sim += time.perf_counter() - a
+        return sim.frame, samples
+
     if write_first:
-        emit()
+        pending = fetch()
     while sim.frame < last_frame:
         a = time.perf_counter()
         sim.advance()
         t_sim += time.perf_counter() - a
-        emit()
+        if pending is not None:
+            write(pending)
+        pending = fetch()
+    if pending is not None:
+        write(pending)
     return {"simulating": t_sim, "writing": t_write}
 
 
