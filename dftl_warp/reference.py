@@ -13,9 +13,10 @@ its State in float32, rounding the trajectory once per call. For reference-quali
 the Model in float64 (the ``reference`` quality preset does).
 
 Validity: SHAKE-type position solves need a step small enough that the constrained position is
-reachable along the old segment directions; after a root teleport or at steps far above the
-chain's oscillation periods Newton's method may not converge (``diagnostics()["constraint_residual"]``
-reports it). It is a reference for moderate steps, not a production solver.
+reachable along the old segment directions; where it is not (a whipping tip, a root teleport)
+the kernel splits the step in halves until it is. ``diagnostics()["constraint_residual"]``
+reports the worst accepted residual. It is a reference, not a production solver: its cost
+grows with the Newton iterations and the splits.
 """
 
 from __future__ import annotations
@@ -36,12 +37,15 @@ class ReferenceSolver:
         tolerance: target of the relative squared-length residual ``| |d|^2/l^2 - 1 |`` (the
             Newton loop also stops once the residual stagnates at round-off).
         max_iterations: Newton iterations per step at most.
+        accept: largest residual accepted before a step is split into halves (see
+            :mod:`dftl_warp.kernels.reference`).
     """
 
     name = "reference"
     carries_corrections = False
 
-    def __init__(self, model, *, gravity=DEFAULT_GRAVITY, tolerance: float = 1.0e-14, max_iterations: int = 30):
+    def __init__(self, model, *, gravity=DEFAULT_GRAVITY, tolerance: float = 1.0e-14, max_iterations: int = 30,
+                 accept: float = 1.0e-10):
         rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
         starts = np.concatenate([[0], np.cumsum(model.counts)[:-1]]).astype(np.int64)
         free = np.ones(rest.shape[0], dtype=bool)
@@ -54,6 +58,7 @@ class ReferenceSolver:
         self._gravity64 = wp.vec3d(*np.asarray(gravity, dtype=np.float64).reshape(3))
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
+        self.accept = float(accept)
         self._kernel = rattle_kernel(model.scalar)
         n, dev = model.num_points, model.device
         self._vectors = [wp.zeros(n, dtype=wp.vec3d, device=dev) for _ in range(3)]
@@ -78,7 +83,7 @@ class ReferenceSolver:
                 m.strand_base, m.strand_stride, m.strand_count,
                 control.root_start, control.root_end,
                 float(alpha_first), float(alpha_step), int(substeps),
-                m.rest_lengths, self._gravity64, float(dt), self.tolerance, self.max_iterations,
+                m.rest_lengths, self._gravity64, float(dt), self.tolerance, self.accept, self.max_iterations,
                 state_in.positions, state_in.velocities,
                 *self._vectors, *self._scalars, self._residual,
             ],

@@ -15,6 +15,11 @@ time-reversible, second order, constraints satisfied at every step. One step of 
    chosen so that every segment's stretching rate ``r'_j . (v_j - v_{j-1})`` is zero: one linear
    symmetric tridiagonal solve (Thomas).
 
+Where Newton's method does not reach ``accept`` (a SHAKE-type position step has no solution
+along the old segment directions once a segment turns too far in one step), the step is redone
+as two halves, recursively (down to ``dt * 1e-6``); the piece length doubles again after each
+success. Converged steps are untouched by this, so the scheme stays RATTLE wherever it can.
+
 The root is kinematic (infinite mass): it sits on its target, and its velocity is the target's
 finite difference ``(x_0' - x_0)/dt``, exact for the piecewise-linear root path that
 :class:`~dftl_warp.state.Control` describes.
@@ -63,6 +68,7 @@ def rattle_kernel(scalar):
         gravity: wp.vec3d,
         dt: wp.float64,
         tolerance: wp.float64,
+        accept: wp.float64,
         max_iterations: wp.int32,
         positions_in: wp.array(dtype=vec3),
         velocities_in: wp.array(dtype=vec3),
@@ -87,123 +93,140 @@ def rattle_kernel(scalar):
             v[k] = _to_d(velocities_in[k])
         r0 = _to_d(root_start[s])
         r1 = _to_d(root_end[s])
-        inv_dt = f64(1.0) / dt
-        half_dt_g = gravity * (f64(0.5) * dt)
+        k0 = particle(base, stride, 0)
         worst = f64(0.0)
         for step in range(substeps):
             alpha = alpha_first + f64(step) * alpha_step
-            root = r0 + alpha * (r1 - r0)
-            k0 = particle(base, stride, 0)
-            q[k0] = root
-            for i in range(1, n):
-                k = particle(base, stride, i)
-                q[k] = x[k] + dt * (v[k] + half_dt_g)
-                mu[k] = f64(0.0)
+            target = r0 + alpha * (r1 - r0)
+            begin = x[k0]
+            elapsed = f64(0.0)
+            h = dt
+            while elapsed < dt:
+                if elapsed + h >= dt:
+                    h = dt - elapsed
+                # the root moves linearly across the substep
+                root = target
+                if elapsed + h < dt:
+                    root = begin + ((elapsed + h) / dt) * (target - begin)
+                half_h_g = gravity * (f64(0.5) * h)
+                q[k0] = root
+                for i in range(1, n):
+                    k = particle(base, stride, i)
+                    q[k] = x[k] + h * (v[k] + half_h_g)
+                    mu[k] = f64(0.0)
 
-            # -- position constraints: Newton on F_j(mu) = (|d_j|^2 - l_j^2)/2 ------------------
-            res = f64(0.0)
-            previous = f64(1.0e300)
-            for it in range(max_iterations):
+                # -- position constraints: Newton on F_j(mu) = (|d_j|^2 - l_j^2)/2 --------------
                 res = f64(0.0)
+                previous = f64(1.0e300)
+                for it in range(max_iterations):
+                    res = f64(0.0)
+                    c_prev = f64(0.0)
+                    d_prev = f64(0.0)
+                    for j in range(1, n):
+                        kj = particle(base, stride, j)
+                        km = particle(base, stride, j - 1)
+                        rj = x[kj] - x[km]
+                        dj = q[kj] - q[km]
+                        wsum = f64(2.0)
+                        if j == 1:
+                            wsum = f64(1.0)
+                        dj = dj + (wsum * mu[kj]) * rj
+                        rm = wp.vec3d()
+                        rp = wp.vec3d()
+                        if j > 1:
+                            rm = x[km] - x[particle(base, stride, j - 2)]
+                            dj = dj - mu[km] * rm
+                        if j < m:
+                            kp = particle(base, stride, j + 1)
+                            rp = x[kp] - x[kj]
+                            dj = dj - mu[kp] * rp
+                        # Jacobian row: d F_j / d mu_{j-1}, mu_j, mu_{j+1} (zero outside the chain)
+                        sub = -wp.dot(dj, rm)
+                        sup = -wp.dot(dj, rp)
+                        diag = wsum * wp.dot(dj, rj)
+                        l2 = f64(rest_lengths[kj]) * f64(rest_lengths[kj])
+                        f = f64(0.5) * (wp.dot(dj, dj) - l2)
+                        res = wp.max(res, wp.abs(f64(2.0) * f / l2))
+                        # Thomas forward sweep on  sub*delta_{j-1} + diag*delta_j + sup*delta_{j+1} = -f
+                        denom = diag - sub * c_prev
+                        c_prev = sup / denom
+                        d_prev = (-f - sub * d_prev) / denom
+                        cp[kj] = c_prev
+                        dp[kj] = d_prev
+                    if res < tolerance or (it >= 2 and res > f64(0.5) * previous) or not wp.isfinite(res):
+                        break
+                    previous = res
+                    # back substitution: mu_j += delta_j
+                    delta = f64(0.0)
+                    for jj in range(m):
+                        j = m - jj
+                        kj = particle(base, stride, j)
+                        delta = dp[kj] - cp[kj] * delta
+                        mu[kj] = mu[kj] + delta
+
+                if (not (res < accept)) and h > dt * f64(1.0e-6):
+                    # no solution reachable along the old segments at this step: halve it
+                    h = f64(0.5) * h
+                    continue
+                worst = wp.max(worst, res)
+
+                # new positions x' = q + mu_i r_i - mu_{i+1} r_{i+1} (old segments), kept in q
+                for i in range(1, n):
+                    k = particle(base, stride, i)
+                    km = particle(base, stride, i - 1)
+                    xi = q[k] + mu[k] * (x[k] - x[km])
+                    if i < m:
+                        kp = particle(base, stride, i + 1)
+                        xi = xi - mu[kp] * (x[kp] - x[k])
+                    q[k] = xi
+                # half-step velocities plus the second half kick: u = (x' - x)/h + h/2 g
+                inv_h = f64(1.0) / h
+                v[k0] = (root - x[k0]) * inv_h
+                x[k0] = root
+                for i in range(1, n):
+                    k = particle(base, stride, i)
+                    v[k] = (q[k] - x[k]) * inv_h + half_h_g
+                    x[k] = q[k]
+
+                # -- velocity constraints: r'_j . (v_j - v_{j-1}) = 0, one symmetric tridiagonal solve
                 c_prev = f64(0.0)
                 d_prev = f64(0.0)
                 for j in range(1, n):
                     kj = particle(base, stride, j)
                     km = particle(base, stride, j - 1)
                     rj = x[kj] - x[km]
-                    dj = q[kj] - q[km]
-                    wsum = f64(2.0)
+                    diag = f64(2.0) * wp.dot(rj, rj)
+                    sub = f64(0.0)
+                    sup = f64(0.0)
                     if j == 1:
-                        wsum = f64(1.0)
-                    dj = dj + (wsum * mu[kj]) * rj
-                    rm = wp.vec3d()
-                    rp = wp.vec3d()
-                    if j > 1:
-                        rm = x[km] - x[particle(base, stride, j - 2)]
-                        dj = dj - mu[km] * rm
+                        diag = wp.dot(rj, rj)
+                    else:
+                        sub = -wp.dot(rj, x[km] - x[particle(base, stride, j - 2)])
                     if j < m:
                         kp = particle(base, stride, j + 1)
-                        rp = x[kp] - x[kj]
-                        dj = dj - mu[kp] * rp
-                    # Jacobian row: d F_j / d mu_{j-1}, mu_j, mu_{j+1} (zero outside the chain)
-                    sub = -wp.dot(dj, rm)
-                    sup = -wp.dot(dj, rp)
-                    l2 = f64(rest_lengths[kj]) * f64(rest_lengths[kj])
-                    f = f64(0.5) * (wp.dot(dj, dj) - l2)
-                    res = wp.max(res, wp.abs(f64(2.0) * f / l2))
-                    diag = wsum * wp.dot(dj, rj)
-                    # Thomas forward sweep on  sub*delta_{j-1} + diag*delta_j + sup*delta_{j+1} = -f
+                        sup = -wp.dot(rj, x[kp] - x[kj])
+                    rhs = -wp.dot(rj, v[kj] - v[km])
                     denom = diag - sub * c_prev
                     c_prev = sup / denom
-                    d_prev = (-f - sub * d_prev) / denom
+                    d_prev = (rhs - sub * d_prev) / denom
                     cp[kj] = c_prev
                     dp[kj] = d_prev
-                if res < tolerance or (it >= 2 and res > f64(0.5) * previous) or not wp.isfinite(res):
-                    break
-                previous = res
-                # back substitution: mu_j += delta_j
-                delta = f64(0.0)
+                nu_next = f64(0.0)
                 for jj in range(m):
                     j = m - jj
                     kj = particle(base, stride, j)
-                    delta = dp[kj] - cp[kj] * delta
-                    mu[kj] = mu[kj] + delta
-            worst = wp.max(worst, res)
-
-            # new positions x' = q + mu_i r_i - mu_{i+1} r_{i+1} (old segments), kept in q
-            for i in range(1, n):
-                k = particle(base, stride, i)
-                km = particle(base, stride, i - 1)
-                xi = q[k] + mu[k] * (x[k] - x[km])
-                if i < m:
-                    kp = particle(base, stride, i + 1)
-                    xi = xi - mu[kp] * (x[kp] - x[k])
-                q[k] = xi
-            # half-step velocities plus the second half kick: u = (x' - x)/dt + dt/2 g
-            v[k0] = (root - x[k0]) * inv_dt
-            x[k0] = root
-            for i in range(1, n):
-                k = particle(base, stride, i)
-                v[k] = (q[k] - x[k]) * inv_dt + half_dt_g
-                x[k] = q[k]
-
-            # -- velocity constraints: r'_j . (v_j - v_{j-1}) = 0, one symmetric tridiagonal solve
-            c_prev = f64(0.0)
-            d_prev = f64(0.0)
-            for j in range(1, n):
-                kj = particle(base, stride, j)
-                km = particle(base, stride, j - 1)
-                rj = x[kj] - x[km]
-                diag = f64(2.0) * wp.dot(rj, rj)
-                sub = f64(0.0)
-                sup = f64(0.0)
-                if j == 1:
-                    diag = wp.dot(rj, rj)
-                else:
-                    sub = -wp.dot(rj, x[km] - x[particle(base, stride, j - 2)])
-                if j < m:
-                    kp = particle(base, stride, j + 1)
-                    sup = -wp.dot(rj, x[kp] - x[kj])
-                rhs = -wp.dot(rj, v[kj] - v[km])
-                denom = diag - sub * c_prev
-                c_prev = sup / denom
-                d_prev = (rhs - sub * d_prev) / denom
-                cp[kj] = c_prev
-                dp[kj] = d_prev
-            nu_next = f64(0.0)
-            for jj in range(m):
-                j = m - jj
-                kj = particle(base, stride, j)
-                nu_next = dp[kj] - cp[kj] * nu_next
-                mu[kj] = nu_next
-            for i in range(1, n):
-                k = particle(base, stride, i)
-                km = particle(base, stride, i - 1)
-                dv = mu[k] * (x[k] - x[km])
-                if i < m:
-                    kp = particle(base, stride, i + 1)
-                    dv = dv - mu[kp] * (x[kp] - x[k])
-                v[k] = v[k] + dv
+                    nu_next = dp[kj] - cp[kj] * nu_next
+                    mu[kj] = nu_next
+                for i in range(1, n):
+                    k = particle(base, stride, i)
+                    km = particle(base, stride, i - 1)
+                    dv = mu[k] * (x[k] - x[km])
+                    if i < m:
+                        kp = particle(base, stride, i + 1)
+                        dv = dv - mu[kp] * (x[kp] - x[k])
+                    v[k] = v[k] + dv
+                elapsed = elapsed + h
+                h = f64(2.0) * h  # try a longer piece again (capped at the substep's end)
 
         residual[s] = worst
         for i in range(n):
