@@ -2,28 +2,37 @@
 
 Usage (one monitor per run, checked once per frame or as often as you like)::
 
-    monitor = EnergyMonitor(solver, "dftl s=0.5 dt=1e-05 s")
+    monitor = EnergyMonitor(solver, "dftl s=0.5 dt=1e-05 s", state)
     for frame in range(frames):
         solver.advance(state, control, dt, substeps)
         monitor.check(state, frame)
     if monitor.warned: ...   # monitor.message says what happened
 
 ``check`` issues one :class:`EnergyGrowthWarning` (a ``RuntimeWarning``, through :mod:`warnings`)
-the first time the run's *available energy* (:mod:`dftl_warp.kernels.energy`: kinetic plus
+the first time a strand's *available energy* (:mod:`dftl_warp.kernels.energy`: kinetic plus
 potential energy above each strand's hanging rest state, per unit particle mass, J/kg) exceeds
 its *budget*, or a position or velocity is not finite. Later checks stay silent.
 
-The budget is what gravity and the roots can supply, with a safety factor:
+Each strand is judged on its own (one unstable strand is not hidden in a large groom). Its budget
+is what it started with plus what its root can supply, with a safety factor::
 
-    budget = factor * ( max(E_start, sum_s n_s |g| L_s, sum_s n_s (L_s / 1 s)^2 / 2) + sum_s 2 n_s u_s^2 )
+    budget_s = factor * ( E_start,s  +  floor_fraction n_s E_s  +  2 n_s u_s^2 )
 
-with ``n_s`` the free particles of strand ``s``, ``L_s`` its length, ``E_start`` the available
-energy at the first check and ``u_s`` the fastest root speed seen so far (a root moving at ``u``
-can at most throw its strand at ``2 u``). With held roots a physical strand never exceeds
-``max(E_start, ...)`` (``sum n |g| L`` is more than a strand standing straight up holds), so a run
-above twice that has created energy: the signature of ``s < 1`` at small steps, where the
-unbalanced corrections pump energy into the strand faster than follow-the-leader dissipates it.
-DFTL with ``s = 1`` dissipates and never comes near the budget.
+with ``n_s`` the free particles of the strand, ``E_s = max(|g| L_s, (L_s / 1 s)^2 / 2)`` the
+energy per particle of the strand falling its own length ``L_s`` (or moving one length per
+second without gravity), ``E_start,s`` its available energy in the initial state and ``u_s`` the
+fastest root speed seen so far (a root moving at ``u`` can at most throw its strand at ``2 u``).
+A physical strand never exceeds ``E_start`` while its roots are held, and DFTL with ``s = 1``
+only dissipates; a run above the budget has *created* energy -- at least doubled it, or grown
+from rest to more than ``floor_fraction`` of its weight's scale. That is the signature of
+``s < 1`` at small steps: the unbalanced velocity corrections pump energy into the strands faster
+than follow-the-leader dissipates it, and a strand hanging at rest starts to move by itself.
+
+Pass the initial state to the constructor (or check it before the first frame): otherwise the
+first check's state is taken as the start.
+
+After a run, ``monitor.unstable`` (per device strand) and ``monitor.worst_ratio`` (largest
+energy / budget seen) tell which strands blew up and by how much.
 
 Cost: one small kernel launch and three per-strand arrays copied to the host per check.
 """
@@ -39,7 +48,7 @@ from .kernels.energy import available_energy_kernel
 
 
 class EnergyGrowthWarning(RuntimeWarning):
-    """A run's energy grew beyond what gravity and the roots can supply: the setting is unstable."""
+    """A run created energy beyond what it started with and its roots can supply: the setting is unstable."""
 
 
 class EnergyMonitor:
@@ -48,17 +57,20 @@ class EnergyMonitor:
     Args:
         solver: any solver (``model`` and ``gravity`` attributes).
         setting: how the run was configured, named in the warning (e.g. ``"dftl s=0.5 dt=1e-5"``).
+        state: the initial state (recommended), measured as the start of the run.
         factor: safety factor on the physical budget (default 2).
+        floor_fraction: share of the strands' weight scale below which energy is never
+            flagged (default 1e-4).
     """
 
-    def __init__(self, solver, setting: str, *, factor: float = 2.0):
+    def __init__(self, solver, setting: str, state=None, *, factor: float = 2.0, floor_fraction: float = 1.0e-4):
         self.solver = solver
         self.model = model = solver.model
         self.setting = setting
         self.factor = float(factor)
         self.warned = False
         self.message: str | None = None
-        #: (frame, available energy J/kg, budget J/kg) of every check
+        #: (frame, total available energy J/kg, total budget J/kg) of every check
         self.history: list[tuple[int | None, float, float]] = []
         gravity = np.array(solver.gravity, dtype=np.float64).reshape(3)
         self._gravity = wp.vec3d(*gravity)
@@ -70,23 +82,28 @@ class EnergyMonitor:
         for s in range(model.num_strands):
             if count[s] > 1:
                 lengths[s] = rest[base[s] + stride[s] * np.arange(1, count[s])].sum()
-        self._floor = max(
-            float(np.sum(self._free * np.linalg.norm(gravity) * lengths)),
-            float(np.sum(self._free * 0.5 * lengths**2)),
-        )
-        self._start: float | None = None
+        scale = np.maximum(np.linalg.norm(gravity) * lengths, 0.5 * lengths**2)
+        self._floor = float(floor_fraction) * self._free * scale  # per device strand, J/kg
+        self._start: np.ndarray | None = None
         self._root_speed = np.zeros(model.num_strands)
+        #: per device strand: True once its energy has exceeded its budget
+        self.unstable = np.zeros(model.num_strands, dtype=bool)
+        #: per device strand: largest ratio of available energy to budget seen so far
+        self.worst_ratio = np.zeros(model.num_strands)
         n, dev = model.num_strands, model.device
         self._energy = wp.zeros(n, dtype=wp.float64, device=dev)
         self._speed = wp.zeros(n, dtype=wp.float64, device=dev)
         self._bad = wp.zeros(n, dtype=wp.int32, device=dev)
+        if state is not None:
+            self.measure(state)
 
-    def measure(self, state) -> tuple[float, float, bool]:
-        """(available energy J/kg, budget J/kg, all finite) of ``state``; updates the root-speed
-        record. Does not warn."""
+    def measure(self, state):
+        """Per device strand: (available energy J/kg, budget J/kg, not finite) of ``state``.
+        Updates the root-speed record and the per-strand verdicts; does not warn."""
         m = self.model
         if m.num_strands == 0:
-            return 0.0, 0.0, True
+            z = np.zeros(0)
+            return z, z, np.zeros(0, dtype=bool)
         wp.launch(
             available_energy_kernel(m.scalar),
             dim=m.num_strands,
@@ -95,36 +112,43 @@ class EnergyMonitor:
             outputs=[self._energy, self._speed, self._bad],
             device=m.device,
         )
-        energy = float(self._energy.numpy().sum())
+        energy = self._energy.numpy().copy()
         speed = self._speed.numpy()
-        finite = not bool(self._bad.numpy().any()) and np.isfinite(energy)
-        if finite:
-            np.maximum(self._root_speed, speed, out=self._root_speed)
-            if self._start is None:
-                self._start = energy
-        start = self._start if self._start is not None else 0.0
-        budget = self.factor * (max(start, self._floor) + float(np.sum(2.0 * self._free * self._root_speed**2)))
-        return energy, budget, finite
+        bad = self._bad.numpy().astype(bool) | ~np.isfinite(energy)
+        np.maximum(self._root_speed, np.where(bad, 0.0, speed), out=self._root_speed)
+        if self._start is None:
+            self._start = np.where(bad, 0.0, energy)
+        budget = self.factor * (self._start + self._floor + 2.0 * self._free * self._root_speed**2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(bad, np.inf, energy / np.maximum(budget, 1e-300))
+        np.maximum(self.worst_ratio, ratio, out=self.worst_ratio)
+        self.unstable |= bad | (energy > budget)
+        return energy, budget, bad
 
     def check(self, state, frame: int | None = None) -> bool:
-        """Measure ``state`` (at ``frame``); warn once if its energy exceeds the budget or it is
-        not finite. Returns True when this run has been found unstable (now or earlier)."""
-        energy, budget, finite = self.measure(state)
-        self.history.append((frame, energy, budget))
+        """Measure ``state`` (at ``frame``); warn once if any strand's energy exceeds its budget
+        or is not finite. Returns True when this run has been found unstable (now or earlier)."""
+        energy, budget, bad = self.measure(state)
+        self.history.append((frame, float(np.sum(energy[~bad])), float(np.sum(budget))))
         if self.warned:
             return True
-        at = f" at frame {frame}" if frame is not None else ""
-        if not finite:
-            self.message = (f"{self.setting}: the simulation produced non-finite positions or velocities{at}; "
-                            "this setting is unstable")
-        elif energy > budget:
-            self.message = (
-                f"{self.setting}: energy grew to {energy:.3g} J/kg{at}, more than {budget:.3g} J/kg "
-                f"({self.factor:g}x what gravity and the roots can supply); this setting is unstable "
-                "(DFTL with damping s < 1 at small steps pumps energy in: use s = 1)"
-            )
-        else:
+        over = bad | (energy > budget)
+        if not over.any():
             return False
+        at = f" at frame {frame}" if frame is not None else ""
+        strand = int(self.model.layout.strand_order[int(np.argmax(np.where(bad, np.inf, energy / budget)))])
+        count = int(over.sum())
+        which = f"strand {strand}" + (f" (and {count - 1} more)" if count > 1 else "")
+        if bad.any():
+            self.message = (f"{self.setting}: {which}: non-finite positions or velocities{at}; "
+                            "this setting is unstable")
+        else:
+            k = int(np.argmax(energy / budget))
+            self.message = (
+                f"{self.setting}: {which}: energy grew to {energy[k]:.3g} J/kg{at}, more than "
+                f"{budget[k]:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
+                "this setting is unstable (DFTL with damping s < 1 at small steps pumps energy in: use s = 1)"
+            )
         self.warned = True
         warnings.warn(self.message, EnergyGrowthWarning, stacklevel=2)
         return True
