@@ -13,20 +13,24 @@ the first time a strand's *available energy* (:mod:`dftl_warp.kernels.energy`: k
 potential energy above each strand's hanging rest state, per unit particle mass, J/kg) exceeds
 its *budget*, or a position or velocity is not finite. Later checks stay silent.
 
-Each strand is judged on its own (one unstable strand is not hidden in a large groom). Its budget
-is what it started with plus what its root can supply, with a safety factor::
+Each strand is judged on its own (one unstable strand is not hidden in a large groom), against
+the smaller of two budgets, each with a safety ``factor`` (default 2)::
 
-    budget_s = factor * ( E_start,s  +  floor_fraction n_s E_s  +  2 n_s u_s^2 )
+    gross:  factor * ( E_start  +  floor  +  2 n u_max^2 )
+    held:   factor * ( E_moved  +  floor )
 
-with ``n_s`` the free particles of the strand, ``E_s = max(|g| L_s, (L_s / 1 s)^2 / 2)`` the
-energy per particle of the strand falling its own length ``L_s`` (or moving one length per
-second without gravity), ``E_start,s`` its available energy in the initial state and ``u_s`` the
-fastest root speed seen so far (a root moving at ``u`` can at most throw its strand at ``2 u``).
-A physical strand never exceeds ``E_start`` while its roots are held, and DFTL with ``s = 1``
-only dissipates; a run above the budget has *created* energy -- at least doubled it, or grown
-from rest to more than ``floor_fraction`` of its weight's scale. That is the signature of
-``s < 1`` at small steps: the unbalanced velocity corrections pump energy into the strands faster
-than follow-the-leader dissipates it, and a strand hanging at rest starts to move by itself.
+with ``n`` the strand's free particles, ``E_start`` its available energy in the initial state,
+``u_max`` the fastest root speed seen so far (a root moving at ``u`` can at most throw its strand
+at ``2 u``), ``E_moved`` its energy at the last check where its root had moved since the previous
+check (``E_start`` if it never moved), and ``floor = floor_fraction * n * max(|g| L, (L/1 s)^2/2)``
+(the energy scale of the strand, of length ``L``, falling its own length; 1e-4 of it by default).
+
+A physical strand never gains energy while its root is held, and DFTL with ``s = 1`` dissipates
+(the stability map in docs/accuracy.md records its largest energy / budget ratio); a strand above
+its budget has *created* energy -- at least doubled it since its root last moved, or grown from
+rest to more than ``floor``. That is the signature of ``s < 1`` at small steps: the unbalanced
+velocity corrections pump energy into the strand faster than follow-the-leader dissipates it,
+and a strand hanging at rest starts to move by itself.
 
 Pass the initial state to the constructor (or check it before the first frame): otherwise the
 first check's state is taken as the start.
@@ -86,6 +90,8 @@ class EnergyMonitor:
         self._floor = float(floor_fraction) * self._free * scale  # per device strand, J/kg
         self._start: np.ndarray | None = None
         self._root_speed = np.zeros(model.num_strands)
+        self._moved_energy: np.ndarray | None = None
+        self._root_position: np.ndarray | None = None
         #: per device strand: True once its energy has exceeded its budget
         self.unstable = np.zeros(model.num_strands, dtype=bool)
         #: per device strand: largest ratio of available energy to budget seen so far
@@ -93,6 +99,7 @@ class EnergyMonitor:
         n, dev = model.num_strands, model.device
         self._energy = wp.zeros(n, dtype=wp.float64, device=dev)
         self._speed = wp.zeros(n, dtype=wp.float64, device=dev)
+        self._root = wp.zeros(n, dtype=wp.vec3d, device=dev)
         self._bad = wp.zeros(n, dtype=wp.int32, device=dev)
         if state is not None:
             self.measure(state)
@@ -109,16 +116,23 @@ class EnergyMonitor:
             dim=m.num_strands,
             inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self._gravity,
                     state.positions, state.velocities],
-            outputs=[self._energy, self._speed, self._bad],
+            outputs=[self._energy, self._speed, self._root, self._bad],
             device=m.device,
         )
         energy = self._energy.numpy().copy()
         speed = self._speed.numpy()
         bad = self._bad.numpy().astype(bool) | ~np.isfinite(energy)
+        root = self._root.numpy()
         np.maximum(self._root_speed, np.where(bad, 0.0, speed), out=self._root_speed)
         if self._start is None:
             self._start = np.where(bad, 0.0, energy)
-        budget = self.factor * (self._start + self._floor + 2.0 * self._free * self._root_speed**2)
+            self._moved_energy = self._start.copy()
+            self._root_position = root.copy()
+        moved = (speed > 0.0) | np.any(root != self._root_position, axis=1)
+        self._moved_energy = np.where(moved & ~bad, energy, self._moved_energy)
+        self._root_position = root.copy()
+        gross = self._start + self._floor + 2.0 * self._free * self._root_speed**2
+        budget = self.factor * np.minimum(gross, self._moved_energy + self._floor)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(bad, np.inf, energy / np.maximum(budget, 1e-300))
         np.maximum(self.worst_ratio, ratio, out=self.worst_ratio)

@@ -19,8 +19,8 @@ from .layout import particle
 
 @functools.cache
 def available_energy_kernel(scalar):
-    """Kernel writing per strand: available energy (J/kg), root speed (m/s), 1 if any position or
-    velocity is not finite (else 0)."""
+    """Kernel writing per strand: available energy (J/kg), root speed (m/s), root position (m,
+    device coordinates), 1 if any position or velocity is not finite (else 0)."""
     vec3 = wp.types.vector(3, scalar)
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -34,6 +34,7 @@ def available_energy_kernel(scalar):
         velocities: wp.array(dtype=vec3),
         energy: wp.array(dtype=wp.float64),
         root_speed: wp.array(dtype=wp.float64),
+        root_position: wp.array(dtype=wp.vec3d),
         not_finite: wp.array(dtype=wp.int32),
     ):
         s = wp.tid()
@@ -62,6 +63,7 @@ def available_energy_kernel(scalar):
             e += wp.float64(0.5) * wp.dot(vd, vd) - wp.dot(gravity, rel) + g * along
         energy[s] = e
         root_speed[s] = wp.float64(wp.length(v0))
+        root_position[s] = wp.vec3d(wp.float64(x0[0]), wp.float64(x0[1]), wp.float64(x0[2]))
         not_finite[s] = bad
 
     return available_energy
