@@ -5,7 +5,7 @@
   of a hanging chain of equal masses and a chain started in one mode shape;
 - :func:`pendulum_period`: the large-amplitude period of a pendulum (complete elliptic integral
   by the arithmetic-geometric mean);
-- :func:`groom` / :func:`head_roots`: a small groom on a spherical head that turns and nods;
+- :func:`groom` / :func:`head_roots`: a small groom hanging from a spherical head that turns and nods;
 - :func:`record`: run any solver over frames and record the trajectory.
 
 Units: metres, seconds, m/s^2. Gravity is along -Y.
@@ -78,16 +78,19 @@ def hanging_chain_in_mode(masses: int, segment: float, shape, amplitude: float) 
     return pts
 
 
-def groom(strands: int = 64, particles: int = 16, length: float = 0.2, head_radius: float = 0.1, seed: int = 7):
+def groom(strands: int = 64, particles: int = 16, length: float = 0.2, head_radius: float = 0.1, seed: int = 7,
+          hanging: bool = True):
     """A small groom: ``strands`` straight strands of ``particles`` points and ``length`` (m)
-    rooted on the upper half of a sphere of ``head_radius`` centred at the origin, growing along
-    the surface normal. Returns (points (N, 3), counts (S,))."""
+    rooted on the upper half of a sphere of ``head_radius`` centred at the origin, hanging
+    straight down at rest (``hanging``, the default) or growing along the surface normal.
+    Returns (points (N, 3), counts (S,)). There are no collisions: strands may cross the head."""
     rng = np.random.default_rng(seed)
     normals = rng.normal(size=(strands, 3))
     normals[:, 1] = np.abs(normals[:, 1]) + 0.2
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     steps = np.linspace(0.0, length, particles)
-    points = head_radius * normals[:, None, :] + steps[None, :, None] * normals[:, None, :]
+    direction = np.broadcast_to([0.0, -1.0, 0.0], normals.shape) if hanging else normals
+    points = head_radius * normals[:, None, :] + steps[None, :, None] * direction[:, None, :]
     return points.reshape(-1, 3), np.full(strands, particles, dtype=np.int64)
 
 
@@ -109,28 +112,39 @@ def strand_starts(counts) -> np.ndarray:
 
 
 def record(solver, frames: int, frame_dt: float, substeps: int, *, roots=None, velocities=None,
-           state=None, control=None, monitor=None):
+           state=None, control=None, monitor=None, clock=None):
     """Run ``solver`` for ``frames`` frames of ``frame_dt`` s, ``substeps`` steps each.
 
     ``roots(t)`` (optional) gives the world root targets (S, 3) at time ``t``; within a frame the
     roots move linearly. Returns (positions, velocities), each (frames + 1, N, 3) float64 in
     input order and world space; frame 0 is the initial state. ``monitor.check`` is called
-    after every frame when a monitor is given.
+    after every frame when a monitor is given. ``clock`` (a list) receives the wall-clock seconds
+    of every frame's ``solver.advance`` (device synchronized; recording and monitoring excluded).
     """
+    import time
+
+    import warp as wp
+
     model = solver.model
     state = solver.state() if state is None else state
     control = model.control() if control is None else control
     if velocities is not None:
         state.velocities.assign(model.points_to_device(velocities, relative=False))
     dt = frame_dt / substeps
+    spent = []
     pos = [model.points_from_device(state.positions)]
     vel = [model.points_from_device(state.velocities, relative=False)]
     for f in range(frames):
         if roots is not None:
             control.set_root_targets(roots(f * frame_dt), roots((f + 1) * frame_dt))
+        start = time.perf_counter()
         solver.advance(state, control, dt, substeps)
+        wp.synchronize_device(model.device)
+        spent.append(time.perf_counter() - start)
         if monitor is not None:
             monitor.check(state, f + 1)
         pos.append(model.points_from_device(state.positions))
         vel.append(model.points_from_device(state.velocities, relative=False))
+    if clock is not None:
+        clock.extend(spent)
     return np.stack(pos), np.stack(vel)
