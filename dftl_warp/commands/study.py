@@ -72,6 +72,8 @@ def run(args) -> int:
         "fast": args.fast,
         "chain_reference_substeps": cfg.chain_reference_substeps,
         "groom_reference_substeps": cfg.groom_reference_substeps,
+        "groom_strands": cfg.groom_strands,
+        "groom_particles": cfg.groom_particles,
         "energy_seconds": cfg.energy_seconds,
         "mode_masses": cfg.mode_masses,
         "mode_length": cfg.mode_masses * cfg.mode_segment,
