@@ -33,6 +33,7 @@ class PBDSolver:
         self.iterations = int(iterations)
         self.gravity = model.vec3(*np.asarray(gravity, dtype=np.float64).reshape(3))
         self._kernel = pbd_kernel(model.scalar)
+        self._graphs: dict = {}
 
     def state(self):
         """A rest State (positions and velocities only)."""
@@ -54,8 +55,24 @@ class PBDSolver:
         )
 
     def advance(self, state, control, dt: float, substeps: int) -> None:
-        """``substeps`` steps of ``dt`` in place, roots moving linearly across them."""
-        for k in range(substeps):
-            self.step(state, state, control, dt, (k + 1) / substeps)
+        """``substeps`` steps of ``dt`` in place, roots moving linearly across them (a CUDA graph,
+        captured once per state, control, dt and substeps, on the GPU, as for DFTL)."""
+        m = self.model
+
+        def run():
+            for k in range(substeps):
+                self.step(state, state, control, dt, (k + 1) / substeps)
+
+        if m.num_strands == 0 or not m.device.is_cuda:
+            run()
+            return
+        key = (id(state), id(control), float(dt), int(substeps))
+        graph = self._graphs.get(key)
+        if graph is None:
+            self._kernel.module.load(m.device)
+            with wp.ScopedCapture(device=m.device) as capture:
+                run()
+            graph = self._graphs[key] = capture.graph
+        wp.capture_launch(graph)
 
     diagnostics = DFTLSolver.diagnostics
