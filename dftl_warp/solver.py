@@ -15,7 +15,7 @@ from .kernels.diagnostics import strand_diagnostics_kernel
 from .kernels.ftl import CORRECTIONS, step_kernel
 from .kernels.fused import fused_step_kernel
 
-SOLVERS = ("dftl", "ftl")
+SOLVERS = ("dftl", "ftl", "pbd", "reference")
 
 #: longest strand (vertices) the fused-substep kernels keep on chip
 MAX_FUSED_VERTICES = 64
@@ -194,7 +194,22 @@ def fused_runs(strand_count, scalar, correction):
 
 
 def make_solver(model, solver: str = "dftl", **options):
-    """Solver by name: ``"dftl"`` or ``"ftl"`` (DFTL with damping 0)."""
+    """Solver by name: ``"dftl"``, ``"ftl"`` (DFTL with damping 0), ``"pbd"`` (option
+    ``iterations``, :class:`~dftl_warp.pbd.PBDSolver`) or ``"reference"``
+    (:class:`~dftl_warp.reference.ReferenceSolver`). ``damping`` and ``correction`` do not apply
+    to pbd and reference and are ignored there; ``iterations`` applies to pbd only."""
+    if solver in ("pbd", "reference"):
+        options.pop("damping", None)
+        options.pop("correction", None)
+        if solver == "pbd":
+            from .pbd import PBDSolver
+
+            return PBDSolver(model, **options)
+        options.pop("iterations", None)
+        from .reference import ReferenceSolver
+
+        return ReferenceSolver(model, **options)
+    options.pop("iterations", None)
     if solver == "dftl":
         return DFTLSolver(model, **options)
     if solver == "ftl":
