@@ -32,11 +32,6 @@ def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ matrix[:3, :3] + matrix[3, :3]
 
 
-def transform_vectors(matrix: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """Vectors (N, 3) through the linear part of a 4x4 row-vector matrix."""
-    return vectors @ matrix[:3, :3]
-
-
 @dataclass
 class StageInfo:
     """Stage metadata, effective values (USD fallbacks applied) plus what was authored."""

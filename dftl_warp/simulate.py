@@ -27,16 +27,13 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from .errors import UserError
-from .scene import Scene, transform_points, transform_vectors
+from .scene import Scene, transform_points
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise
 DEFAULT_SOLVER = "dftl"
 DEFAULT_DAMPING = 1.0
 DEFAULT_CORRECTION = "prior"
 DEFAULT_SUBSTEPS = 8
-def frame_velocity(matrix_rate: np.ndarray, local_points: np.ndarray) -> np.ndarray:
-    """World velocity (N, 3) that a moving frame gives points fixed in it: ``[p, 1] @ dM/dt``."""
-    return local_points @ matrix_rate[:3, :3] + matrix_rate[3, :3]
 
 
 @dataclass
@@ -174,6 +171,8 @@ class _Group:
             self.state = self.solver.state()
             self.control = self.model.control()
         self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        #: device buffers of local_samples, made on first use
+        self._sample_buffers = None
 
     @property
     def num_strands(self) -> int:
@@ -182,6 +181,33 @@ class _Group:
     @property
     def num_points(self) -> int:
         return int(self.point_offsets[-1])
+
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points and velocities (N, 3) in input order and local space, from column-vector
+        world-to-local matrices and frame rates per member prim (see kernels/output.py)."""
+        import warp as wp
+
+        from .kernels.output import local_samples_kernel
+
+        device = self.model.device
+        if self._sample_buffers is None:
+            n = self.num_points
+            member = np.repeat(np.arange(len(self.members), dtype=np.int32), np.diff(self.point_offsets))
+            self._sample_buffers = (
+                wp.array(self.model.layout.slot_of_point.astype(np.int32), dtype=wp.int32, device=device),
+                wp.array(member, dtype=wp.int32, device=device),
+                wp.empty(n, dtype=wp.vec3d, device=device),
+                wp.empty(n, dtype=wp.vec3d, device=device),
+            )
+        slots, member, points, velocities = self._sample_buffers
+        wp.launch(
+            local_samples_kernel(self.model.scalar), dim=self.num_points, device=device,
+            inputs=[slots, member, wp.vec3d(*self.model.origin),
+                    wp.array(to_local, dtype=wp.mat44d, device=device), wp.array(rate, dtype=wp.mat44d, device=device),
+                    self.state.positions, self.state.velocities],
+            outputs=[points, velocities],
+        )
+        return points.numpy().reshape(-1, 3), velocities.numpy().reshape(-1, 3)
 
 
 class Simulation:
@@ -244,19 +270,22 @@ class Simulation:
 
     def samples(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
-        prim's local space (stage units, stage units per second)."""
+        prim's local space (stage units, stage units per second), float64.
+
+        The gather into input order and the transforms run on the simulation device
+        (:mod:`dftl_warp.kernels.output`); the host receives one copy per group."""
         out: list = [None] * len(self.scene.curves)
         for g in self.groups:
-            x = g.model.points_from_device(g.state.positions)
-            v = g.model.points_from_device(g.state.velocities, relative=False)
+            to_local = np.empty((len(g.members), 4, 4))
+            rate = np.zeros((len(g.members), 4, 4))
+            for k, i in enumerate(g.members):
+                to_local[k] = np.linalg.inv(self._matrix(i, self.frame)).T
+                if self.scene.curves[i].animated and not self._at_rest:
+                    rate[k] = self._matrix_rate(i, self.frame).T
+            points, velocities = g.local_samples(to_local, rate)
             for k, i in enumerate(g.members):
                 a, b = g.point_offsets[k], g.point_offsets[k + 1]
-                inv = np.linalg.inv(self._matrix(i, self.frame))
-                local = transform_points(inv, x[a:b])
-                velocity = v[a:b]
-                if self.scene.curves[i].animated and not self._at_rest:
-                    velocity = velocity - frame_velocity(self._matrix_rate(i, self.frame), local)
-                out[i] = (local, transform_vectors(inv, velocity))
+                out[i] = (points[a:b], velocities[a:b])
         return out
 
     def _matrix_rate(self, index: int, frame: int) -> np.ndarray:
