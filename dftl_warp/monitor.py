@@ -82,10 +82,10 @@ class EnergyMonitor:
         # per device strand: free particles and length
         base, stride, count = model.layout.strand_base, model.layout.strand_stride, model.layout.strand_count
         self._free = np.maximum(count - 1, 0).astype(np.float64)
-        lengths = np.zeros(model.num_strands)
-        for s in range(model.num_strands):
-            if count[s] > 1:
-                lengths[s] = rest[base[s] + stride[s] * np.arange(1, count[s])].sum()
+        strand = np.repeat(np.arange(model.num_strands), count)
+        first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+        local = np.arange(strand.shape[0]) - np.repeat(first, count)
+        lengths = np.bincount(strand, weights=rest[base[strand] + stride[strand] * local], minlength=model.num_strands)
         scale = np.maximum(np.linalg.norm(gravity) * lengths, 0.5 * lengths**2)
         self._floor = float(floor_fraction) * self._free * scale  # per device strand, J/kg
         self._start: np.ndarray | None = None

@@ -21,12 +21,15 @@ rest: zero velocities.
 from __future__ import annotations
 
 import math
+import sys
 import time
+import warnings
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from .errors import UserError
+from .monitor import EnergyGrowthWarning
 from .scene import Scene, transform_points
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise
@@ -52,6 +55,10 @@ class SimulationOptions:
     precision: str = "float32"
     device: str = "cpu"
     prims: list[str] | None = None
+    #: Gauss-Seidel iterations per step of the pbd solver
+    iterations: int | None = None
+    #: watch each group's energy and warn once when it grows without bound (dftl_warp.monitor)
+    monitor: bool = True
 
 
 @dataclass(frozen=True)
@@ -80,7 +87,10 @@ class Summary:
     seconds_simulating: float
     seconds_writing: float
     groups: list[dict] = field(default_factory=list)
+    #: about the input (printed by the command after the run)
     warnings: list[str] = field(default_factory=list)
+    #: raised while simulating, e.g. energy growth (printed as they happen when progress is shown)
+    run_warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -162,15 +172,24 @@ class _Group:
             except ValueError as exc:
                 raise UserError(f"{scene.source}: {exc}") from None
             try:
+                extra = {} if options.iterations is None else {"iterations": options.iterations}
                 self.solver = make_solver(
                     self.model, settings.solver, damping=settings.damping,
-                    correction=settings.correction, gravity=scene.gravity,
+                    correction=settings.correction, gravity=scene.gravity, **extra,
                 )
             except ValueError as exc:
                 raise UserError(f"{scene.source}: {exc}") from None
             self.state = self.solver.state()
             self.control = self.model.control()
         self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        self.monitor = None
+        if options.monitor:
+            from .monitor import EnergyMonitor
+
+            prims = ", ".join(scene.curves[i].path for i in members)
+            setting = (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
+                       f"{settings.substeps} substeps/frame (dt={self.dt:.3g} s), {options.precision}")
+            self.monitor = EnergyMonitor(self.solver, setting, self.state)
         #: device buffers of local_samples, made on first use
         self._sample_buffers = None
 
@@ -240,6 +259,10 @@ class Simulation:
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)
         self._at_rest = True
+        #: one-line warnings raised while stepping (energy growth), in order
+        self.warnings: list[str] = []
+        #: called with each new warning as it happens (e.g. to print it above a progress bar)
+        self.on_warning = None
 
     # -- geometry helpers ---------------------------------------------------------------------
 
@@ -310,6 +333,13 @@ class Simulation:
                     g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
                 update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
+                if g.monitor is not None and not g.monitor.warned:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", EnergyGrowthWarning)
+                        if g.monitor.check(g.state, nxt):
+                            self.warnings.append(g.monitor.message)
+                            if self.on_warning is not None:
+                                self.on_warning(g.monitor.message)
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 1)
@@ -416,6 +446,7 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
         from tqdm import tqdm
 
         bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=True, dynamic_ncols=True)
+        sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
     try:
         with UsdWriter.create(output, scene, frames=(first, last)) as writer:
             times = run_frames(sim, writer, last, progress=bar.update if bar else None)
@@ -440,4 +471,5 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
         groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
                  "features": sorted(g.model.feature_flags)} for g in sim.groups],
         warnings=list(scene.warnings),
+        run_warnings=list(sim.warnings),
     )
