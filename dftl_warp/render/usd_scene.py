@@ -247,9 +247,8 @@ def _read_curves(prim, time, source):
         w_v, w_var = np.full((len(pts), 1), default_width(pts)), None
     else:
         w_v, w_var = per_vertex(widths, w_interp, "widths", 1)
-        bad = (w_v if w_v is not None else w_var) < 0
-        if bad.any():
-            raise UserError(f"{source}: {path}: widths[{int(np.argmax(bad.reshape(-1)))}] is negative")
+        if (widths < 0).any():
+            raise UserError(f"{source}: {path}: widths[{int(np.argmax(widths < 0))}] is negative")
 
     colors, c_interp = _primvar(prim, "displayColor", time)
     c_v = c_var = None
