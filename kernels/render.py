@@ -415,7 +415,7 @@ def hair_kajiya_kay(T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughnes
     tv = wp.dot(T, V)
     cos_spec = wp.clamp(-tl * tv + wp.sqrt(wp.max(sin_l2, 0.0) * wp.max(sin_v2, 0.0)), 0.0, 1.0)
     exponent = 2.0 / wp.max(roughness * roughness, 1.0e-3)
-    spec = 0.2 * wp.pow(cos_spec, exponent)
+    spec = 0.08 * wp.pow(cos_spec, exponent)
     return color * (wp.sqrt(wp.max(sin_l2, 0.0)) / 3.14159265) + wp.vec3(spec)
 
 
@@ -453,10 +453,14 @@ def render_kernel(
     lights: RenderLights,
     spp: int,
     seed: int,
+    row_offset: int,
     image: wp.array2d(dtype=wp.vec4),
 ):
-    """One pixel: ``spp`` jittered samples on a stratified grid; straight colour + coverage."""
-    py, px = wp.tid()
+    """One pixel: ``spp`` jittered samples on a stratified grid; straight colour + coverage.
+    Launched over (rows, width) from image row ``row_offset`` (the CPU splits the image in
+    bands rendered by several threads)."""
+    ty, px = wp.tid()
+    py = ty + row_offset
     state = wp.rand_init(seed, py * cam.width + px)
     grid = int(wp.ceil(wp.sqrt(float(spp))))
     rows = (spp + grid - 1) // grid

@@ -134,3 +134,15 @@ def test_bad_mesh_and_camera_raise_user_errors():
         usd_scene.read_camera(stage, "/m", None, "s.usda")
     with pytest.raises(UserError, match=r"/nope"):
         usd_scene.read_camera(stage, "/nope", None, "s.usda")
+
+
+def test_cpu_row_bands_on_threads_match_one_launch():
+    stage = new_stage()
+    add_camera(stage, translate=(0, 0.5, 3))
+    add_curves(stage, "/hair", [np.array([[x, 0, 0], [x + 0.2, 1.0, 0.1]]) for x in np.linspace(-0.6, 0.6, 15)],
+               widths=[0.02])
+    scene, cam = usd_scene.read_scene(stage), usd_scene.read_camera(stage, "/cam")
+    one = Renderer(50, 37, spp=3, threads=1).render(scene, cam)
+    many = Renderer(50, 37, spp=3, threads=3).render(scene, cam)
+    assert one[..., 3].sum() > 10
+    assert np.array_equal(one, many)

@@ -7,7 +7,7 @@ import numpy as np
 
 def sphere_groom(strands=2000, vertices=16, radius=0.1, length=0.12, seed=0, droop=1.0, curl=0.004):
     """Strands rooted on the upper part of a sphere of ``radius`` at the origin (Y up), leaving
-    along the surface normal and bending down under a fake gravity ``droop`` with a little
+    at a shallow angle combed back and down along the scalp, bending down under a fake gravity ``droop`` with a little
     waviness ``curl``. Returns (points (strands*vertices, 3), counts)."""
     rng = np.random.default_rng(seed)
     # roots: uniform on the cap y > -0.2 r
@@ -19,7 +19,12 @@ def sphere_groom(strands=2000, vertices=16, radius=0.1, length=0.12, seed=0, dro
     seg = length * rng.uniform(0.85, 1.15, strands)[:, None] / (vertices - 1)
     pts = np.empty((strands, vertices, 3))
     pts[:, 0] = root
-    direction = normal.copy()
+    # roots leave at a shallow angle, combed along the scalp towards the back and down
+    flow = np.array([0.0, -1.0, -0.35]) / np.linalg.norm([0.0, -1.0, -0.35])
+    along = flow - (normal @ flow)[:, None] * normal
+    along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-9)
+    direction = 0.45 * normal + along
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     down = np.array([0.0, -1.0, 0.0])
     wave_phase = rng.uniform(0, 2 * np.pi, strands)
     side = np.cross(normal, down)

@@ -8,6 +8,8 @@ the same strand topology, the segment boxes are rewritten on the device and the 
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,10 +32,10 @@ class Lighting:
     key_dir: tuple = (-0.55, 0.70, 0.45)
     key_color: tuple = (3.4, 3.25, 3.0)
     fill_dir: tuple = (0.80, 0.05, 0.35)
-    fill_color: tuple = (0.55, 0.62, 0.78)
-    ambient: tuple = (0.10, 0.11, 0.13)
+    fill_color: tuple = (0.40, 0.46, 0.58)
+    ambient: tuple = (0.07, 0.075, 0.085)
     hair_shadow_transmittance: float = 0.6
-    roughness: float = 0.35
+    roughness: float = 0.25
     geometry_albedo: tuple = (0.45, 0.45, 0.45)
 
 
@@ -47,10 +49,11 @@ def parse_device(name: str) -> str:
 
 
 class Renderer:
-    """Renders frames of ``width`` x ``height`` pixels with ``spp`` samples per pixel."""
+    """Renders frames of ``width`` x ``height`` pixels with ``spp`` samples per pixel on a Warp
+    ``device``; on the CPU, ``threads`` threads (default: all cores) render bands of rows."""
 
     def __init__(self, width=640, height=480, spp=4, device="cpu", shading="marschner",
-                 conform="expandAperture", lighting: Lighting | None = None, seed=0):
+                 conform="expandAperture", lighting: Lighting | None = None, seed=0, threads=None):
         if width < 1 or height < 1:
             raise UserError(f"resolution {width}x{height}: both must be at least 1")
         if spp < 1:
@@ -63,6 +66,8 @@ class Renderer:
         self.conform = conform
         self.lighting = lighting or Lighting()
         self.seed = seed
+        #: CPU threads rendering bands of rows (default: all cores); one launch on CUDA
+        self.threads = 1 if wp.get_device(self.device).is_cuda else int(threads or os.cpu_count() or 1)
         self.bvh_builds = 0
         self.bvh_refits = 0
         self._hair_counts = None
@@ -188,10 +193,22 @@ class Renderer:
         origin = np.zeros(3) if bounds is None else 0.5 * (bounds[0] + bounds[1])
         self._upload_hair(scene, origin)
         self._upload_shapes(scene, origin)
-        wp.launch(rk.render_kernel, dim=(self.height, self.width),
-                  inputs=[self._camera(camera, origin), self._hair, self._shapes, self._lights(camera),
-                          self.spp, int(self.seed)],
-                  outputs=[self._image], device=self.device)
+        inputs = [self._camera(camera, origin), self._hair, self._shapes, self._lights(camera), self.spp, int(self.seed)]
+        if self.threads <= 1 or self.height < 2:
+            wp.launch(rk.render_kernel, dim=(self.height, self.width), inputs=[*inputs, 0],
+                      outputs=[self._image], device=self.device)
+        else:
+            # Warp runs a CPU launch on one thread (and lets go of the GIL): render bands of
+            # rows concurrently, small bands handed out in turn to even out the work
+            band = max(1, min(16, self.height // (4 * self.threads)))
+
+            def launch(row):
+                rows = min(band, self.height - row)
+                wp.launch(rk.render_kernel, dim=(rows, self.width), inputs=[*inputs, row],
+                          outputs=[self._image], device=self.device)
+
+            with ThreadPoolExecutor(self.threads) as pool:
+                list(pool.map(launch, range(0, self.height, band)))
         return self._image.numpy().copy()
 
 
