@@ -51,7 +51,7 @@ def cpu_name() -> str:
 
 
 def run(device: str, out_dir, strands: int = 100_000, vertices: int = 16, resolution=(1920, 1080),
-        spp: int = 4, frames: int = 2) -> str:
+        spp: int = 4, frames: int = 2, threads: int | None = None) -> str:
     from dftl_warp.warp_setup import init_warp
 
     init_warp()
@@ -66,7 +66,7 @@ def run(device: str, out_dir, strands: int = 100_000, vertices: int = 16, resolu
     scene = groom_scene(strands, vertices)
     # compile the kernels on a tiny frame first
     Renderer(8, 8, spp=1, device=device).render(groom_scene(10, vertices))
-    renderer = Renderer(width, height, spp=spp, device=device)
+    renderer = Renderer(width, height, spp=spp, device=device, threads=threads)
     camera = renderer.default_camera(scene)
     wp.synchronize_device(device)
     load = os.getloadavg()[0]
@@ -103,9 +103,10 @@ def main(argv=None) -> int:
     ap.add_argument("--resolution", default="1920x1080")
     ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("--frames", type=int, default=2, help="timed frames after the first")
+    ap.add_argument("--threads", type=int, help="CPU threads (default: all cores)")
     args = ap.parse_args(argv)
     w, h = (int(v) for v in args.resolution.split("x"))
-    row = run(args.device, args.out, args.strands, args.vertices, (w, h), args.spp, args.frames)
+    row = run(args.device, args.out, args.strands, args.vertices, (w, h), args.spp, args.frames, args.threads)
     print(HEADER)
     print(row)
     return 0

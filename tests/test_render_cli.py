@@ -130,3 +130,14 @@ def test_command_line_error_has_no_traceback(tmp_path):
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [f"dftl-warp: error: {tmp_path / 'nothing.usda'}: no such file"]
     assert not (tmp_path / "x.png").exists()
+
+
+def test_output_gets_ordinary_file_permissions(stage_file, tmp_path):
+    import os
+    import stat
+
+    out = tmp_path / "p.png"
+    assert render(stage_file, "--resolution", "8x8", "--spp", 1, "-o", out) == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(out.stat().st_mode) == 0o666 & ~umask

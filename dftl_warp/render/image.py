@@ -23,6 +23,9 @@ def _atomic(path, write):
     os.close(fd)
     try:
         write(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the usual permissions
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -90,7 +93,8 @@ def write_video(path, frames, fps: float = 24.0) -> None:
             iio.imwrite(tmp, rgb, extension=".gif", duration=1000.0 / fps, loop=0)
         else:
             try:
-                iio.imwrite(tmp, rgb, extension=suffix, fps=fps, codec="libx264" if suffix == ".mp4" else None)
+                iio.imwrite(tmp, rgb, extension=suffix, fps=fps, codec="libx264" if suffix == ".mp4" else None,
+                            macro_block_size=2)
             except (ImportError, ValueError, RuntimeError) as exc:
                 raise UserError(f"{path}: cannot write {suffix} ({exc}); pip install 'dftl-warp[video]' (imageio-ffmpeg)") from None
 
