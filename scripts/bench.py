@@ -172,7 +172,7 @@ def bench_numpy(strands, count, steps=3):
 
 def bench_fused(device, timer, strands_times_count, ks=(1, 4, 8, 16, 32)):
     """Fused substeps against one step per launch, for several strand lengths."""
-    cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 32),
+    cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 24), ("float32", "prior", 32),
              ("float32", "posterior", 32), ("float64", "prior", 32)]
     rows = []
     for precision, correction, count in cases:
