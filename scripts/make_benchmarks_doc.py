@@ -1,0 +1,136 @@
+#!/usr/bin/env python3
+"""Assemble docs/benchmarks.md from the result fragments the benchmark scripts write.
+
+Each benchmark writes a markdown fragment with its own command, machine and date into
+docs/bench/<machine>/ (copied there from the GPU run's $OUT). This script stitches them together
+under a summary that quotes the headline numbers from the JSON results.
+
+    python scripts/make_benchmarks_doc.py
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+BENCH = DOCS / "bench"
+
+
+def fragment(path: Path, demote: int = 1) -> str:
+    """A fragment's text with its headings pushed ``demote`` levels down."""
+    if not path.exists():
+        return f"_(missing: {path.relative_to(ROOT)})_\n"
+    out = []
+    for line in path.read_text().splitlines():
+        out.append("#" * demote + line if line.startswith("#") else line)
+    return "\n".join(out) + "\n"
+
+
+def headline(res: dict) -> list[str]:
+    copy = res["copy"]["bandwidth_Bps"]
+    step = {(r["precision"], r["layout"], r["correction"]): r for r in res["step"]}
+    f32 = step[("float32", "particle-major", "prior")]
+    f64 = step[("float64", "particle-major", "prior")]
+    post = step[("float32", "particle-major", "posterior")]
+    sm = step[("float32", "strand-major", "prior")]
+    fused = {(r["precision"], r["correction"], r["particles_per_strand"], r["substeps_per_launch"]): r
+             for r in res["fused"]}
+    floor = f32["particle_steps_per_s"]
+    lines = [
+        "| measure (H200, float32 unless said) | target | measured |",
+        "|---|---|---|",
+        f"| copy bandwidth (ceiling, `wp.copy`, same run) | — | {copy / 1e12:.2f} TB/s |",
+        f"| prior step, 1M strands x 32, particle-major, of copy | >= 85% (issue 2), >= 90% (issue 6) | "
+        f"**{100 * f32['of_copy']:.1f}%** ({f32['particle_steps_per_s'] / 1e9:.1f} G particle-steps/s) |",
+        f"| posterior step (52 B/particle), of copy | — | {100 * post['of_copy']:.1f}% |",
+        f"| float64 prior step, of copy | — | {100 * f64['of_copy']:.1f}% |",
+        f"| float64 cost (per-step kernel, prior) | — | {f32['particle_steps_per_s'] / f64['particle_steps_per_s']:.2f}x float32 |",
+        f"| strand-major layout on CUDA | — | {100 * sm['of_copy']:.1f}% of copy: particle-major is "
+        f"{f32['particle_steps_per_s'] / sm['particle_steps_per_s']:.0f}x faster |",
+    ]
+    for n in (8, 16, 24, 32):
+        r = fused.get(("float32", "prior", n, 8))
+        if r:
+            lines.append(f"| fused, k = 8 substeps/launch, {n} particles/strand, x per-step floor "
+                         f"({floor / 1e9:.1f} G/s) | >= 4x (issue 6) | **{r['particle_substeps_per_s'] / floor:.2f}x** "
+                         f"(max diff vs unfused: {r['max_abs_diff_vs_unfused']:g}) |")
+    r64 = fused.get(("float64", "prior", 32, 8))
+    r32 = fused.get(("float32", "prior", 32, 8))
+    if r64 and r32:
+        lines.append(f"| float64 cost (fused, k = 8, 32 particles/strand) | — | "
+                     f"{r32['particle_substeps_per_s'] / r64['particle_substeps_per_s']:.2f}x float32 |")
+    for big in res["memory"].get("largest", []):
+        lines.append(f"| largest groom allocated and stepped, {big['precision']} | — | "
+                     f"{big['strands']:,} strands x {big['particles_per_strand']} = {big['particles'] / 1e9:.2f} G "
+                     f"particles ({big['limited_by']}) |")
+    return lines
+
+
+def main():
+    h200 = BENCH / "h200"
+    cpu = BENCH / "cpu"
+    res = json.loads((h200 / "results-cuda0.json").read_text())
+    parts = [
+        "# Benchmarks",
+        "",
+        "Every number below comes from a run of a script in `scripts/`; each section names its command,",
+        "machine and date. GPU figures: one NVIDIA H200 (141 GB HBM3e) with Warp 1.19.0, through the",
+        "workplace's device runner (`../shared/gpu/README.md`: Warp and usd-core staged, repository root on",
+        "PYTHONPATH). CPU figures: the 2-core Intel Xeon development machine, which was shared with other",
+        "jobs (expect 10-30% noise). This page is assembled by `python scripts/make_benchmarks_doc.py` from",
+        "the fragments under `docs/bench/`.",
+        "",
+        "## Summary",
+        "",
+        *headline(res),
+        "",
+        "Bytes counted are the minimal ones of the form: prior reads and writes x, v and the carried",
+        "correction and reads the rest length (76 B/particle in float32); posterior 52 B. What the",
+        "kernels read besides (per-strand layout indices and root targets, ~1.5 B/particle at 32",
+        "particles per strand) is not counted and lowers the ratio.",
+        "",
+        "![throughput against problem size](bench/h200/throughput-cuda0.png)",
+        "",
+        "## H200: DFTL step, fused substeps, scaling, memory",
+        "",
+        fragment(h200 / "bench-cuda0.md"),
+        "Thread-block size and the numpy baseline on the H200 host, from the earlier run kept in",
+        "`docs/bench/h200/bench-cuda0-run2.md` (same code for the per-step kernel):",
+        "",
+        fragment(h200 / "blocks-and-numpy.md"),
+        "## H200: frames end to end (simulate = substeps + root update + device-to-host copy + USD writing)",
+        "",
+        fragment(h200 / "frames-cuda0.md"),
+        "## H200: cost of each scene feature",
+        "",
+        "`python scripts/bench_features.py --device cuda:0 --strands 262144 --out $OUT` (2026-11-21):",
+        "",
+        fragment(h200 / "features-cuda0.md"),
+        "## H200: rendering",
+        "",
+        "`python scripts/bench_render.py --device cuda:0 --out $OUT` (2026-11-21); the CPU figures are in",
+        "[render.md](render.md).",
+        "",
+        fragment(h200 / "bench_render.md"),
+        "## CPU (development machine): Warp CPU backend against the numpy baseline",
+        "",
+        "Both serial. Strand-major is the faster layout on the CPU backend, which is why it is the",
+        "CPU default; the fused path does not pay on the CPU and is off there by default.",
+        "",
+        fragment(cpu / "bench-cpu.md"),
+        "## USD writing (CPU)",
+        "",
+        "See [benchmarks-usd.md](benchmarks-usd.md): 10k strands x 32 points x 100 frames, points,",
+        "velocities and extent authored and saved to .usdc.",
+        "",
+    ]
+    for extra in sorted(BENCH.glob("*/extra-*.md")):
+        parts += [fragment(extra), ""]
+    (DOCS / "benchmarks.md").write_text("\n".join(parts))
+    print(f"wrote {DOCS / 'benchmarks.md'}")
+
+
+if __name__ == "__main__":
+    main()
