@@ -48,14 +48,14 @@ class Layout:
     strand_stride: np.ndarray
     #: vertex count of each device strand
     strand_count: np.ndarray
-    #: device slot of every input point, in input order
-    slot_of_point: np.ndarray
+    #: device slot of every input point, in input order (None for device-built synthetic grooms)
+    slot_of_point: np.ndarray | None
     #: (count, first device strand, number of strands) for each group of equal vertex count
     groups: tuple[tuple[int, int, int], ...]
 
     @property
     def num_slots(self) -> int:
-        return int(self.slot_of_point.shape[0])
+        return int(self.strand_count.sum())
 
 
 def make_layout(counts: np.ndarray, name: str) -> Layout:

@@ -63,7 +63,7 @@ class Model:
 
     @property
     def num_points(self) -> int:
-        return self.layout.num_slots
+        return int(self.rest_lengths.shape[0])
 
     @property
     def scalar(self):

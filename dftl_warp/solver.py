@@ -13,8 +13,12 @@ import warp as wp
 
 from .kernels.diagnostics import strand_diagnostics_kernel
 from .kernels.ftl import CORRECTIONS, step_kernel
+from .kernels.fused import fused_step_kernel
 
 SOLVERS = ("dftl", "ftl")
+
+#: longest strand (vertices) the fused-substep kernels keep on chip
+MAX_FUSED_VERTICES = 64
 
 #: standard gravity, m/s^2, along -Y (the default up axis)
 DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
@@ -29,11 +33,15 @@ class DFTLSolver:
             velocity (1: the seed's physically convergent choice).
         correction: ``"prior"`` (seed eq. 4-6) or ``"posterior"`` (paper eq. 1-3).
         gravity: acceleration (3,), m/s^2 (stage units/s^2 for USD scenes).
+        fused: run a frame's substeps in one launch per strand group, state kept on chip
+            (:mod:`dftl_warp.kernels.fused`; identical results). ``None``: on CUDA when every strand
+            has at most :data:`MAX_FUSED_VERTICES` vertices.
     """
 
     name = "dftl"
 
-    def __init__(self, model, *, damping: float = 1.0, correction: str = "prior", gravity=DEFAULT_GRAVITY):
+    def __init__(self, model, *, damping: float = 1.0, correction: str = "prior", gravity=DEFAULT_GRAVITY,
+                 fused: bool | None = None):
         if correction not in CORRECTIONS:
             raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
         if not (0.0 <= float(damping) <= 1.0):
@@ -44,6 +52,11 @@ class DFTLSolver:
         self.gravity = model.vec3(*np.asarray(gravity, dtype=np.float64).reshape(3))
         self._kernel = step_kernel(model.scalar, correction)
         self._graphs: dict = {}
+        fits = model.num_strands == 0 or int(model.layout.strand_count.max()) <= MAX_FUSED_VERTICES
+        if fused and not fits:
+            raise ValueError(f"fused substeps need strands of at most {MAX_FUSED_VERTICES} vertices")
+        self.fused = bool(model.device.is_cuda and fits) if fused is None else bool(fused)
+        self._fused_runs = fused_runs(model.layout.strand_count, model.scalar, correction) if self.fused else []
 
     @property
     def carries_corrections(self) -> bool:
@@ -83,8 +96,12 @@ class DFTLSolver:
             return
 
         def run():
+            if self.fused:
+                self._launch_fused(state, control, dt, substeps)
+                return
+            real = np.dtype(m.precision).type  # alpha rounded as the fused kernels compute it
             for k in range(substeps):
-                self.step(state, state, control, dt, (k + 1) / substeps)
+                self.step(state, state, control, dt, float(real(k + 1) / real(substeps)))
 
         if not m.device.is_cuda:
             run()
@@ -92,11 +109,26 @@ class DFTLSolver:
         key = (id(state), id(control), float(dt), int(substeps))
         graph = self._graphs.get(key)
         if graph is None:
-            self._kernel.module.load(m.device)  # compile before capturing
+            for kernel in [self._kernel] + [run[0] for run in self._fused_runs]:
+                kernel.module.load(m.device)  # compile before capturing
             with wp.ScopedCapture(device=m.device) as capture:
                 run()
             graph = self._graphs[key] = capture.graph
         wp.capture_launch(graph)
+
+    def _launch_fused(self, state, control, dt, substeps):
+        m = self.model
+        if self.carries_corrections and state.corrections is None:
+            raise ValueError("the prior correction form needs states with corrections (solver.state())")
+        for kernel, first, size in self._fused_runs:
+            wp.launch(
+                kernel,
+                dim=size,
+                inputs=[first, m.strand_base, m.strand_stride, m.strand_count, control.root_start,
+                        control.root_end, m.rest_lengths, self.gravity, dt, self.damping, substeps,
+                        state.positions, state.velocities, state.corrections],
+                device=m.device,
+            )
 
     def diagnostics(self, state) -> dict:
         """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s)."""
@@ -122,6 +154,24 @@ class DFTLSolver:
             "max_stretch": float(stretch.max()),
             "max_speed": float(speed.max()),
         }
+
+
+def fused_capacity(count: int) -> int:
+    """Capacity of the fused kernel serving strands of ``count`` vertices: a multiple of 8, so
+    that few kernels serve grooms of many lengths."""
+    return int(max(8, -(-int(count) // 8) * 8))
+
+
+def fused_runs(strand_count, scalar, correction):
+    """(kernel, first device strand, number of strands) for each run of consecutive device
+    strands that share a fused kernel: its capacity, and whether they fill it exactly."""
+    keys = [(fused_capacity(c), bool(fused_capacity(c) == c)) for c in strand_count]
+    runs, first = [], 0
+    for s in range(1, len(keys) + 1):
+        if s == len(keys) or keys[s] != keys[first]:
+            runs.append((fused_step_kernel(scalar, correction, *keys[first]), first, s - first))
+            first = s
+    return runs
 
 
 def make_solver(model, solver: str = "dftl", **options):

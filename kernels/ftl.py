@@ -28,6 +28,11 @@ from .layout import particle
 
 CORRECTIONS = ("prior", "posterior")
 
+#: Module options of the step kernels and of the fused kernels (:mod:`.fused`). Floating-point
+#: contraction (FMA) is off so that both compute each value with the same roundings and agree
+#: bitwise on every device; the step is memory-bound, so contraction buys no speed here.
+STEP_MODULE_OPTIONS = {"fuse_fp": False}
+
 
 @functools.cache
 def follow_func(scalar):
@@ -67,7 +72,7 @@ def step_kernel(scalar, correction: str):
 
     if correction == "prior":
 
-        @wp.kernel(enable_backward=False, module="unique")
+        @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
         def dftl_step(
             strand_base: wp.array(dtype=wp.int32),
             strand_stride: wp.array(dtype=wp.int32),
@@ -114,7 +119,7 @@ def step_kernel(scalar, correction: str):
 
         return dftl_step
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_step_posterior(
         strand_base: wp.array(dtype=wp.int32),
         strand_stride: wp.array(dtype=wp.int32),

@@ -1,0 +1,59 @@
+"""Fused substeps (state on chip for a whole frame) give the unfused path's results exactly."""
+
+import numpy as np
+import pytest
+
+import dftl_warp as dw
+from dftl_warp.solver import fused_capacity, fused_runs
+
+LENGTHS = [1, 2, 7, 8, 9, 13]  # not multiples of the capacity blocks (8), except one exact fit
+
+
+def groom(rng):
+    pts = []
+    for n in LENGTHS:
+        steps = rng.normal(size=(n, 3))
+        steps /= np.linalg.norm(steps, axis=1, keepdims=True)
+        steps[0] = rng.uniform(-5, 5, size=3)
+        pts.append(np.cumsum(steps * 0.02, axis=0))
+    return np.concatenate(pts), np.array(LENGTHS)
+
+
+def run(pts, counts, *, fused, precision, correction, layout):
+    model = dw.Model.from_strands(pts, counts, precision=precision, layout=layout)
+    solver = dw.DFTLSolver(model, correction=correction, fused=fused, gravity=(0.0, -9.81, 0.0))
+    state, control = solver.state(), model.control()
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    roots = pts[starts]
+    for frame in range(6):  # roots swing on a circle: they move inside every fused launch
+        a0, a1 = 0.7 * frame, 0.7 * (frame + 1)
+        offset = lambda a: 0.05 * np.array([np.sin(a), 1 - np.cos(a), 0.3 * a])  # noqa: E731
+        control.set_root_targets(roots + offset(a0), roots + offset(a1))
+        solver.advance(state, control, 1 / 240, 5)
+    return model.points_from_device(state.positions), model.points_from_device(state.velocities, relative=False)
+
+
+@pytest.mark.parametrize("precision,correction", [("float64", "prior"), ("float64", "posterior"),
+                                                  ("float32", "prior")])
+@pytest.mark.parametrize("layout", ["strand-major", "particle-major"])
+def test_fused_equals_unfused(precision, correction, layout, rng):
+    pts, counts = groom(rng)
+    x0, v0 = run(pts, counts, fused=False, precision=precision, correction=correction, layout=layout)
+    x1, v1 = run(pts, counts, fused=True, precision=precision, correction=correction, layout=layout)
+    assert np.isfinite(x0).all()
+    assert np.array_equal(x0, x1)
+    assert np.array_equal(v0, v1)
+
+
+def test_fused_runs_group_strands_by_capacity():
+    counts = np.array([3, 8, 9, 16, 17, 5])
+    runs = fused_runs(counts, dw.Model.from_strands(np.zeros((58, 3)), counts).scalar, "prior")
+    assert [(first, size) for _, first, size in runs] == [(0, 1), (1, 1), (2, 1), (3, 1), (4, 1), (5, 1)]
+    assert [fused_capacity(c) for c in counts] == [8, 8, 16, 16, 24, 8]
+
+
+def test_fused_refuses_long_strands():
+    model = dw.Model.from_strands(np.c_[np.arange(100.0), np.zeros(100), np.zeros(100)], [100])
+    assert not dw.DFTLSolver(model).fused
+    with pytest.raises(ValueError, match="at most 64"):
+        dw.DFTLSolver(model, fused=True)
