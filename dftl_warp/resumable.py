@@ -206,7 +206,7 @@ def remove_job_files(files: JobFiles) -> None:
 
 
 @contextlib.contextmanager
-def job_lock(path: Path, wait: float = LOCK_WAIT_SECONDS):
+def job_lock(path: Path, wait: float | None = None):
     """Exclusive lock on ``path`` (created, removed on exit) so that two processes never work on
     the same output; waits up to ``wait`` s for a holder (e.g. a process being killed)."""
     try:
@@ -214,7 +214,7 @@ def job_lock(path: Path, wait: float = LOCK_WAIT_SECONDS):
     except ImportError:  # pragma: no cover - not POSIX: no locking
         yield
         return
-    deadline = time.monotonic() + wait
+    deadline = time.monotonic() + (LOCK_WAIT_SECONDS if wait is None else wait)
     while True:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
