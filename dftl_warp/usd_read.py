@@ -305,6 +305,12 @@ def read_curves_prim(prim, file: str, time=None) -> CurvesPrim | None:
     bad = _first_bad_row(points)
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite")
+    counts_attr = curves.GetCurveVertexCountsAttr()
+    if counts_attr.GetNumTimeSamples() > 1:
+        for t in counts_attr.GetTimeSamples():
+            other = np.array(counts_attr.Get(t) or [], dtype=np.int64)
+            if other.shape != counts.shape or np.any(other != counts):
+                raise UserError(f"{where}: curveVertexCounts changes at time {t:g}: the curves' topology must not change over time")
 
     transform, animated = _transform_sampler(prim, time, file)
     m = transform(time)

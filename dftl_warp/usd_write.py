@@ -30,7 +30,7 @@ from .errors import UserError
 
 OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
 #: save (and so release) the in-memory samples once this many new bytes have accumulated
-DEFAULT_FLUSH_BYTES = 64 << 20
+DEFAULT_FLUSH_BYTES = 4 << 20
 
 
 def partial_path(output) -> Path:
@@ -196,8 +196,9 @@ class UsdWriter:
             raise ValueError(f"expected {len(self.targets)} prims' samples, got {len(samples)}")
         values = []
         for t, (points, velocities) in zip(self.targets, samples):
-            p = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3))
-            v = Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(velocities, dtype=np.float32).reshape(-1, 3))
+            # FromBuffer converts float64 to float32 while copying (no separate astype pass)
+            p = Vt.Vec3fArray.FromBuffer(_rows(points))
+            v = Vt.Vec3fArray.FromBuffer(_rows(velocities))
             if t.widths is not None:
                 e = UsdGeom.Curves.ComputeExtent(p, t.widths)
             else:
@@ -275,6 +276,14 @@ class UsdWriter:
         if exc_type is not None and self.layer is not None:
             self.abort()
         return False
+
+
+def _rows(array) -> np.ndarray:
+    """(N, 3) C-contiguous float32 or float64 view (a copy only when needed)."""
+    a = np.asarray(array)
+    if a.dtype not in (np.float32, np.float64):
+        a = a.astype(np.float64)
+    return np.ascontiguousarray(a).reshape(-1, 3)
 
 
 def _remove(path) -> None:

@@ -69,6 +69,18 @@ def test_counts_below_one(tmp_path, capsys, counts, index, value):
                    f"{f}: /World/Hair: curveVertexCounts[{index}] = {value}: every curve needs at least 1 vertex")
 
 
+def test_changing_topology_is_refused(tmp_path, capsys):
+    f = curves_file(tmp_path, chain(4), [4])
+    from pxr import Usd, Vt
+
+    stage = Usd.Stage.Open(str(f))
+    attr = stage.GetPrimAtPath("/World/Hair").GetAttribute("curveVertexCounts")
+    attr.Set(Vt.IntArray([4]), 1.0)
+    attr.Set(Vt.IntArray([2, 2]), 5.0)
+    stage.Save()
+    assert_refused(capsys, tmp_path, [f], f"{f}: /World/Hair: curveVertexCounts changes at time 5")
+
+
 def test_periodic_curves_are_refused(tmp_path, capsys):
     f = curves_file(tmp_path, chain(4), [4], curve_type="cubic", basis="bspline", wrap="periodic")
     assert_refused(capsys, tmp_path, [f], f"{f}: /World/Hair: periodic curves")

@@ -173,6 +173,17 @@ def test_output_passes_every_registered_validator_for_the_default_scene(tmp_path
     assert _errors(out) == set()
 
 
+def test_usdz_input_output_validates(tmp_path):
+    from pxr import UsdUtils
+
+    src = groom_file(tmp_path / "in.usda")
+    assert UsdUtils.CreateNewUsdzPackage(Sdf.AssetPath(str(src)), str(tmp_path / "in.usdz"))
+    simulate_usd(tmp_path / "in.usdz", tmp_path / "o.usdc", end=3)
+    assert list(Sdf.Layer.FindOrOpen(str(tmp_path / "o.usdc")).subLayerPaths) == ["./in.usdz"]
+    assert _errors(tmp_path / "in.usdz") == _errors(tmp_path / "o.usdc") == set()
+    assert len(composed_samples(tmp_path / "o.usdc", "/World/Hair")) == 3
+
+
 def test_output_adds_no_validation_errors_to_a_flawed_input(tmp_path):
     src = groom_file(tmp_path / "in.usda", up=None, meters_per_unit=None, default_prim=False)
     before = _errors(src)
