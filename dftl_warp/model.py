@@ -82,11 +82,13 @@ class Model:
         device="cpu",
         precision: str = "float32",
         layout: str | None = None,
+        origin=None,
     ) -> Model:
         """Model of strands given as concatenated ``points`` (N, 3) and vertex ``counts`` (S,).
 
         Vertex 0 of each strand is its root. Rest lengths are the input's segment lengths.
         ``layout`` defaults to the fastest for ``device`` (:func:`~dftl_warp.layout.default_layout`).
+        ``origin`` (3,) overrides the world origin (models sharing one give identical results).
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         counts = np.asarray(counts, dtype=np.int64).reshape(-1)
@@ -103,7 +105,7 @@ class Model:
         if layout_name not in LAYOUTS:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")
         lay = make_layout(counts, layout_name)
-        origin = _world_origin(points)
+        origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         local = points - origin
 
         starts = np.zeros(counts.shape[0], dtype=np.int64)

@@ -189,17 +189,23 @@ class Simulation:
         self.scene = scene
         self.options = options
         self.frame = int(frame)
-        try:
-            self.device = wp.get_device(options.device)
-        except (ValueError, RuntimeError, KeyError) as exc:
-            available = ", ".join(d.alias for d in wp.get_devices())
-            raise UserError(f"--device {options.device}: not available here ({available}): {exc}") from None
-        options = replace(options, device=str(self.device))
+        devices = []
+        for name in str(options.device).split(","):  # a list splits the strands (multi_device)
+            try:
+                devices.append(wp.get_device(name.strip()))
+            except (ValueError, RuntimeError, KeyError) as exc:
+                available = ", ".join(d.alias for d in wp.get_devices())
+                raise UserError(f"--device {name.strip()}: not available here ({available}): {exc}") from None
+        self.device = devices[0]
+        options = replace(options, device=",".join(str(d) for d in devices))
         self.options = options
         by_settings: dict[GroupSettings, list[int]] = {}
         for i in range(len(scene.curves)):
             by_settings.setdefault(group_settings(scene, options, i), []).append(i)
-        self.groups = [_Group(s, m, scene, self.frame, options) for s, m in by_settings.items()]
+        group = _Group
+        if len(devices) > 1:
+            from .multi_device import SplitGroup as group
+        self.groups = [group(s, m, scene, self.frame, options) for s, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)

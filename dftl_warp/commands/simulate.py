@@ -32,7 +32,8 @@ def add_parser(sub):
     p.add_argument("--correction", choices=("prior", "posterior"), help="velocity correction form (default prior)")
     p.add_argument("--solver", choices=SOLVERS, help="solver (default dftl)")
     p.add_argument("--precision", choices=PRECISIONS, default="float32", help="floating-point precision (default float32)")
-    p.add_argument("--device", default="cpu", help="cpu or cuda:N (default cpu)")
+    p.add_argument("--device", default="cpu",
+                   help="cpu or cuda:N (default cpu); a list (cuda:0,cuda:1) splits the strands across devices")
     p.add_argument("--prim", action="append", metavar="PATH",
                    help="simulate only the BasisCurves prims at or below PATH (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
