@@ -16,7 +16,8 @@ the same values). USD saves a crate file in place, so the live partial file is n
 after an interruption: a resumed job starts from the checkpoint copy.
 
 A job is *complete* when ``OUTPUT`` exists and its ``customLayerData`` records the job's settings
-hash (input file contents, frames and options; see :func:`settings_hash`). A checkpoint is used
+hash (contents of the input and of every file it depends on, frames and options; see
+:func:`settings_hash`). A checkpoint is used
 only when it records the same hash and state layout; otherwise it is discarded and the job starts
 over. Completed jobs are skipped.
 """
@@ -130,10 +131,32 @@ def file_sha256(path) -> str:
     return digest.hexdigest()
 
 
+def input_fingerprint(input_path) -> dict:
+    """SHA-256 of the input file and of every file it depends on (sublayers, references,
+    payloads, other assets), by real path; missing dependencies are listed as such."""
+    from pxr import UsdUtils
+
+    files = {os.path.abspath(input_path): file_sha256(input_path)}
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # keep USD's warnings off the terminal
+    try:
+        layers, assets, unresolved = UsdUtils.ComputeAllDependencies(os.fspath(input_path))
+    except Exception:  # noqa: BLE001 - the input alone still identifies most changes
+        return files
+    finally:
+        del delegate
+    for path in [layer.realPath for layer in layers if layer.realPath] + list(assets):
+        if os.path.isfile(path):
+            files[os.path.abspath(path)] = file_sha256(path)
+    for path in unresolved:
+        files[str(path)] = "missing"
+    return files
+
+
 def settings_hash(input_path, output, options, first: int, last: int) -> str:
-    """Hash of everything the output depends on: the input file's contents and path, the output
-    path, the frame range and the simulate options (except the device: every device gives the
-    same results). ``options`` is a :class:`~dftl_warp.simulate.SimulationOptions`."""
+    """Hash of everything the output depends on: the contents of the input and of every file it
+    depends on, the input and output paths, the frame range and the simulate options (except the
+    device: every device gives the same results). ``options`` is a
+    :class:`~dftl_warp.simulate.SimulationOptions`."""
     from . import __version__
 
     opts = {k: v for k, v in asdict(options).items() if k not in ("device", "start", "end")}
@@ -141,7 +164,7 @@ def settings_hash(input_path, output, options, first: int, last: int) -> str:
         "format": FORMAT,
         "dftl_warp": __version__,
         "input": os.path.abspath(input_path),
-        "input_sha256": file_sha256(input_path),
+        "files": input_fingerprint(input_path),
         "output": os.path.abspath(output),
         "frames": [int(first), int(last)],
         "options": opts,

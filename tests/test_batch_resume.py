@@ -218,3 +218,16 @@ def test_state_roundtrip_is_exact(stage):
         other.advance()
     for (p, v), (q, w) in zip(sim.samples(), other.samples()):
         assert np.array_equal(p, q) and np.array_equal(v, w)
+
+
+def test_a_changed_dependency_reruns_the_job(tmp_path, stage):
+    """Completion covers the files the input depends on (here a sublayer), not just the input."""
+    groom = tmp_path / "groom.usda"
+    shutil.copy(stage, groom)
+    shot = tmp_path / "shot.usda"
+    shot.write_text('#usda 1.0\n(\n    subLayers = [@./groom.usda@]\n    startTimeCode = 1\n    endTimeCode = 5\n)\n')
+    out = _same_place(tmp_path, "g")
+    assert run_job(job(shot, out), "cpu").status == "done"
+    assert run_job(job(shot, out), "cpu").status == "skipped"
+    groom.write_text(groom.read_text() + "\n# edited\n")
+    assert run_job(job(shot, out), "cpu").status == "done"
