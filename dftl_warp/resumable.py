@@ -47,11 +47,14 @@ LOCK_WAIT_SECONDS = 30.0
 
 @dataclass
 class CheckpointPolicy:
-    """When to checkpoint: every ``every_frames`` frames and/or ``every_seconds`` seconds of wall
-    time (0 turns either off)."""
+    """When to checkpoint: every ``every_frames`` frames and/or every ``every_seconds`` seconds of
+    wall time (0 turns either off). Checkpoints by time also wait long enough that taking them
+    costs at most ``max_overhead`` of the job's time (a checkpoint copies the frames written so
+    far, which grows with the output)."""
 
     every_frames: int = 0
     every_seconds: float = 30.0
+    max_overhead: float = 0.05
 
 
 @dataclass
@@ -210,9 +213,29 @@ def _fsync_replace(tmp: Path, target: Path) -> None:
     os.replace(tmp, target)
 
 
+def _copy(source: Path, target: Path) -> None:
+    """Copy a file in the kernel (``copy_file_range``: a reflink clone on file systems that have
+    them), else through ``shutil``."""
+    if hasattr(os, "copy_file_range"):
+        try:
+            with open(source, "rb") as src, open(target, "wb") as dst:
+                size = os.fstat(src.fileno()).st_size
+                copied = 0
+                while copied < size:
+                    n = os.copy_file_range(src.fileno(), dst.fileno(), size - copied)
+                    if n == 0:
+                        break
+                    copied += n
+            if copied == size:
+                return
+        except OSError:
+            pass
+    shutil.copyfile(source, target)
+
+
 def atomic_copy(source: Path, target: Path, tmp: Path) -> None:
     """Copy ``source`` to ``target`` through ``tmp`` (whole file or nothing at ``target``)."""
-    shutil.copyfile(source, tmp)
+    _copy(source, tmp)
     _fsync_replace(tmp, target)
 
 
@@ -328,7 +351,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     result.resumed_from = resumed
     emit({"event": "start", "total": result.total_frames, "first": first, "last": last, "resumed_from": resumed})
     done = 0 if resumed is None else resumed - first + 1
-    since = {"frames": 0, "time": time.monotonic()}
+    since = {"frames": 0, "time": time.monotonic(), "cost": 0.0}
 
     def after_frame(_n):
         nonlocal done
@@ -339,10 +362,12 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         if sim.frame >= last:
             return
         due_frames = policy.every_frames and since["frames"] >= policy.every_frames
-        due_time = policy.every_seconds and time.monotonic() - since["time"] >= policy.every_seconds
+        wait = max(policy.every_seconds, since["cost"] / policy.max_overhead if policy.max_overhead > 0 else 0.0)
+        due_time = policy.every_seconds and time.monotonic() - since["time"] >= wait
         if due_frames or due_time:
+            began = time.monotonic()
             _checkpoint(files, writer, sim, key, signature)
-            since["frames"], since["time"] = 0, time.monotonic()
+            since["frames"], since["time"], since["cost"] = 0, time.monotonic(), time.monotonic() - began
 
     try:
         run_frames(sim, writer, last, progress=after_frame, write_first=resumed is None)
