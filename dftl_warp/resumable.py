@@ -246,8 +246,12 @@ def atomic_savez(target: Path, tmp: Path, arrays: dict) -> None:
 
 
 def remove_job_files(files: JobFiles) -> None:
-    """Delete the partial and checkpoint files of a job."""
-    for path in [files.partial, *files.checkpoint_files()]:
+    """Delete the partial and checkpoint files of a job, and the temporary files USD leaves
+    when killed while exporting a partial file (``.NAME.dftl-partial.XXXXXX``)."""
+    import glob
+
+    leftovers = files.output.parent.glob(glob.escape(f".{files.output.name}.dftl-partial") + "*")
+    for path in [files.partial, *files.checkpoint_files(), *leftovers]:
         _remove(path)
 
 
