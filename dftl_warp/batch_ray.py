@@ -50,8 +50,24 @@ def _ray_task(job: dict, device: str, policy: dict) -> dict:
     return run_job(Job.from_dict(job), device, CheckpointPolicy(**policy)).as_dict()
 
 
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail fast (Ray itself retries for minutes) when ``host:port`` does not answer."""
+    import socket
+
+    target = address.split("://", 1)[-1]
+    host, _, port = target.rpartition(":")
+    if not host or not port.isdigit():
+        raise UserError(f"--ray {address}: expected 'auto', 'local', HOST:PORT or ray://HOST:PORT")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise UserError(f"--ray {address}: cannot connect: {exc.strerror or exc}") from None
+
+
 def connect(address: str):
     ray = require_ray()
+    if address not in ("auto", "local"):
+        _check_reachable(address)
     options = {"logging_level": logging.ERROR, "log_to_driver": False}
     try:
         if address == "local":
@@ -73,14 +89,14 @@ def run_ray(jobs: list[Job], address: str, *, policy: CheckpointPolicy | None = 
     policy = policy or CheckpointPolicy()
     reporter = reporter or NullReporter()
     results: dict[int, JobResult] = {}
+    runnable = [job for job in jobs if job.error is None]
+    ray = connect(address) if runnable else None
     for job in jobs:
         if job.error is not None:
             results[job.index] = JobResult(index=job.index, name=job.name, output=job.output, status="failed",
                                            device=job.device, error=job.error)
             reporter.result(job, results[job.index])
-    runnable = [job for job in jobs if job.error is None]
     if runnable:
-        ray = connect(address)
         try:
             has_gpus = ray.cluster_resources().get("GPU", 0) > 0
             remote = ray.remote(_ray_task)

@@ -231,3 +231,39 @@ def test_a_changed_dependency_reruns_the_job(tmp_path, stage):
     assert run_job(job(shot, out), "cpu").status == "skipped"
     groom.write_text(groom.read_text() + "\n# edited\n")
     assert run_job(job(shot, out), "cpu").status == "done"
+
+
+# -- scheduling ---------------------------------------------------------------------------------------
+
+
+def test_jobs_take_the_least_busy_device():
+    from dftl_warp.batch import DevicePicker, default_workers
+
+    picker = DevicePicker(["cuda:0", "cuda:1"])
+    auto = lambda k: Job(index=k, name=str(k), input="i", output=f"o{k}.usdc")  # noqa: E731
+    assert picker.take(auto(1)) == "cuda:0"
+    assert picker.take(auto(2)) == "cuda:1"
+    pinned = Job(index=3, name="3", input="i", output="o3.usdc", device="cuda:1")
+    assert picker.take(pinned) == "cuda:1"
+    picker.release("cuda:0")
+    assert picker.take(auto(4)) == "cuda:0"
+    assert picker.take(auto(5)) == "cuda:0"  # cuda:1 runs two
+    assert default_workers(10, ["cuda:0", "cuda:1"]) == 2 and default_workers(1, ["cuda:0", "cuda:1"]) == 1
+
+
+def test_ray_task_devices():
+    from dftl_warp.batch_ray import task_device
+
+    assert task_device("cpu") == ("cpu", 0)
+    assert task_device("cuda:3") == ("cuda:0", 1)
+    assert task_device("cuda:2,cuda:5") == ("cuda:0,cuda:1", 2)
+
+
+@pytest.mark.parametrize("address, message", [
+    ("127.0.0.1:1", "--ray 127.0.0.1:1: cannot connect:"), ("nonsense", "expected 'auto', 'local', HOST:PORT")])
+def test_unreachable_ray_address_fails_fast(address, message):
+    from dftl_warp.batch_ray import connect
+
+    with pytest.raises(UserError, match=None) as info:
+        connect(address)
+    assert str(info.value).startswith(message)
