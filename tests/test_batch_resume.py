@@ -260,7 +260,7 @@ def test_ray_task_devices():
 
 
 @pytest.mark.parametrize("address, message", [
-    ("127.0.0.1:1", "--ray 127.0.0.1:1: cannot connect:"), ("nonsense", "expected 'auto', 'local', HOST:PORT")])
+    ("127.0.0.1:1", "--ray 127.0.0.1:1: cannot connect:"), ("nonsense", "--ray nonsense: expected 'auto', 'local', HOST:PORT")])
 def test_unreachable_ray_address_fails_fast(address, message):
     from dftl_warp.batch_ray import connect
 
