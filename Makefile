@@ -17,6 +17,7 @@ install: $(STAMP)
 demo: $(STAMP)
 	mkdir -p out
 	$(BIN)/dftl-warp simulate scenes/default.usda -o out/demo.usdc
+	$(BIN)/dftl-warp render out/demo.usdc --frame 30 --resolution 960x720 --spp 4 -o out/demo.png
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -2,8 +2,8 @@
 
 Each job names an ``input`` stage and an ``output`` layer (paths relative to the TOML file's
 folder) and may set any ``dftl-warp simulate`` option by its long name (``start``, ``end``,
-``substeps``, ``damping``, ``correction``, ``solver``, ``precision``, ``device``, ``prim``), plus a
-display ``name``. An optional ``[defaults]`` table gives options shared by every job.
+``substeps``, ``damping``, ``correction``, ``solver``, ``iterations``, ``precision``, ``quality``,
+``device``, ``prim``), plus a display ``name``. An optional ``[defaults]`` table gives options shared by every job.
 
 A file that cannot be read or parsed is an error of the whole batch; a job with an unknown option
 or a bad value is refused alone (:attr:`Job.error`) so that the others still run.
@@ -77,6 +77,7 @@ def _prims(value, name):
 def _simulate_options():
     """Option name -> validator, matching the long options of ``dftl-warp simulate``."""
     from .precision import PRECISIONS
+    from .quality import QUALITY_PRESETS
     from .solver import SOLVERS
 
     return {
@@ -89,6 +90,8 @@ def _simulate_options():
         "precision": _choice(PRECISIONS),
         "device": _device,
         "prim": _prims,
+        "iterations": _positive_integer,
+        "quality": _choice(tuple(QUALITY_PRESETS)),
     }
 
 
@@ -207,6 +210,11 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
         start, end = options.get("start"), options.get("end")
         if start is not None and end is not None and end < start:
             raise ValueError(f"frame range {start}..{end} is empty (end before start)")
+        if "quality" in options:  # a preset fills the options the job and [defaults] leave unset
+            from .quality import quality_preset
+
+            for key, value in quality_preset(options.pop("quality")).items():
+                options.setdefault(key, value)
         job.device = options.pop("device", None)
         if "prim" in options:
             options["prims"] = options.pop("prim")

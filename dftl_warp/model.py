@@ -56,6 +56,10 @@ class Model:
     rest_positions: np.ndarray
     #: initial root positions per device strand, relative to ``origin``
     root_rest: wp.array
+    #: the optional features (:mod:`dftl_warp.features`) given at build time
+    features: tuple = ()
+    #: their device data (:class:`~dftl_warp.feature_data.ModelFeatures`), None without features
+    feature_data: object = None
 
     @property
     def num_strands(self) -> int:
@@ -73,6 +77,11 @@ class Model:
     def vec3(self):
         return vec3_type(self.precision)
 
+    @property
+    def feature_flags(self) -> frozenset:
+        """Kernel flags of the model's features; empty for a gravity-only scene."""
+        return self.feature_data.flags if self.feature_data is not None else frozenset()
+
     @classmethod
     def from_strands(
         cls,
@@ -82,12 +91,16 @@ class Model:
         device="cpu",
         precision: str = "float32",
         layout: str | None = None,
+        widths=None,
+        features=None,
         origin=None,
     ) -> Model:
         """Model of strands given as concatenated ``points`` (N, 3) and vertex ``counts`` (S,).
 
         Vertex 0 of each strand is its root. Rest lengths are the input's segment lengths.
         ``layout`` defaults to the fastest for ``device`` (:func:`~dftl_warp.layout.default_layout`).
+        ``features``: optional feature objects (:mod:`dftl_warp.features`); ``widths``: hair
+        diameter (m), one value or one per point, used as the contact distance of colliders.
         ``origin`` (3,) overrides the world origin (models sharing one give identical results).
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -122,6 +135,14 @@ class Model:
         roots = local[starts[lay.strand_order]].astype(ftype) if counts.size else np.zeros((0, 3), ftype)
 
         vec3 = vec3_type(precision)
+        feature_data = None
+        if features:
+            from .feature_data import build
+
+            feature_data = build(
+                dict(device=device, precision=precision, layout=lay, scalar=scalar_type(precision), vec3=vec3,
+                     counts=counts, points=points, origin=origin),
+                features, widths=widths)
         i32 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=device)  # noqa: E731
         return cls(
             device=device,
@@ -135,6 +156,8 @@ class Model:
             rest_lengths=wp.array(rest, dtype=scalar_type(precision), device=device),
             rest_positions=pos,
             root_rest=wp.array(roots, dtype=vec3, device=device),
+            features=tuple(features or ()),
+            feature_data=feature_data,
         )
 
     # -- conversions between the caller's order/world space and the device layout ---------------

@@ -355,6 +355,8 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     result.resumed_from = resumed
     emit({"event": "start", "total": result.total_frames, "first": first, "last": last, "resumed_from": resumed})
     done = 0 if resumed is None else resumed - first + 1
+    # the frame loop may run a frame ahead of the writer (simulate.run_frames): a checkpoint
+    # saves the state at sim.frame, and a resumed run writes that frame again before going on
     since = {"frames": 0, "time": time.monotonic(), "cost": 0.0}
 
     def after_frame(_n):
@@ -374,7 +376,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
             since["frames"], since["time"], since["cost"] = 0, time.monotonic(), time.monotonic() - began
 
     try:
-        run_frames(sim, writer, last, progress=after_frame, write_first=resumed is None)
+        run_frames(sim, writer, last, progress=after_frame, write_first=True)
         writer.keep_partial = False
         writer.commit()
     except BaseException:
@@ -398,7 +400,8 @@ def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
 
 
 def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
-    """(writer, frame) continuing from the job's checkpoint, or (None, None) to start over."""
+    """(writer, last frame kept) continuing from the job's checkpoint, or (None, None) to start
+    over. The simulation is left at the checkpoint's frame, which is written (again) next."""
     from .usd_write import UsdWriter
 
     if not (files.checkpoint_state.exists() and files.checkpoint_usd.exists()):
@@ -415,8 +418,8 @@ def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
     if str(state.get("signature")) != signature:
         note("checkpoint was taken on another kind of device; starting over")
         return None, None
-    frame = int(state["frame"])
-    if not first <= frame < last:
+    frame = int(state["frame"])  # the state's frame; the USD copy holds every frame before it
+    if not first < frame <= last:
         note(f"checkpoint frame {frame} is outside {first}..{last}; starting over")
         return None, None
     atomic_copy(files.checkpoint_usd, files.partial, files.temporary(files.partial))
@@ -427,9 +430,9 @@ def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
         return None, None
     record = dict(writer.layer.customLayerData).get(LAYER_DATA_KEY, {})
     have = set(writer.written_time_codes)
-    if record.get("settings_hash") != key or not have.issuperset(range(first, frame + 1)):
+    if record.get("settings_hash") != key or not have.issuperset(range(first, frame)):
         writer.abort()
         note("checkpoint output does not match its state; starting over")
         return None, None
     sim.load_state({k: v for k, v in state.items() if k not in ("settings_hash", "signature", "format")})
-    return writer, frame
+    return writer, frame - 1

@@ -32,11 +32,6 @@ def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ matrix[:3, :3] + matrix[3, :3]
 
 
-def transform_vectors(matrix: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """Vectors (N, 3) through the linear part of a 4x4 row-vector matrix."""
-    return vectors @ matrix[:3, :3]
-
-
 @dataclass
 class StageInfo:
     """Stage metadata, effective values (USD fallbacks applied) plus what was authored."""
@@ -70,6 +65,23 @@ class CurveSettings:
 
 
 @dataclass
+class MeshSource:
+    """A UsdGeom.Mesh the roots of a curves prim are bound to (``dftl:rootMesh``)."""
+
+    path: str
+    #: (T, 3) int64 triangles (fan-triangulated faces)
+    triangles: np.ndarray
+    #: local points (V, 3) at a time code
+    points: Callable[[float], np.ndarray]
+    transform: TransformSampler = field(default_factory=constant_transform)
+    #: whether points or transform may change over time
+    animated: bool = False
+
+    def world_points(self, time) -> np.ndarray:
+        return transform_points(self.transform(time), self.points(time))
+
+
+@dataclass
 class CurvesPrim:
     """One UsdGeom.BasisCurves prim: its strands in local space (stage units)."""
 
@@ -95,6 +107,10 @@ class CurvesPrim:
     #: whether the local-to-world transform may change over time
     animated: bool = False
     settings: CurveSettings = field(default_factory=CurveSettings)
+    #: authored per-curve feature values (``dftl:drag``, ``dftl:shapeStiffness``; see docs/features.md)
+    features: dict = field(default_factory=dict)
+    #: the mesh the roots are bound to (``dftl:rootMesh``), if any
+    root_mesh: MeshSource | None = None
 
     @property
     def num_strands(self) -> int:
@@ -135,6 +151,8 @@ class ColliderPrim:
     friction: float | None = None
     transform: TransformSampler = field(default_factory=constant_transform)
     animated: bool = False
+    #: local mesh points at a time code, for a mesh whose points are time-sampled (else None)
+    points_sampler: Callable[[float], np.ndarray] | None = None
 
 
 @dataclass
@@ -152,6 +170,10 @@ class Scene:
     read_time: float | None = None
     #: one-line diagnostics USD reported while opening the stage (missing sublayers ...)
     warnings: list[str] = field(default_factory=list)
+    #: authored scene-wide feature values (``dftl:wind``, ``dftl:hairHair`` ...; docs/features.md),
+    #: from the UsdPhysics.Scene prim, else the default prim; ``dftl:wind`` as keyframes (K, 4)
+    #: of (seconds, vx, vy, vz) when time-sampled
+    features: dict = field(default_factory=dict)
 
     @property
     def num_strands(self) -> int:

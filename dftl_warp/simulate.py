@@ -21,22 +21,22 @@ rest: zero velocities.
 from __future__ import annotations
 
 import math
+import sys
 import time
+import warnings
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from .errors import UserError
-from .scene import Scene, transform_points, transform_vectors
+from .monitor import EnergyGrowthWarning
+from .scene import Scene, transform_points
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise
 DEFAULT_SOLVER = "dftl"
 DEFAULT_DAMPING = 1.0
 DEFAULT_CORRECTION = "prior"
 DEFAULT_SUBSTEPS = 8
-def frame_velocity(matrix_rate: np.ndarray, local_points: np.ndarray) -> np.ndarray:
-    """World velocity (N, 3) that a moving frame gives points fixed in it: ``[p, 1] @ dM/dt``."""
-    return local_points @ matrix_rate[:3, :3] + matrix_rate[3, :3]
 
 
 @dataclass
@@ -55,6 +55,10 @@ class SimulationOptions:
     precision: str = "float32"
     device: str = "cpu"
     prims: list[str] | None = None
+    #: Gauss-Seidel iterations per step of the pbd solver
+    iterations: int | None = None
+    #: watch each group's energy and warn once when it grows without bound (dftl_warp.monitor)
+    monitor: bool = True
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,10 @@ class Summary:
     seconds_simulating: float
     seconds_writing: float
     groups: list[dict] = field(default_factory=list)
+    #: about the input (printed by the command after the run)
     warnings: list[str] = field(default_factory=list)
+    #: raised while simulating, e.g. energy growth (printed as they happen when progress is shown)
+    run_warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -154,18 +161,37 @@ class _Group:
         points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
         _check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        from .scene_features import group_features
+
+        self.curves = curves
+        features, widths = group_features(scene, curves, frame)
         with wp.ScopedDevice(options.device):
-            self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision)
             try:
+                self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision,
+                                                widths=widths, features=features)
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
+            try:
+                extra = {} if options.iterations is None else {"iterations": options.iterations}
                 self.solver = make_solver(
                     self.model, settings.solver, damping=settings.damping,
-                    correction=settings.correction, gravity=scene.gravity,
+                    correction=settings.correction, gravity=scene.gravity, **extra,
                 )
             except ValueError as exc:
                 raise UserError(f"{scene.source}: {exc}") from None
             self.state = self.solver.state()
             self.control = self.model.control()
         self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        self.monitor = None
+        if options.monitor:
+            from .monitor import EnergyMonitor
+
+            prims = ", ".join(scene.curves[i].path for i in members)
+            setting = (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
+                       f"{settings.substeps} substeps/frame (dt={self.dt:.3g} s), {options.precision}")
+            self.monitor = EnergyMonitor(self.solver, setting, self.state)
+        #: device buffers of local_samples, made on first use
+        self._sample_buffers = None
 
     @property
     def num_strands(self) -> int:
@@ -174,6 +200,33 @@ class _Group:
     @property
     def num_points(self) -> int:
         return int(self.point_offsets[-1])
+
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points and velocities (N, 3) in input order and local space, from column-vector
+        world-to-local matrices and frame rates per member prim (see kernels/output.py)."""
+        import warp as wp
+
+        from .kernels.output import local_samples_kernel
+
+        device = self.model.device
+        if self._sample_buffers is None:
+            n = self.num_points
+            member = np.repeat(np.arange(len(self.members), dtype=np.int32), np.diff(self.point_offsets))
+            self._sample_buffers = (
+                wp.array(self.model.layout.slot_of_point.astype(np.int32), dtype=wp.int32, device=device),
+                wp.array(member, dtype=wp.int32, device=device),
+                wp.empty(n, dtype=wp.vec3d, device=device),
+                wp.empty(n, dtype=wp.vec3d, device=device),
+            )
+        slots, member, points, velocities = self._sample_buffers
+        wp.launch(
+            local_samples_kernel(self.model.scalar), dim=self.num_points, device=device,
+            inputs=[slots, member, wp.vec3d(*self.model.origin),
+                    wp.array(to_local, dtype=wp.mat44d, device=device), wp.array(rate, dtype=wp.mat44d, device=device),
+                    self.state.positions, self.state.velocities],
+            outputs=[points, velocities],
+        )
+        return points.numpy().reshape(-1, 3), velocities.numpy().reshape(-1, 3)
 
 
 class Simulation:
@@ -199,17 +252,23 @@ class Simulation:
         self.device = devices[0]
         options = replace(options, device=",".join(str(d) for d in devices))
         self.options = options
-        by_settings: dict[GroupSettings, list[int]] = {}
-        for i in range(len(scene.curves)):
-            by_settings.setdefault(group_settings(scene, options, i), []).append(i)
+        # prims are grouped by solver settings and by the mesh their roots are bound to, if any
+        by_settings: dict[tuple, list[int]] = {}
+        for i, c in enumerate(scene.curves):
+            key = (group_settings(scene, options, i), c.root_mesh.path if c.root_mesh is not None else None)
+            by_settings.setdefault(key, []).append(i)
         group = _Group
         if len(devices) > 1:
             from .multi_device import SplitGroup as group
-        self.groups = [group(s, m, scene, self.frame, options) for s, m in by_settings.items()]
+        self.groups = [group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)
         self._at_rest = True
+        #: one-line warnings raised while stepping (energy growth), in order
+        self.warnings: list[str] = []
+        #: called with each new warning as it happens (e.g. to print it above a progress bar)
+        self.on_warning = None
 
     # -- geometry helpers ---------------------------------------------------------------------
 
@@ -240,19 +299,22 @@ class Simulation:
 
     def samples(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
-        prim's local space (stage units, stage units per second)."""
+        prim's local space (stage units, stage units per second), float64.
+
+        The gather into input order and the transforms run on the simulation device
+        (:mod:`dftl_warp.kernels.output`); the host receives one copy per group."""
         out: list = [None] * len(self.scene.curves)
         for g in self.groups:
-            x = g.model.points_from_device(g.state.positions)
-            v = g.model.points_from_device(g.state.velocities, relative=False)
+            to_local = np.empty((len(g.members), 4, 4))
+            rate = np.zeros((len(g.members), 4, 4))
+            for k, i in enumerate(g.members):
+                to_local[k] = np.linalg.inv(self._matrix(i, self.frame)).T
+                if self.scene.curves[i].animated and not self._at_rest:
+                    rate[k] = self._matrix_rate(i, self.frame).T
+            points, velocities = g.local_samples(to_local, rate)
             for k, i in enumerate(g.members):
                 a, b = g.point_offsets[k], g.point_offsets[k + 1]
-                inv = np.linalg.inv(self._matrix(i, self.frame))
-                local = transform_points(inv, x[a:b])
-                velocity = v[a:b]
-                if self.scene.curves[i].animated and not self._at_rest:
-                    velocity = velocity - frame_velocity(self._matrix_rate(i, self.frame), local)
-                out[i] = (local, transform_vectors(inv, velocity))
+                out[i] = (points[a:b], velocities[a:b])
         return out
 
     def _matrix_rate(self, index: int, frame: int) -> np.ndarray:
@@ -268,12 +330,22 @@ class Simulation:
         """Simulate from the current frame to the next one."""
         import warp as wp
 
+        from .scene_features import update_frame
+
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
             for g in self.groups:
                 if any(self.scene.curves[i].animated for i in g.members):
                     g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
+                update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
+                if g.monitor is not None and not g.monitor.warned:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", EnergyGrowthWarning)
+                        if g.monitor.check(g.state, nxt):
+                            self.warnings.append(g.monitor.message)
+                            if self.on_warning is not None:
+                                self.on_warning(g.monitor.message)
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 1)
@@ -306,35 +378,51 @@ class Simulation:
         self.frame = int(state["frame"])
         self._matrices = {}
         self._at_rest = False
+        for g in self.groups:
+            if g.control.features is not None:
+                g.control.features.resync()  # colliders start the next frame where it says
 
 
 def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:
     """Write the current frame (if ``write_first``), then advance and write up to ``last_frame``.
 
+    Simulating and writing overlap: the next frame's substeps are launched before the current
+    frame is authored, so on a GPU (where launches return at once) the device simulates frame
+    ``f + 1`` while the host writes frame ``f``; :meth:`Simulation.samples` then waits for it.
+    On the CPU device the two simply alternate.
+
     ``progress`` (optional) is called with the number of frames done after each one. Returns
-    seconds spent simulating and writing.
+    seconds spent simulating (launching and waiting for results) and writing.
     """
     t_sim = t_write = 0.0
+    pending = None  # (time code, samples) fetched but not yet written
 
-    def emit():
-        nonlocal t_sim, t_write
+    def write(frame_and_samples):
+        nonlocal t_write
         a = time.perf_counter()
-        samples = sim.samples()
-        b = time.perf_counter()
-        writer.write_frame(sim.frame, samples)
-        c = time.perf_counter()
-        t_sim += b - a
-        t_write += c - b
+        writer.write_frame(*frame_and_samples)
+        t_write += time.perf_counter() - a
         if progress is not None:
             progress(1)
 
+    def fetch():
+        nonlocal t_sim
+        a = time.perf_counter()
+        samples = sim.samples()
+        t_sim += time.perf_counter() - a
+        return sim.frame, samples
+
     if write_first:
-        emit()
+        pending = fetch()
     while sim.frame < last_frame:
         a = time.perf_counter()
         sim.advance()
         t_sim += time.perf_counter() - a
-        emit()
+        if pending is not None:
+            write(pending)
+        pending = fetch()
+    if pending is not None:
+        write(pending)
     return {"simulating": t_sim, "writing": t_write}
 
 
@@ -364,6 +452,7 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
         from tqdm import tqdm
 
         bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=True, dynamic_ncols=True)
+        sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
     try:
         with UsdWriter.create(output, scene, frames=(first, last)) as writer:
             times = run_frames(sim, writer, last, progress=bar.update if bar else None)
@@ -385,6 +474,8 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
         seconds_loading=t_load,
         seconds_simulating=times["simulating"],
         seconds_writing=times["writing"],
-        groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands} for g in sim.groups],
+        groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
+                 "features": sorted(g.model.feature_flags)} for g in sim.groups],
         warnings=list(scene.warnings),
+        run_warnings=list(sim.warnings),
     )

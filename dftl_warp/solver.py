@@ -15,7 +15,7 @@ from .kernels.diagnostics import strand_diagnostics_kernel
 from .kernels.ftl import CORRECTIONS, step_kernel
 from .kernels.fused import fused_step_kernel
 
-SOLVERS = ("dftl", "ftl")
+SOLVERS = ("dftl", "ftl", "pbd", "reference")
 
 #: longest strand (vertices) the fused-substep kernels keep on chip
 MAX_FUSED_VERTICES = 64
@@ -50,11 +50,22 @@ class DFTLSolver:
         self.damping = float(damping)
         self.correction = correction
         self.gravity = model.vec3(*np.asarray(gravity, dtype=np.float64).reshape(3))
-        self._kernel = step_kernel(model.scalar, correction)
+        # the step specialized to the model's features; a gravity-only model gets the bare kernel
+        self._kernel = step_kernel(model.scalar, correction, model.feature_flags)
+        self._features = None
+        if model.feature_flags:
+            from .feature_data import FeatureStep
+
+            self._features = FeatureStep(model, self._kernel)
         self._graphs: dict = {}
         fits = model.num_strands == 0 or int(model.layout.strand_count.max()) <= MAX_FUSED_VERTICES
         if fused and not fits:
             raise ValueError(f"fused substeps need strands of at most {MAX_FUSED_VERTICES} vertices")
+        # the fused kernels are the bare step; a scene with features steps substep by substep
+        if fused and self._features is not None:
+            raise ValueError("fused substeps run the bare step only; this model has features "
+                             f"({', '.join(sorted(model.feature_flags))})")
+        fits = fits and self._features is None
         self.fused = bool(model.device.is_cuda and fits) if fused is None else bool(fused)
         self._fused_runs = fused_runs(model.layout.strand_count, model.scalar, correction) if self.fused else []
 
@@ -72,6 +83,13 @@ class DFTLSolver:
         Roots are placed at ``control``'s targets interpolated by ``root_alpha`` in [0, 1].
         """
         m = self.model
+        if self.carries_corrections and (state_in.corrections is None or state_out.corrections is None):
+            raise ValueError("the prior correction form needs states with corrections (solver.state())")
+        if self._features is not None:
+            head = [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
+                    root_alpha, m.rest_lengths, self.gravity, dt, self.damping]
+            self._features.launch(state_in, state_out, control, dt, root_alpha, head)
+            return
         inputs = [
             m.strand_base, m.strand_stride, m.strand_count,
             control.root_start, control.root_end, root_alpha,
@@ -109,7 +127,8 @@ class DFTLSolver:
         key = (id(state), id(control), float(dt), int(substeps))
         graph = self._graphs.get(key)
         if graph is None:
-            for kernel in [self._kernel] + [run[0] for run in self._fused_runs]:
+            kernels = self._features.kernels() if self._features is not None else [self._kernel]
+            for kernel in kernels + [run[0] for run in self._fused_runs]:
                 kernel.module.load(m.device)  # compile before capturing
             with wp.ScopedCapture(device=m.device) as capture:
                 run()
@@ -175,7 +194,22 @@ def fused_runs(strand_count, scalar, correction):
 
 
 def make_solver(model, solver: str = "dftl", **options):
-    """Solver by name: ``"dftl"`` or ``"ftl"`` (DFTL with damping 0)."""
+    """Solver by name: ``"dftl"``, ``"ftl"`` (DFTL with damping 0), ``"pbd"`` (option
+    ``iterations``, :class:`~dftl_warp.pbd.PBDSolver`) or ``"reference"``
+    (:class:`~dftl_warp.reference.ReferenceSolver`). ``damping`` and ``correction`` do not apply
+    to pbd and reference and are ignored there; ``iterations`` applies to pbd only."""
+    if solver in ("pbd", "reference"):
+        options.pop("damping", None)
+        options.pop("correction", None)
+        if solver == "pbd":
+            from .pbd import PBDSolver
+
+            return PBDSolver(model, **options)
+        options.pop("iterations", None)
+        from .reference import ReferenceSolver
+
+        return ReferenceSolver(model, **options)
+    options.pop("iterations", None)
     if solver == "dftl":
         return DFTLSolver(model, **options)
     if solver == "ftl":

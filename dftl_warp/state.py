@@ -62,10 +62,18 @@ class Control:
     model: object
     root_start: wp.array
     root_end: wp.array
+    #: per-frame data of the model's features (:class:`~dftl_warp.feature_data.FeatureControl`:
+    #: collider poses, mesh points, wind, bound-root mesh points); None without features
+    features: object = None
 
     @classmethod
     def at_rest(cls, model) -> Control:
-        return cls(model=model, root_start=wp.clone(model.root_rest), root_end=wp.clone(model.root_rest))
+        control = cls(model=model, root_start=wp.clone(model.root_rest), root_end=wp.clone(model.root_rest))
+        if model.feature_data is not None:
+            from .feature_data import FeatureControl
+
+            control.features = FeatureControl(model, control)
+        return control
 
     def set_root_targets(self, start, end=None) -> None:
         """Set the frame's root targets from world positions (S, 3) in input strand order."""

@@ -23,7 +23,8 @@ import re
 import numpy as np
 
 from .errors import UserError
-from .scene import ColliderPrim, CurveSettings, CurvesPrim, Scene, StageInfo, constant_transform
+from .feature_attrs import ATTRIBUTES as FEATURE_ATTRIBUTES
+from .scene import ColliderPrim, CurveSettings, CurvesPrim, MeshSource, Scene, StageInfo, constant_transform
 
 #: standard gravity, m/s^2
 STANDARD_GRAVITY = 9.81
@@ -255,6 +256,85 @@ def _read_settings(prim, where: str) -> CurveSettings:
     return s
 
 
+def read_feature_values(prim, where: str, scope: str, time_codes_per_second: float) -> dict:
+    """The authored feature ``dftl:`` attributes of ``prim`` valid in ``scope`` ("scene" or
+    "curves"), checked for type; a time-sampled ``dftl:wind`` becomes keyframes (K, 4) of
+    (seconds, vx, vy, vz)."""
+    values = {}
+    for name, (kind, allowed, _) in FEATURE_ATTRIBUTES.items():
+        if kind == "rel" or allowed not in (scope, "both"):
+            continue
+        attr = prim.GetAttribute(name)
+        if not attr or not attr.HasAuthoredValue():
+            continue
+        if kind == "float3":
+            times = attr.GetTimeSamples()
+            rows = [(t, attr.Get(t)) for t in times] if times else [(0.0, attr.Get())]
+            keys = []
+            for t, v in rows:
+                try:
+                    v = np.array(v, dtype=np.float64).reshape(3)
+                except (TypeError, ValueError):
+                    raise UserError(f"{where}: {name} = {v!r}: expected 3 numbers") from None
+                if not np.isfinite(v).all():
+                    raise UserError(f"{where}: {name} at time {t:g} is not finite")
+                keys.append([t / time_codes_per_second, *v])
+            values[name] = np.array(keys) if times else np.array(keys[0][1:])
+            continue
+        value = attr.Get()
+        ok = (isinstance(value, bool) if kind is bool
+              else isinstance(value, (int, float)) and not isinstance(value, bool))
+        if ok and kind is int and float(value) != int(value):
+            ok = False
+        if ok and kind is float and not np.isfinite(value):
+            ok = False
+        if not ok:
+            raise UserError(f"{where}: {name} = {value!r}: expected {'a finite number' if kind is float else kind.__name__}")
+        values[name] = value
+    return values
+
+
+def _read_root_mesh(prim, where: str, file: str, time):
+    """The Mesh prim targeted by ``dftl:rootMesh`` on a curves prim, or None."""
+    from pxr import UsdGeom
+
+    rel = prim.GetRelationship("dftl:rootMesh")
+    if not rel:
+        return None
+    targets = rel.GetForwardedTargets()
+    if not targets:
+        return None
+    if len(targets) > 1:
+        raise UserError(f"{where}: dftl:rootMesh has {len(targets)} targets; expected one Mesh")
+    target = prim.GetStage().GetPrimAtPath(targets[0])
+    if not target or not target.IsA(UsdGeom.Mesh):
+        raise UserError(f"{where}: dftl:rootMesh -> {targets[0]}: not a Mesh prim")
+    mesh_where = f"{file}: {target.GetPath()}"
+    mesh = UsdGeom.Mesh(target)
+    code = _time_code(time)
+    points_attr = mesh.GetPointsAttr()
+    pts = np.array(points_attr.Get(code) or [], dtype=np.float64).reshape(-1, 3)
+    fvc = np.array(mesh.GetFaceVertexCountsAttr().Get(code) or [], dtype=np.int64)
+    fvi = np.array(mesh.GetFaceVertexIndicesAttr().Get(code) or [], dtype=np.int64)
+    if pts.shape[0] == 0 or fvc.size == 0 or np.any(fvc < 3) or int(fvc.sum()) != fvi.size \
+            or np.any((fvi < 0) | (fvi >= pts.shape[0])):
+        raise UserError(f"{mesh_where}: not a valid mesh for dftl:rootMesh (points, faceVertexCounts, faceVertexIndices)")
+    count = pts.shape[0]
+    stage = target.GetStage()  # the sampler keeps the stage alive (prims only hold weak references)
+
+    def points_at(t):
+        assert stage
+        p = np.array(points_attr.Get(_time_code(t)) or [], dtype=np.float64).reshape(-1, 3)
+        if p.shape[0] != count or not np.isfinite(p).all():
+            raise UserError(f"{mesh_where}: points at time {t} are not {count} finite points")
+        return p
+
+    deforming = points_attr.ValueMightBeTimeVarying()
+    transform, moving = _transform_sampler(target, time, file)
+    return MeshSource(str(target.GetPath()), _fan_triangulate(fvc, fvi),
+                      points_at if deforming else (lambda t, p=pts: p), transform, bool(deforming or moving))
+
+
 def _first_bad_row(array: np.ndarray) -> int | None:
     bad = ~np.isfinite(array).all(axis=1)
     return int(np.flatnonzero(bad)[0]) if bad.any() else None
@@ -264,7 +344,7 @@ def _fmt_point(p) -> str:
     return "(" + ", ".join(f"{float(v):g}" for v in p) + ")"
 
 
-def read_curves_prim(prim, file: str, time=None) -> CurvesPrim | None:
+def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 24.0) -> CurvesPrim | None:
     """One BasisCurves prim -> CurvesPrim (None for a prim without curves)."""
     from pxr import UsdGeom
 
@@ -272,6 +352,8 @@ def read_curves_prim(prim, file: str, time=None) -> CurvesPrim | None:
     curves = UsdGeom.BasisCurves(prim)
     code = _time_code(time)
     settings = _read_settings(prim, where)
+    features = read_feature_values(prim, where, "curves", time_codes_per_second)
+    root_mesh = _read_root_mesh(prim, where, file, time)
 
     wrap = str(curves.GetWrapAttr().Get() or "nonperiodic")
     ctype = str(curves.GetTypeAttr().Get() or "cubic")
@@ -339,6 +421,8 @@ def read_curves_prim(prim, file: str, time=None) -> CurvesPrim | None:
         transform=transform,
         animated=animated,
         settings=settings,
+        features=features,
+        root_mesh=root_mesh,
     )
 
 
@@ -435,6 +519,18 @@ def read_collider_prim(prim, file: str, time, warnings: list) -> ColliderPrim | 
             i = int(out[0])
             raise UserError(f"{where}: faceVertexIndices[{i}] = {int(fvi[i])} is out of range (0..{pts.shape[0] - 1})")
         c = ColliderPrim(str(prim.GetPath()), "mesh", mesh_points=pts, triangles=_fan_triangulate(fvc, fvi))
+        points_attr = mesh.GetPointsAttr()
+        if points_attr.ValueMightBeTimeVarying():
+            count = pts.shape[0]
+
+            def points_at(t, attr=points_attr, where=where, count=count, stage=prim.GetStage()):
+                assert stage  # kept alive with the sampler
+                p = np.array(attr.Get(_time_code(t)) or [], dtype=np.float64).reshape(-1, 3)
+                if p.shape[0] != count or not np.isfinite(p).all():
+                    raise UserError(f"{where}: points at time {t} are not {count} finite points")
+                return p
+
+            c.points_sampler = points_at
     else:
         warnings.append(f"{where}: collider of type {prim.GetTypeName() or 'untyped'} is not supported; ignored")
         return None
@@ -480,7 +576,7 @@ def read_scene(source, *, prims=None, time=None) -> Scene:
 
     curves = []
     for prim in _select_prims(stage, file, prims):
-        c = read_curves_prim(prim, file, time)
+        c = read_curves_prim(prim, file, time, info.time_codes_per_second)
         if c is None:
             warnings.append(f"{file}: {prim.GetPath()}: no curves; skipped")
         elif not c.settings.simulate:
@@ -496,7 +592,13 @@ def read_scene(source, *, prims=None, time=None) -> Scene:
             c = read_collider_prim(prim, file, time, warnings)
             if c is not None:
                 colliders.append(c)
+    features = {}
+    scene_prims = [p for p in stage.Traverse() if p.IsA(UsdPhysics.Scene)]
+    holder = scene_prims[0] if scene_prims else stage.GetDefaultPrim()
+    if holder:
+        features = read_feature_values(holder, f"{file}: {holder.GetPath()}", "scene", info.time_codes_per_second)
     return Scene(
+        features=features,
         source=file,
         stage=info,
         gravity=gravity,

@@ -2,5 +2,13 @@
 
 - :mod:`.layout`: the one indexing helper that hides the particle layout;
 - :mod:`.ftl`: the follow-the-leader step (posterior and prior velocity correction);
-- :mod:`.diagnostics`: energy, stretch and speed reductions.
+- :mod:`.fused`: a frame's substeps in one launch, each strand's state on chip;
+- :mod:`.diagnostics`, :mod:`.energy`: energy, stretch and speed reductions;
+- :mod:`.featured`: the step specialized to a scene's features (``wp.static`` flags), using
+  :mod:`.collide` (colliders), :mod:`.grid` (hair-hair), :mod:`.shape` (shape retention);
+- :mod:`.binding`: roots bound to a deforming mesh;
+- :mod:`.reference`, :mod:`.pbd`: the RATTLE reference integrator and position-based dynamics;
+- :mod:`.output`: device state to per-prim local-space samples;
+- :mod:`.render`: the hair preview ray tracer (camera rays, strand BVH, gprims, hair shading);
+- :mod:`.synthetic`: grooms built on the device for benchmarks.
 """

@@ -62,9 +62,26 @@ def follow_func(scalar):
     return follow
 
 
+def step_kernel(scalar, correction: str, features=frozenset()):
+    """The DFTL step kernel for ``scalar`` precision, ``correction`` form and feature flags.
+
+    The empty feature set (a gravity-only scene) gets the bare kernel below, the very same object
+    whatever way it is asked for; a non-empty one gets a kernel specialized to exactly those
+    features (:func:`dftl_warp.kernels.featured.featured_step_kernel`).
+    """
+    features = frozenset(features)
+    if not features:
+        return bare_step_kernel(scalar, correction)
+    from .featured import featured_step_kernel
+
+    if correction not in CORRECTIONS:
+        raise ValueError(f"unknown correction {correction!r}")
+    return featured_step_kernel(scalar, correction, features)
+
+
 @functools.cache
-def step_kernel(scalar, correction: str):
-    """The DFTL step kernel for ``scalar`` precision and ``correction`` form (cached)."""
+def bare_step_kernel(scalar, correction: str):
+    """The bare DFTL step kernel (gravity and roots only) for ``scalar`` precision and ``correction`` form."""
     if correction not in CORRECTIONS:
         raise ValueError(f"unknown correction {correction!r}")
     vec3 = wp.types.vector(3, scalar)

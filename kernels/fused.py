@@ -43,8 +43,18 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     column = wp.types.vector(N, dtype=scalar)
     follow = follow_func(scalar)
     prior = correction == "prior"
-    rest_on_chip = N <= 16  # longer strands re-read rest lengths (cached) to save registers
     options = {**STEP_MODULE_OPTIONS, "max_unroll": 4 * N + 16}
+    # rest lengths stay on chip for short strands; longer ones re-read them (L1 hits) to save registers
+    rest_on_chip = N <= 16
+
+    @wp.func
+    def sweep_prior(leader: vec3, leader_old: vec3, x_old: vec3, p: vec3, rest: scalar, dt: scalar,
+                    inv_dt: scalar, gdt2: vec3):
+        """One particle of a prior-form sweep: new position, velocity, correction and the
+        next substep's prediction (before its follower's correction is subtracted)."""
+        xi = follow(leader, p, rest, leader_old, x_old)
+        vi = (xi - x_old) * inv_dt
+        return xi, vi, xi - p, xi + dt * vi + gdt2
 
     @wp.kernel(enable_backward=False, module="unique", module_options=options)
     def dftl_fused(
@@ -64,6 +74,8 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         corrections: wp.array(dtype=vec3),
     ):
         s = first_strand + wp.tid()
+        if substeps < 1:
+            return
         base = strand_base[s]
         stride = strand_stride[s]
         n = wp.where(wp.static(exact), wp.static(N), strand_count[s])
@@ -84,55 +96,73 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                         b[i - 1] = b[i - 1] - damping * corrections[k]
         r0 = root_start[s]
         r1 = root_end[s]
-        root_velocity = vec3()
-        for j in range(substeps):
-            last = j + 1 == substeps
+        # all substeps but the last: registers only, no global memory
+        for j in range(substeps - 1):
+            # opaque to the compiler (see the last substep), so rest-length addresses are not hoisted
+            base_j = base + wp.int32(scalar(0.0) * x[0][0])
             alpha = scalar(j + 1) / scalar(substeps)
             root = r0 + alpha * (r1 - r0)
             leader_old = x[0]
             x[0] = root
-            root_velocity = (root - leader_old) * inv_dt
             leader = root
-            k_prev = base
             for i in range(1, wp.static(N)):
                 if i < n:
-                    k = particle(base, stride, i)
                     x_old = x[i]
                     p = b[i]
                     if wp.static(rest_on_chip):
-                        xi = follow(leader, p, rest[i], leader_old, x_old)
+                        rest_i = rest[i]
                     else:
-                        xi = follow(leader, p, rest_lengths[k], leader_old, x_old)
-                    x[i] = xi
+                        rest_i = rest_lengths[particle(base_j, stride, i)]
                     if wp.static(prior):
-                        vi = (xi - x_old) * inv_dt
-                        ci = xi - p
-                        b[i] = xi + dt * vi + gdt2
+                        xi, vi, ci, bi = sweep_prior(leader, leader_old, x_old, p, rest_i, dt, inv_dt, gdt2)
+                        b[i] = bi
                         if i > 1:
                             b[i - 1] = b[i - 1] - damping * ci
-                        if last:
-                            velocities[k] = vi
-                            corrections[k] = ci
                     else:
+                        xi = follow(leader, p, rest_i, leader_old, x_old)
                         if i > 1:
                             v_leader = (leader - leader_old) * inv_dt - (damping * inv_dt) * (xi - p)
                             b[i - 1] = leader + dt * v_leader + gdt2
-                            if last:
-                                velocities[k_prev] = v_leader
                         if i + 1 == n:
-                            vi = (xi - x_old) * inv_dt
-                            b[i] = xi + dt * vi + gdt2
-                            if last:
-                                velocities[k] = vi
+                            b[i] = xi + dt * ((xi - x_old) * inv_dt) + gdt2
+                    x[i] = xi
                     leader = xi
                     leader_old = x_old
-                    k_prev = k
-        for i in range(wp.static(N)):
+        # the last substep writes the state back as it sweeps. Its slots are recomputed from a
+        # base the compiler cannot prove equal to the loads' (0 * x is not folded without fast
+        # math; int(NaN) is 0): otherwise it keeps every particle's addresses live through the
+        # loop, three 64-bit pointers per particle, and runs out of registers.
+        base = base + wp.int32(scalar(0.0) * x[0][0])
+        root = r0 + (scalar(substeps) / scalar(substeps)) * (r1 - r0)
+        leader_old = x[0]
+        positions[base] = root
+        velocities[base] = (root - leader_old) * inv_dt
+        if wp.static(prior):
+            corrections[base] = vec3()
+        leader = root
+        k_prev = base
+        for i in range(1, wp.static(N)):
             if i < n:
-                positions[particle(base, stride, i)] = x[i]
-        if substeps > 0:
-            velocities[base] = root_velocity
-            if wp.static(prior):
-                corrections[base] = vec3()
+                k = particle(base, stride, i)
+                x_old = x[i]
+                p = b[i]
+                if wp.static(rest_on_chip):
+                    rest_i = rest[i]
+                else:
+                    rest_i = rest_lengths[k]
+                if wp.static(prior):
+                    xi, vi, ci, bi = sweep_prior(leader, leader_old, x_old, p, rest_i, dt, inv_dt, gdt2)
+                    velocities[k] = vi
+                    corrections[k] = ci
+                else:
+                    xi = follow(leader, p, rest_i, leader_old, x_old)
+                    if i > 1:
+                        velocities[k_prev] = (leader - leader_old) * inv_dt - (damping * inv_dt) * (xi - p)
+                    if i + 1 == n:
+                        velocities[k] = (xi - x_old) * inv_dt
+                positions[k] = xi
+                leader = xi
+                leader_old = x_old
+                k_prev = k
 
     return dftl_fused

@@ -129,6 +129,27 @@ def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "f
     return rows
 
 
+def bench_block_dim(device, timer, copy_bw, strands, count, block_dims=(64, 128, 256, 512, 1024), steps=10):
+    """The float32 prior step launched with several thread-block sizes (Warp's default: 256)."""
+    model, state = uniform_groom(strands, count, device=device)
+    solver = dw.DFTLSolver(model, gravity=G, fused=False)
+    control = model.control()
+    m = model
+    rows = []
+    for block_dim in block_dims:
+        def run():
+            for k in range(steps):
+                wp.launch(solver._kernel, dim=m.num_strands, block_dim=block_dim, device=device,
+                          inputs=[m.strand_base, m.strand_stride, m.strand_count, control.root_start,
+                                  control.root_end, 1.0, m.rest_lengths, solver.gravity, DT, 1.0,
+                                  state.positions, state.velocities, state.corrections],
+                          outputs=[state.positions, state.velocities, state.corrections])
+        t = timer(graph_of(device, run)) / steps
+        n = strands * count
+        rows.append({"block_dim": block_dim, "particle_steps_per_s": n / t, "of_copy": n * 76 / t / copy_bw})
+    return rows
+
+
 def bench_numpy(strands, count, steps=3):
     model_points = np.zeros((strands * count, 3))
     model_points[:, 0] = np.tile(np.arange(count) * 0.005, strands)
@@ -151,7 +172,7 @@ def bench_numpy(strands, count, steps=3):
 
 def bench_fused(device, timer, strands_times_count, ks=(1, 4, 8, 16, 32)):
     """Fused substeps against one step per launch, for several strand lengths."""
-    cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 32),
+    cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 24), ("float32", "prior", 32),
              ("float32", "posterior", 32), ("float64", "prior", 32)]
     rows = []
     for precision, correction, count in cases:
@@ -264,6 +285,10 @@ def to_markdown(res):
                   f"{r['bytes_per_particle']} | {fmt(r['bandwidth_Bps'], 'B/s')} | {100 * r['of_copy']:.1f}% |"
                   for r in res["step"]]
         lines.append("")
+    if "blocks" in res:
+        lines += ["float32 prior step by thread-block size:", "", "| block_dim | particle-steps/s | of copy |", "|---|---|---|"]
+        lines += [f"| {r['block_dim']} | {fmt(r['particle_steps_per_s'])} | {100 * r['of_copy']:.1f}% |" for r in res["blocks"]]
+        lines.append("")
     if "numpy" in res:
         r = res["numpy"]
         lines += [f"numpy baseline (vectorized over strands, float64, prior), {r['strands']} x {r['particles_per_strand']}: "
@@ -323,7 +348,7 @@ def plot(res, path):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cpu")
-    ap.add_argument("--sections", default="copy,step,numpy,fused,scaling,memory")
+    ap.add_argument("--sections", default="copy,step,blocks,numpy,fused,scaling,memory")
     ap.add_argument("--out", default=None, help="folder for results.json, bench-<device>.md, throughput.png")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
@@ -336,7 +361,7 @@ def main(argv=None):
            "command": "python scripts/bench.py " + " ".join(argv if argv is not None else sys.argv[1:])}
     copy_bw = None
     with wp.ScopedDevice(device):
-        if "copy" in sections or "step" in sections or "scaling" in sections:
+        if sections & {"copy", "step", "scaling", "blocks"}:
             res["copy"] = bench_copy(device, timer)
             copy_bw = res["copy"]["bandwidth_Bps"]
             print(f"copy: {fmt(copy_bw, 'B/s')}", flush=True)
@@ -346,6 +371,10 @@ def main(argv=None):
             for r in res["step"]:
                 print(f"step {r['precision']} {r['layout']} {r['correction']}: {fmt(r['particle_steps_per_s'])} "
                       f"particle-steps/s, {100 * r['of_copy']:.1f}% of copy", flush=True)
+        if "blocks" in sections:
+            res["blocks"] = bench_block_dim(device, timer, copy_bw, strands, count)
+            for r in res["blocks"]:
+                print(f"block_dim {r['block_dim']}: {fmt(r['particle_steps_per_s'])} ({100 * r['of_copy']:.1f}% of copy)", flush=True)
         if "numpy" in sections:
             res["numpy"] = bench_numpy(*((20000, 32) if device.is_cuda else (strands, count)))
             print(f"numpy: {fmt(res['numpy']['particle_steps_per_s'])} particle-steps/s", flush=True)

@@ -12,6 +12,7 @@ from dftl_warp.multi_device import SplitGroup, split_strands
 from dftl_warp.resumable import CheckpointPolicy, run_job
 from dftl_warp.simulate import Simulation, SimulationOptions, simulate_usd
 from dftl_warp.usd_read import read_scene
+from pxr import Sdf
 from usd_stages import add_curves, animated_xform, chain, new_stage
 
 
@@ -46,10 +47,14 @@ def far_stage(tmp_path_factory):
 def _frames(stage, device, frames=8, **options):
     scene = read_scene(str(stage))
     sim = Simulation(scene, SimulationOptions(device=device, **options), 1)
-    out = [sim.samples()]
+
+    def samples():  # copies: on the CPU, samples() may return views of buffers reused next frame
+        return [(p.copy(), v.copy()) for p, v in sim.samples()]
+
+    out = [samples()]
     for _ in range(frames):
         sim.advance()
-        out.append(sim.samples())
+        out.append(samples())
     return sim, out
 
 
@@ -104,3 +109,50 @@ def test_more_devices_than_strands(tmp_path):
     for frame_got, frame_want in zip(got, want):
         for (p, v), (q, w) in zip(frame_got, frame_want):
             assert np.array_equal(p, q) and np.array_equal(v, w)
+
+
+def _featured_stage(path, hair_hair=False):
+    """The far stage plus a moving sphere collider, per-prim drag and shape retention, wind."""
+    from pxr import Gf, UsdGeom, UsdPhysics
+
+    stage = new_stage(path, meters_per_unit=0.01, start=1, end=10)
+    world = stage.GetPrimAtPath("/World")
+    world.CreateAttribute("dftl:wind", Sdf.ValueTypeNames.Float3, custom=True).Set(Gf.Vec3f(30.0, 0.0, 0.0))
+    if hair_hair:
+        world.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    animated_xform(stage, "/World/Head", translate={1: (5000, 100, -3000), 10: (5006, 100, -3000)},
+                   rotate_y={1: 0.0, 10: 30.0})
+    ball = UsdGeom.Sphere.Define(stage, "/World/Head/Ball")
+    ball.CreateRadiusAttr(2.0)
+    UsdGeom.XformCommonAPI(ball).SetTranslate(Gf.Vec3d(3.0, -6.0, 0.5))
+    UsdPhysics.CollisionAPI.Apply(ball.GetPrim())
+    rng = np.random.default_rng(3)
+    for name, strands, vertices, drag, shape in (("Long", 30, 11, 2.0, 0.3), ("Short", 21, 5, 0.5, 0.0)):
+        pts = [chain(vertices, 0.8, direction=(rng.uniform(-1, 1), -1.0, 0.2), origin=(k * 0.3, 0, 0))
+               for k in range(strands)]
+        curves = add_curves(stage, f"/World/Head/{name}", np.concatenate(pts), [vertices] * strands, widths=0.05)
+        prim = curves.GetPrim()
+        prim.CreateAttribute("dftl:drag", Sdf.ValueTypeNames.Float, custom=True).Set(drag)
+        prim.CreateAttribute("dftl:shapeStiffness", Sdf.ValueTypeNames.Float, custom=True).Set(shape)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def test_split_with_colliders_wind_drag_and_shape_equals_single_device(tmp_path):
+    path = _featured_stage(tmp_path / "featured.usda")
+    split, got = _frames(path, "cpu,cpu", frames=9)
+    single, want = _frames(path, "cpu", frames=9)
+    flags = single.groups[0].model.feature_flags
+    assert {"spheres", "drag", "wind", "shape"} <= set(flags), flags
+    assert split.groups[0].model.feature_flags == flags and len(split.groups[0].model.parts) == 2
+    for frame_got, frame_want in zip(got, want):
+        for (p, v), (q, w) in zip(frame_got, frame_want):
+            assert p.tobytes() == q.tobytes() and v.tobytes() == w.tobytes()
+
+
+def test_split_refuses_hair_hair(tmp_path, capsys):
+    path = _featured_stage(tmp_path / "hairhair.usda", hair_hair=True)
+    code = main(["simulate", str(path), "-o", str(tmp_path / "o.usdc"), "--device", "cpu,cpu", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "hair-hair interaction couples strands and is not split across devices" in err
+    assert not (tmp_path / "o.usdc").exists()

@@ -8,7 +8,7 @@ import json
 def add_parser(sub):
     p = sub.add_parser(
         "info",
-        help="describe a USD stage: hair prims, strands, particles, colliders, gravity, units, frames",
+        help="describe a USD stage: hair prims, strands, particles, colliders, features, memory, gravity, units, frames",
         description="Read SCENE the way `dftl-warp simulate` does and describe what it would simulate.",
     )
     p.add_argument("scene", metavar="SCENE", help="USD stage (.usd, .usda, .usdc, .usdz)")
@@ -40,6 +40,38 @@ def device_bytes(scene, precision: str, correction: str = "prior") -> int:
     return int(total)
 
 
+def feature_summary(scene, precision: str = "float32") -> dict:
+    """Which features a simulation of ``scene`` runs, and their device memory: per strand (mean)
+    and fixed (hair-hair grid, collider tables and meshes). Built on the CPU device, grouped like
+    the simulation (by root-binding mesh)."""
+    import numpy as np
+
+    from ..feature_data import memory_estimate
+    from ..model import Model
+    from ..scene import transform_points
+    from ..scene_features import feature_names, group_features
+
+    groups: dict = {}
+    for c in scene.curves:
+        groups.setdefault(c.root_mesh.path if c.root_mesh is not None else None, []).append(c)
+    flags, per_strand, fixed, bound = set(), 0.0, 0, 0
+    time = scene.read_time
+    for mesh, curves in groups.items():
+        feats, widths = group_features(scene, curves, time)
+        points = np.concatenate([transform_points(c.transform(time), c.points) for c in curves])
+        counts = np.concatenate([c.counts for c in curves])
+        model = Model.from_strands(points, counts, device="cpu", precision=precision, widths=widths, features=feats)
+        flags |= model.feature_flags
+        est = memory_estimate(model)
+        per_strand += est["feature_bytes_per_strand"] * model.num_strands
+        fixed += est["fixed_feature_bytes"]
+        if mesh is not None:
+            bound += model.num_strands
+    strands = max(sum(c.num_strands for c in scene.curves), 1)
+    return {"flags": sorted(flags), "names": feature_names(flags), "bound_roots": bound,
+            "feature_bytes_per_strand": per_strand / strands, "fixed_feature_bytes": int(fixed)}
+
+
 def describe(scene) -> dict:
     """A JSON-able description of a :class:`~dftl_warp.scene.Scene`."""
     import numpy as np
@@ -48,6 +80,7 @@ def describe(scene) -> dict:
     counts = np.concatenate([c.counts for c in scene.curves])
     strands = int(counts.size)
     memory = {p: device_bytes(scene, p) for p in ("float32", "float64")}
+    features = {p: feature_summary(scene, p) for p in ("float32", "float64")}
     return {
         "file": scene.source,
         "up_axis": info.up_axis,
@@ -60,8 +93,16 @@ def describe(scene) -> dict:
         "strands": strands,
         "particles": int(counts.sum()),
         "vertices_per_strand": [int(counts.min()), float(counts.mean()), int(counts.max())],
-        "device_bytes_per_strand": {p: b / max(strands, 1) for p, b in memory.items()},
-        "device_bytes": memory,
+        "device_bytes_per_strand": {p: b / max(strands, 1) + features[p]["feature_bytes_per_strand"]
+                                    for p, b in memory.items()},
+        "device_bytes": {p: b + int(round(features[p]["feature_bytes_per_strand"] * strands))
+                         + features[p]["fixed_feature_bytes"] for p, b in memory.items()},
+        "features": features["float32"]["names"],
+        "feature_flags": features["float32"]["flags"],
+        "roots_bound_to_a_mesh": features["float32"]["bound_roots"],
+        "feature_bytes_per_strand": {p: f["feature_bytes_per_strand"] for p, f in features.items()},
+        "feature_fixed_bytes": {p: f["fixed_feature_bytes"] for p, f in features.items()},
+        "scene_feature_attributes": {k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in scene.features.items()},
         "curves": [
             {
                 "path": c.path,
@@ -72,6 +113,8 @@ def describe(scene) -> dict:
                 "particles": c.num_points,
                 "animated_transform": c.animated,
                 "settings": {k: v for k, v in vars(c.settings).items() if v is not None and k != "simulate"},
+                "feature_attributes": dict(c.features),
+                "root_mesh": c.root_mesh.path if c.root_mesh is not None else None,
             }
             for c in scene.curves
         ],
@@ -110,15 +153,30 @@ def run(args) -> int:
     lo, mean, hi = d["vertices_per_strand"]
     print(f"  hair        {d['strands']} strands, {d['particles']} particles, "
           f"{lo}..{hi} vertices per strand (mean {mean:.1f})")
+    if d["features"]:
+        extra = d["feature_bytes_per_strand"]["float32"]
+        fixed = d["feature_fixed_bytes"]["float32"]
+        bound = f"; {d['roots_bound_to_a_mesh']} roots bound to a mesh" if d["roots_bound_to_a_mesh"] else ""
+        print(f"  features    {', '.join(d['features'])} ({_bytes(extra)} per strand and {_bytes(fixed)} "
+              f"fixed in float32{bound})")
+    elif d["roots_bound_to_a_mesh"]:
+        print(f"  features    roots bound to a mesh ({d['roots_bound_to_a_mesh']}); the step is the bare DFTL step")
+    else:
+        print("  features    none: the bare DFTL step")
     per = d["device_bytes_per_strand"]
     print(f"  memory      {_bytes(per['float32'])} per strand in float32, {_bytes(per['float64'])} in float64 "
-          f"(total {_bytes(d['device_bytes']['float32'])} / {_bytes(d['device_bytes']['float64'])})")
+          f"(total {_bytes(d['device_bytes']['float32'])} / {_bytes(d['device_bytes']['float64'])}, "
+          f"features included)")
     print(f"  curves      {len(d['curves'])} prim(s)")
     for c in d["curves"]:
         kind = c["type"] + (f" {c['basis']}" if c["basis"] else "") + f", {c['wrap']}"
         extra = ", animated transform" if c["animated_transform"] else ""
         settings = "".join(f", dftl:{k}={v:g}" if isinstance(v, float) else f", dftl:{k}={v}"
                            for k, v in c["settings"].items())
+        settings += "".join(f", {k}={v:g}" if isinstance(v, float) else f", {k}={v}"
+                            for k, v in c["feature_attributes"].items())
+        if c["root_mesh"]:
+            settings += f", roots on {c['root_mesh']}"
         print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}")
     print(f"  colliders   {len(d['colliders'])}")
     for c in d["colliders"]:

@@ -8,6 +8,7 @@ import sys
 def add_parser(sub):
     from ..precision import PRECISIONS
     from ..simulate import DEFAULT_SUBSTEPS
+    from ..quality import QUALITY_PRESETS
     from ..solver import SOLVERS
 
     p = sub.add_parser(
@@ -31,7 +32,12 @@ def add_parser(sub):
                    help="share of the follow-the-leader correction removed from velocities, in [0, 1] (default 1)")
     p.add_argument("--correction", choices=("prior", "posterior"), help="velocity correction form (default prior)")
     p.add_argument("--solver", choices=SOLVERS, help="solver (default dftl)")
-    p.add_argument("--precision", choices=PRECISIONS, default="float32", help="floating-point precision (default float32)")
+    p.add_argument("--iterations", type=_positive_int, metavar="K",
+                   help="Gauss-Seidel iterations per step of --solver pbd (default 4)")
+    p.add_argument("--precision", choices=PRECISIONS, help="floating-point precision (default float32)")
+    p.add_argument("--quality", choices=tuple(QUALITY_PRESETS),
+                   help="a measured preset of solver, substeps and precision (docs/accuracy.md); "
+                        "explicit flags override its parts")
     p.add_argument("--device", default="cpu",
                    help="cpu or cuda:N (default cpu); a list (cuda:0,cuda:1) splits the strands across devices")
     p.add_argument("--prim", action="append", metavar="PATH",
@@ -66,8 +72,13 @@ def _unit_float(text):
 
 
 def run(args) -> int:
+    from ..quality import quality_preset
     from ..simulate import simulate_usd
 
+    preset = quality_preset(args.quality) if args.quality else {}
+    for name in ("solver", "substeps", "precision", "damping", "correction"):
+        if getattr(args, name) is None and name in preset:
+            setattr(args, name, preset[name])
     summary = simulate_usd(
         args.input,
         args.output,
@@ -78,7 +89,8 @@ def run(args) -> int:
         damping=args.damping,
         correction=args.correction,
         solver=args.solver,
-        precision=args.precision,
+        precision=args.precision or "float32",
+        iterations=args.iterations,
         device=args.device,
         prims=args.prim,
     )

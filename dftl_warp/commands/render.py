@@ -1,0 +1,163 @@
+"""``dftl-warp render``: ray-traced hair previews of a USD stage (one frame, a range, a turntable).
+
+    dftl-warp render INPUT [--frame F | --start F --end F] [--camera PRIM] [--resolution WxH]
+                     [--spp N] [--device cpu|cuda:N] [--turntable N] [--contact-sheet] -o OUT
+
+OUT is a PNG for one frame; for several frames a pattern with a run of '#' (``hair.####.png``),
+a video (``.mp4``, ``.gif``; needs the ``video`` extra), or, with ``--contact-sheet``, one PNG
+holding every frame on a grid.
+"""
+
+from __future__ import annotations
+
+import sys
+import time as _time
+from pathlib import Path
+
+from ..errors import UserError
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "render", help="render hair previews of a USD stage (PNG, image sequence, contact sheet, video)",
+        description="Ray-trace the BasisCurves of a USD stage as tubes (with Sphere/Capsule/Cube/Mesh "
+                    "gprims in a neutral material) through a UsdGeom.Camera or an automatic framing. "
+                    "Writes RGBA PNGs with straight colour and alpha = coverage.")
+    p.add_argument("input", metavar="INPUT", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--frame", type=float, help="time code to render (default: the stage's start time, or its default time)")
+    g.add_argument("--start", type=float, help="first time code of a range (with --end)")
+    p.add_argument("--end", type=float, help="last time code of a range, inclusive")
+    p.add_argument("--step", type=float, default=1.0, help="time-code step of a range (default 1)")
+    p.add_argument("--camera", metavar="PRIM", help="UsdGeom.Camera prim path, or 'auto' to frame the hair "
+                   "(default: the stage's first camera, else auto)")
+    p.add_argument("--resolution", default="960x540", metavar="WxH", help="image size in pixels (default 960x540)")
+    p.add_argument("--spp", type=int, default=8, help="samples per pixel (default 8)")
+    p.add_argument("--device", default="cpu", help="Warp device: cpu or cuda:N (default cpu)")
+    p.add_argument("--shading", default="marschner", choices=("marschner", "kajiya-kay"), help="hair shading model")
+    p.add_argument("--conform", default="expandAperture",
+                   choices=("expandAperture", "cropAperture", "adjustApertureWidth", "adjustApertureHeight"),
+                   help="how the camera aperture meets a different image aspect (UsdRender policy; default expandAperture)")
+    p.add_argument("--turntable", type=int, metavar="N", help="N frames orbiting the hair once around the up axis")
+    p.add_argument("--contact-sheet", action="store_true", help="write all frames as one grid image to OUT")
+    p.add_argument("--fps", type=float, default=24.0, help="frames per second of a video OUT (default 24)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.set_defaults(run=run)
+
+
+def parse_resolution(text: str):
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--resolution {text!r}: expected WIDTHxHEIGHT, e.g. 1920x1080") from None
+    if w < 1 or h < 1 or w * h > 16384 * 16384:
+        raise UserError(f"--resolution {text!r}: width and height must be between 1 and 16384")
+    return w, h
+
+
+def _frames(args, stage):
+    """Time codes to render (a list; None = the stage's default time)."""
+    from ..render import usd_scene
+
+    if args.end is not None and args.start is None:
+        raise UserError("--end needs --start")
+    if args.start is not None:
+        if args.end is None:
+            raise UserError("--start needs --end")
+        if args.end < args.start:
+            raise UserError(f"--end {args.end:g} is before --start {args.start:g}")
+        if args.step <= 0:
+            raise UserError(f"--step {args.step:g}: must be positive")
+        n = int((args.end - args.start) / args.step + 1e-9) + 1
+        return [args.start + k * args.step for k in range(n)]
+    if args.frame is not None:
+        return [args.frame]
+    r = usd_scene.time_range(stage)
+    return [r[0] if r else None]
+
+
+def _check_output(args, n_images: int):
+    from ..render.image import VIDEO_SUFFIXES, has_pattern
+
+    out = args.output
+    suffix = Path(out).suffix.lower()
+    if args.contact_sheet or n_images == 1:
+        if suffix != ".png" or has_pattern(out) and args.contact_sheet:
+            raise UserError(f"-o {out}: expected a .png file name")
+        return "png"
+    if suffix in VIDEO_SUFFIXES:
+        return "video"
+    if suffix != ".png":
+        raise UserError(f"-o {out}: expected .png, a pattern like frames/hair.####.png, or .mp4/.gif")
+    if not has_pattern(out):
+        raise UserError(f"-o {out}: {n_images} frames need a pattern with '#' (e.g. hair.####.png), "
+                        "a video (.mp4, .gif) or --contact-sheet")
+    return "pattern"
+
+
+def run(args) -> int:
+    from ..render import image, usd_scene
+    from ..render.renderer import Renderer, orbit_cameras, to_rgba8
+
+    width, height = parse_resolution(args.resolution)
+    if args.turntable is not None and args.turntable < 1:
+        raise UserError(f"--turntable {args.turntable}: must be at least 1")
+    if args.turntable and args.start is not None:
+        raise UserError("--turntable orbits one frame: give --frame, not --start/--end")
+    stage = usd_scene.open_stage(args.input)
+    source = args.input
+    times = _frames(args, stage)
+    n_images = args.turntable or len(times)
+    kind = _check_output(args, n_images)
+    renderer = Renderer(width, height, spp=args.spp, device=args.device, shading=args.shading, conform=args.conform)
+
+    cam_path = args.camera
+    if cam_path is None:
+        found = usd_scene.cameras(stage)
+        cam_path = found[0] if found else "auto"
+
+    def camera_at(t, scene):
+        if cam_path == "auto":
+            return renderer.default_camera(scene)
+        return usd_scene.read_camera(stage, cam_path, t, source)
+
+    jobs = []  # (label, scene, camera)
+    if args.turntable:
+        scene = usd_scene.read_scene(stage, times[0], source)
+        cams = orbit_cameras(camera_at(times[0], scene), scene, args.turntable)
+        jobs = [(k, scene, c) for k, c in enumerate(cams)]
+    else:
+        jobs = [(t, None, None) for t in times]
+
+    frames = []
+    say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
+    t_all = _time.perf_counter()
+    for k, (label, scene, cam) in enumerate(jobs):
+        if scene is None:
+            scene = usd_scene.read_scene(stage, label, source)
+            cam = camera_at(label, scene)
+        t0 = _time.perf_counter()
+        rgba = to_rgba8(renderer.render(scene, cam))
+        dt = _time.perf_counter() - t0
+        number = label if label is not None else 0
+        if kind == "pattern":
+            path = image.frame_path(args.output, number)
+            image.write_png(path, rgba)
+            say(f"{path}  {dt:.2f} s")
+        elif kind == "png" and n_images == 1:
+            path = image.frame_path(args.output, number)
+            image.write_png(path, rgba)
+            say(f"{path}  {dt:.2f} s")
+        else:
+            frames.append(rgba)
+            say(f"frame {k + 1}/{n_images}  {dt:.2f} s")
+    if kind == "video":
+        image.write_video(args.output, frames, fps=args.fps)
+        say(f"{args.output}  {len(frames)} frames")
+    elif frames:
+        image.write_png(args.output, image.contact_sheet(frames))
+        say(f"{args.output}  contact sheet of {len(frames)} frames")
+    if n_images > 1:
+        say(f"{n_images} frames in {_time.perf_counter() - t_all:.1f} s")
+    return 0

@@ -1,0 +1,101 @@
+"""Writing frames: PNG (RGBA, straight alpha), contact sheets, MP4/GIF. Every file is written
+to a temporary name in its folder and renamed into place, so no half-written file is left."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+
+VIDEO_SUFFIXES = (".mp4", ".gif", ".mov", ".webm")
+
+
+def _atomic(path, write):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the usual permissions
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_png(path, rgba8: np.ndarray) -> None:
+    """Write an (H, W, 4) uint8 straight-alpha image as an RGBA PNG."""
+    from PIL import Image
+
+    _atomic(path, lambda tmp: Image.fromarray(np.ascontiguousarray(rgba8), "RGBA").save(tmp, format="PNG"))
+
+
+def read_png(path) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(path).convert("RGBA"))
+
+
+def frame_path(pattern: str, frame: float) -> str:
+    """``pattern`` with its run of '#' replaced by the zero-padded frame number."""
+    m = re.search(r"#+", pattern)
+    if not m:
+        return pattern
+    width = len(m.group(0))
+    text = f"{int(round(frame)):0{width}d}" if float(frame).is_integer() else f"{frame:0{width + 2}.1f}"
+    return pattern[: m.start()] + text + pattern[m.end():]
+
+
+def has_pattern(path: str) -> bool:
+    return "#" in path
+
+
+def contact_sheet(frames, columns: int | None = None, gap: int = 4) -> np.ndarray:
+    """One RGBA image of ``frames`` (same-size uint8 RGBA) on a grid, transparent between."""
+    n = len(frames)
+    columns = columns or max(1, math.ceil(math.sqrt(n)))
+    rows = math.ceil(n / columns)
+    h, w = frames[0].shape[:2]
+    sheet = np.zeros((rows * h + (rows - 1) * gap, columns * w + (columns - 1) * gap, 4), dtype=np.uint8)
+    for k, f in enumerate(frames):
+        r, c = divmod(k, columns)
+        sheet[r * (h + gap): r * (h + gap) + h, c * (w + gap): c * (w + gap) + w] = f
+    return sheet
+
+
+def over_background(rgba8: np.ndarray, background=(40, 40, 46)) -> np.ndarray:
+    """RGB uint8 of a straight-alpha frame composited over a flat colour (for videos)."""
+    a = rgba8[..., 3:4].astype(np.float64) / 255.0
+    rgb = rgba8[..., :3].astype(np.float64) * a + np.asarray(background, dtype=np.float64) * (1.0 - a)
+    return np.round(rgb).astype(np.uint8)
+
+
+def write_video(path, frames, fps: float = 24.0) -> None:
+    """MP4/GIF/... of RGBA frames over a dark background, through imageio (extra ``video``)."""
+    try:
+        import imageio.v3 as iio
+    except ImportError:
+        raise UserError(f"{path}: writing a video needs imageio: pip install 'dftl-warp[video]'") from None
+    rgb = np.stack([over_background(f) for f in frames])
+    suffix = Path(path).suffix.lower()
+
+    def write(tmp):
+        if suffix == ".gif":
+            iio.imwrite(tmp, rgb, extension=".gif", duration=1000.0 / fps, loop=0)
+        else:
+            try:
+                iio.imwrite(tmp, rgb, extension=suffix, fps=fps, codec="libx264" if suffix == ".mp4" else None,
+                            macro_block_size=2)
+            except (ImportError, ValueError, RuntimeError) as exc:
+                raise UserError(f"{path}: cannot write {suffix} ({exc}); pip install 'dftl-warp[video]' (imageio-ffmpeg)") from None
+
+    _atomic(path, write)

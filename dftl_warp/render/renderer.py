@@ -1,0 +1,236 @@
+"""The Warp hair renderer: a :class:`RenderScene` and a :class:`Camera` in, linear RGBA out.
+
+The strand BVH (``wp.Bvh`` over segment boxes) is kept between frames: when a new frame has
+the same strand topology, the segment boxes are rewritten on the device and the tree is refit
+(``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..errors import UserError
+from ..kernels import render as rk
+from .camera import Camera, auto_frame
+from .scene import RenderScene
+
+SHADINGS = {"marschner": 0, "kajiya-kay": 1}
+
+
+@dataclass
+class Lighting:
+    """Camera-relative lights. Directions point towards the light in camera space (x right,
+    y up, z towards the viewer); colours are linear irradiance (key, fill) and radiance
+    (ambient)."""
+
+    key_dir: tuple = (-0.55, 0.70, 0.45)
+    key_color: tuple = (3.4, 3.25, 3.0)
+    fill_dir: tuple = (0.80, 0.05, 0.35)
+    fill_color: tuple = (0.40, 0.46, 0.58)
+    ambient: tuple = (0.07, 0.075, 0.085)
+    hair_shadow_transmittance: float = 0.6
+    roughness: float = 0.25
+    geometry_albedo: tuple = (0.45, 0.45, 0.45)
+
+
+def parse_device(name: str) -> str:
+    """A Warp device name, checked; raises UserError for one this machine lacks."""
+    try:
+        return str(wp.get_device(name))
+    except Exception:
+        available = ", ".join(str(d) for d in wp.get_devices())
+        raise UserError(f"device {name!r} is not available here (available: {available})") from None
+
+
+class Renderer:
+    """Renders frames of ``width`` x ``height`` pixels with ``spp`` samples per pixel on a Warp
+    ``device``; on the CPU, ``threads`` threads (default: all cores) render bands of rows."""
+
+    def __init__(self, width=640, height=480, spp=4, device="cpu", shading="marschner",
+                 conform="expandAperture", lighting: Lighting | None = None, seed=0, threads=None):
+        if width < 1 or height < 1:
+            raise UserError(f"resolution {width}x{height}: both must be at least 1")
+        if spp < 1:
+            raise UserError(f"--spp {spp}: must be at least 1")
+        if shading not in SHADINGS:
+            raise UserError(f"shading {shading!r}: choose one of {', '.join(SHADINGS)}")
+        self.width, self.height, self.spp = int(width), int(height), int(spp)
+        self.device = parse_device(device)
+        self.shading = shading
+        self.conform = conform
+        self.lighting = lighting or Lighting()
+        self.seed = seed
+        #: CPU threads rendering bands of rows (default: all cores); one launch on CUDA
+        self.threads = 1 if wp.get_device(self.device).is_cuda else int(threads or os.cpu_count() or 1)
+        self.bvh_builds = 0
+        self.bvh_refits = 0
+        self._hair_counts = None
+        self._hair = None
+        self._image = wp.zeros((self.height, self.width), dtype=wp.vec4, device=self.device)
+
+    # -- scene upload --------------------------------------------------------------------
+    def _upload_hair(self, scene: RenderScene, origin: np.ndarray):
+        dev = self.device
+        counts = np.asarray(scene.curve_vertex_counts, dtype=np.int64)
+        pts = (np.asarray(scene.points, dtype=np.float64) - origin).astype(np.float32)
+        radii = np.asarray(scene.radii, dtype=np.float32)
+        colors = np.asarray(scene.colors, dtype=np.float32)
+        hair = rk.RenderHair()
+        if scene.segment_count == 0:
+            hair.count = 0
+            hair.bvh = wp.uint64(0)
+            empty_i = wp.zeros(1, dtype=wp.int32, device=dev)
+            hair.seg_v0 = hair.seg_strand = empty_i
+            hair.points = hair.colors = wp.zeros(1, dtype=wp.vec3, device=dev)
+            hair.radii = wp.zeros(1, dtype=float, device=dev)
+            self._hair, self._hair_counts = hair, None
+            return
+        if self._hair is not None and self._hair_counts is not None and np.array_equal(self._hair_counts, counts):
+            # same topology: new positions, radii and colours, then refit the tree
+            hair = self._hair
+            hair.points.assign(pts)
+            hair.radii.assign(radii)
+            hair.colors.assign(colors)
+            wp.launch(rk.segment_bounds, dim=self._n_seg,
+                      inputs=[hair.seg_v0, hair.points, hair.radii, self._lowers, self._uppers], device=dev)
+            self._bvh.refit()
+            self.bvh_refits += 1
+            return
+        starts = np.cumsum(counts) - counts
+        seg_counts = np.maximum(counts - 1, 0)
+        seg_strand = np.repeat(np.arange(len(counts)), seg_counts)
+        seg_v0 = starts[seg_strand] + (np.arange(int(seg_counts.sum())) - np.repeat(np.cumsum(seg_counts) - seg_counts, seg_counts))
+        self._n_seg = len(seg_v0)
+        hair.count = self._n_seg
+        hair.seg_v0 = wp.array(seg_v0.astype(np.int32), dtype=wp.int32, device=dev)
+        hair.seg_strand = wp.array(seg_strand.astype(np.int32), dtype=wp.int32, device=dev)
+        hair.points = wp.array(pts, dtype=wp.vec3, device=dev)
+        hair.radii = wp.array(radii, dtype=float, device=dev)
+        hair.colors = wp.array(colors, dtype=wp.vec3, device=dev)
+        self._lowers = wp.empty(self._n_seg, dtype=wp.vec3, device=dev)
+        self._uppers = wp.empty(self._n_seg, dtype=wp.vec3, device=dev)
+        wp.launch(rk.segment_bounds, dim=self._n_seg,
+                  inputs=[hair.seg_v0, hair.points, hair.radii, self._lowers, self._uppers], device=dev)
+        self._bvh = wp.Bvh(self._lowers, self._uppers)
+        self.bvh_builds += 1
+        hair.bvh = self._bvh.id
+        self._hair, self._hair_counts = hair, counts.copy()
+
+    def _upload_shapes(self, scene: RenderScene, origin: np.ndarray):
+        dev = self.device
+        shapes = rk.RenderShapes()
+        n = len(scene.shapes)
+        shapes.count = n
+        kinds = np.array([s.kind for s in scene.shapes] or [0], dtype=np.int32)
+        mats = np.zeros((max(n, 1), 4, 4), dtype=np.float32)
+        params = np.zeros((max(n, 1), 3), dtype=np.float32)
+        shift = np.eye(4)
+        shift[:3, 3] = -origin
+        for i, s in enumerate(scene.shapes):
+            mats[i] = np.linalg.inv(shift @ np.asarray(s.world_from_local, dtype=np.float64))
+            params[i] = s.params
+        shapes.kind = wp.array(kinds, dtype=wp.int32, device=dev)
+        shapes.local_from_world = wp.array(mats, dtype=wp.mat44, device=dev)
+        shapes.params = wp.array(params, dtype=wp.vec3, device=dev)
+        if len(scene.mesh_triangles):
+            pts = (np.asarray(scene.mesh_points, dtype=np.float64) - origin).astype(np.float32)
+            self._mesh = wp.Mesh(points=wp.array(pts, dtype=wp.vec3, device=dev),
+                                 indices=wp.array(np.asarray(scene.mesh_triangles, dtype=np.int32).reshape(-1), dtype=wp.int32, device=dev))
+            shapes.mesh = self._mesh.id
+            shapes.has_mesh = 1
+        else:
+            self._mesh = None
+            shapes.mesh = wp.uint64(0)
+            shapes.has_mesh = 0
+        self._shapes = shapes
+
+    # -- camera and lights ---------------------------------------------------------------
+    def _camera(self, camera: Camera, origin: np.ndarray) -> rk.RenderCamera:
+        cam = rk.RenderCamera()
+        m = np.asarray(camera.world_from_camera, dtype=np.float64).copy()
+        m[:3, 3] -= origin
+        cam.world_from_camera = wp.mat44(*m.astype(np.float32).reshape(-1))
+        cam.window = wp.vec4(*np.asarray(camera.screen_window(self.width, self.height, self.conform), dtype=np.float32))
+        cam.near, cam.far = float(camera.near), float(camera.far)
+        cam.orthographic = 1 if camera.projection == "orthographic" else 0
+        cam.width, cam.height = self.width, self.height
+        return cam
+
+    def _lights(self, camera: Camera) -> rk.RenderLights:
+        lt = self.lighting
+        rot = np.asarray(camera.world_from_camera, dtype=np.float64)[:3, :3]
+
+        def to_world(d):
+            v = rot @ (np.asarray(d, dtype=np.float64) / np.linalg.norm(d))
+            return wp.vec3(*(v / np.linalg.norm(v)))
+
+        out = rk.RenderLights()
+        out.key_dir, out.fill_dir = to_world(lt.key_dir), to_world(lt.fill_dir)
+        out.key_color, out.fill_color = wp.vec3(*lt.key_color), wp.vec3(*lt.fill_color)
+        out.ambient = wp.vec3(*lt.ambient)
+        out.hair_shadow_transmittance = float(lt.hair_shadow_transmittance)
+        out.shading = SHADINGS[self.shading]
+        out.roughness = float(lt.roughness)
+        out.geometry_albedo = wp.vec3(*lt.geometry_albedo)
+        return out
+
+    # -- rendering -----------------------------------------------------------------------
+    def default_camera(self, scene: RenderScene) -> Camera:
+        """Automatic framing of the hair's bounds (of everything, without hair)."""
+        return auto_frame(scene.hair_bounds() or scene.bounds(), self.width, self.height, scene.up_axis)
+
+    def render(self, scene: RenderScene, camera: Camera | None = None) -> np.ndarray:
+        """(height, width, 4) float32: linear straight colour and alpha = coverage."""
+        if camera is None:
+            camera = self.default_camera(scene)
+        bounds = scene.bounds()
+        origin = np.zeros(3) if bounds is None else 0.5 * (bounds[0] + bounds[1])
+        self._upload_hair(scene, origin)
+        self._upload_shapes(scene, origin)
+        inputs = [self._camera(camera, origin), self._hair, self._shapes, self._lights(camera), self.spp, int(self.seed)]
+        if self.threads <= 1 or self.height < 2:
+            wp.launch(rk.render_kernel, dim=(self.height, self.width), inputs=[*inputs, 0],
+                      outputs=[self._image], device=self.device)
+        else:
+            # Warp runs a CPU launch on one thread (and lets go of the GIL): render bands of
+            # rows concurrently, small bands handed out in turn to even out the work
+            band = max(1, min(16, self.height // (4 * self.threads)))
+
+            def launch(row):
+                rows = min(band, self.height - row)
+                wp.launch(rk.render_kernel, dim=(rows, self.width), inputs=[*inputs, row],
+                          outputs=[self._image], device=self.device)
+
+            with ThreadPoolExecutor(self.threads) as pool:
+                list(pool.map(launch, range(0, self.height, band)))
+        return self._image.numpy().copy()
+
+
+def to_rgba8(image: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Linear straight RGBA float -> sRGB-encoded straight RGBA uint8 (colour 0 where alpha is 0).
+
+    Highlights roll off smoothly above 0.8 instead of clipping."""
+    rgb = np.asarray(image[..., :3], dtype=np.float64) * exposure
+    knee = 0.8
+    over = np.maximum(rgb - knee, 0.0)
+    rgb = np.where(rgb > knee, knee + (1.0 - knee) * (1.0 - np.exp(-over / (1.0 - knee))), rgb)
+    rgb = np.clip(rgb, 0.0, 1.0)
+    srgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * np.power(rgb, 1.0 / 2.4) - 0.055)
+    alpha = np.clip(image[..., 3], 0.0, 1.0)
+    out = np.empty(image.shape[:2] + (4,), dtype=np.uint8)
+    out[..., :3] = np.round(srgb * 255.0 * (alpha[..., None] > 0))
+    out[..., 3] = np.round(alpha * 255.0)
+    return out
+
+
+def orbit_cameras(camera: Camera, scene: RenderScene, frames: int):
+    """``frames`` cameras turning once around the up axis through the hair's centre."""
+    b = scene.hair_bounds() or scene.bounds()
+    center = np.zeros(3) if b is None else 0.5 * (b[0] + b[1])
+    return [camera.orbited(2.0 * math.pi * k / frames, center, scene.up_axis) for k in range(frames)]

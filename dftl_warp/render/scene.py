@@ -1,0 +1,157 @@
+"""What the renderer draws, in world space and numpy: strands, gprims, one triangle mesh.
+
+A :class:`RenderScene` is built from a USD stage (:mod:`.usd_scene`) or directly from numpy
+arrays (:meth:`RenderScene.from_strands`). Lengths are in stage units (metres for the
+simulator's output); colours are linear RGB in 0..1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: default linear hair colour at the root and at the tip (a mid brown)
+DEFAULT_ROOT_COLOR = (0.045, 0.022, 0.010)
+DEFAULT_TIP_COLOR = (0.30, 0.17, 0.085)
+#: a constant or per-strand colour is darkened towards the root by this factor
+ROOT_DARKENING = 0.55
+
+SPHERE, CAPSULE, BOX = 0, 1, 2
+
+
+@dataclass
+class Shape:
+    """An analytic gprim. ``world_from_local``: 4x4, column vectors (``p_w = M @ [p, 1]``).
+
+    params: sphere ``(radius, 0, 0)``; capsule ``(radius, half height of the cylinder part,
+    axis 0/1/2 for X/Y/Z)``; box ``(half extents)``.
+    """
+
+    kind: int
+    world_from_local: np.ndarray
+    params: tuple
+    path: str = ""
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """World box of the shape (the transformed local box's corners)."""
+        if self.kind == SPHERE:
+            half = np.full(3, self.params[0])
+        elif self.kind == CAPSULE:
+            half = np.full(3, self.params[0])
+            half[int(self.params[2])] += self.params[1]
+        else:
+            half = np.asarray(self.params, dtype=np.float64)
+        corners = np.array([[sx, sy, sz, 1.0] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        corners[:, :3] *= half
+        w = corners @ np.asarray(self.world_from_local).T
+        return w[:, :3].min(axis=0), w[:, :3].max(axis=0)
+
+
+@dataclass
+class RenderScene:
+    """Everything a frame draws.
+
+    - ``points`` (N, 3), ``curve_vertex_counts`` (S,): linear strands, root first;
+    - ``radii`` (N,): tube radius at every vertex (half the USD width);
+    - ``colors`` (N, 3): linear RGB per vertex;
+    - ``shapes``: spheres, capsules and boxes; ``mesh_points`` (M, 3) + ``mesh_triangles``
+      (K, 3): all meshes merged, in world space;
+    - ``up_axis``: "Y" or "Z" (for automatic framing and turntables).
+    """
+
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    curve_vertex_counts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    colors: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    shapes: list = field(default_factory=list)
+    mesh_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    mesh_triangles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int64))
+    up_axis: str = "Y"
+
+    @classmethod
+    def from_strands(cls, points, counts, widths=None, colors=None, **kw) -> "RenderScene":
+        """Strands from numpy: ``points`` (N, 3); ``counts`` (S,); ``widths`` (diameters): a
+        scalar, (S,) per strand or (N,) per vertex; ``colors``: None (default ramp), an RGB, (S, 3)
+        or (N, 3)."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        n = len(points)
+        if widths is None:
+            widths = default_width(points)
+        w = np.asarray(widths, dtype=np.float64).reshape(-1)
+        if w.size == 1:
+            w = np.full(n, w[0])
+        elif w.size == len(counts) and w.size != n:
+            w = np.repeat(w, counts)
+        return cls(points=points, curve_vertex_counts=counts, radii=0.5 * w,
+                   colors=strand_colors(counts, colors), **kw)
+
+    @property
+    def strand_count(self) -> int:
+        return int(len(self.curve_vertex_counts))
+
+    @property
+    def segment_count(self) -> int:
+        return int(np.maximum(self.curve_vertex_counts - 1, 0).sum())
+
+    def hair_bounds(self):
+        """(lo, hi) of the strand tubes, or None without strands."""
+        if len(self.points) == 0:
+            return None
+        r = self.radii[:, None]
+        return (self.points - r).min(axis=0), (self.points + r).max(axis=0)
+
+    def bounds(self):
+        """(lo, hi) of everything drawn, or None for an empty scene."""
+        boxes = []
+        hb = self.hair_bounds()
+        if hb is not None:
+            boxes.append(hb)
+        boxes += [s.bounds() for s in self.shapes]
+        if len(self.mesh_points):
+            boxes.append((self.mesh_points.min(axis=0), self.mesh_points.max(axis=0)))
+        if not boxes:
+            return None
+        return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+    def is_empty(self) -> bool:
+        return self.segment_count == 0 and not self.shapes and len(self.mesh_triangles) == 0
+
+
+def default_width(points: np.ndarray) -> float:
+    """Width used when none is authored: 1/1000 of the strands' bounding-box diagonal."""
+    if len(points) == 0:
+        return 0.0
+    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    return max(diag * 1.0e-3, 1.0e-6)
+
+
+def strand_colors(counts, colors=None) -> np.ndarray:
+    """Per-vertex linear colours: a root-to-tip ramp from the default browns (``colors`` None),
+    a darkened-root ramp of one RGB or of one RGB per strand, or per-vertex colours as given."""
+    counts = np.asarray(counts, dtype=np.int64)
+    n = int(counts.sum())
+    u = root_to_tip(counts)[:, None]
+    if colors is None:
+        return (1.0 - u) * np.asarray(DEFAULT_ROOT_COLOR) + u * np.asarray(DEFAULT_TIP_COLOR)
+    c = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+    if len(c) == n and (len(c) != len(counts) or n == len(counts)):
+        return c.copy()
+    if len(c) == 1:
+        c = np.repeat(c, n, axis=0)
+    elif len(c) == len(counts):
+        c = np.repeat(c, counts, axis=0)
+    else:
+        raise ValueError(f"{len(c)} colours for {len(counts)} strands of {n} vertices")
+    return c * (ROOT_DARKENING + (1.0 - ROOT_DARKENING) * u)
+
+
+def root_to_tip(counts) -> np.ndarray:
+    """Parameter 0 (root) .. 1 (tip) of every vertex of concatenated strands."""
+    counts = np.asarray(counts, dtype=np.int64)
+    n = int(counts.sum())
+    starts = np.repeat(np.cumsum(counts) - counts, counts)
+    i = np.arange(n) - starts
+    denom = np.repeat(np.maximum(counts - 1, 1), counts)
+    return i / denom

@@ -1,0 +1,419 @@
+"""Reading what to render from a USD stage at one time code: the renderer's only USD reader.
+
+- ``UsdGeom.BasisCurves``: ``points``, ``curveVertexCounts``, ``widths`` (or
+  ``primvars:widths``) and ``primvars:displayColor`` with any interpolation (constant,
+  uniform, varying, vertex, faceVarying; indexed primvars are flattened). Linear curves are
+  drawn as they are; cubic ones (bezier, bspline, catmullRom; nonperiodic, periodic, pinned)
+  are evaluated into ``CUBIC_STEPS`` linear pieces per span. Everything is moved to world
+  space by the prim's local-to-world transform (widths are scaled by its mean scale).
+- ``UsdGeom.Sphere``, ``Capsule``, ``Cube`` (analytic, with their transforms) and ``Mesh``
+  (triangulated, world space), drawn in a neutral material.
+- ``UsdGeom.Camera`` prims (:func:`read_camera`).
+
+Invisible prims and prims of purpose ``guide`` or ``proxy`` are skipped. Bad data raises
+:class:`~dftl_warp.errors.UserError` naming the file, the prim and the index.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from .camera import Camera
+from .scene import BOX, CAPSULE, SPHERE, RenderScene, Shape, default_width, root_to_tip, strand_colors
+
+#: linear pieces per cubic span
+CUBIC_STEPS = 6
+
+_BASIS = {  # (4x4 basis matrix for [1, u, u^2, u^3] @ M @ [P0..P3], vstep)
+    "bezier": (np.array([[1, 0, 0, 0], [-3, 3, 0, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float), 3),
+    "bspline": (np.array([[1, 4, 1, 0], [-3, 0, 3, 0], [3, -6, 3, 0], [-1, 3, -3, 1]], float) / 6.0, 1),
+    "catmullRom": (np.array([[0, 2, 0, 0], [-1, 0, 1, 0], [2, -5, 4, -1], [-1, 3, -3, 1]], float) / 2.0, 1),
+}
+
+
+def open_stage(path):
+    """Open a USD stage for reading, or raise UserError."""
+    from pxr import Usd
+
+    p = Path(path)
+    if not p.exists():
+        raise UserError(f"{path}: no such file")
+    try:
+        stage = Usd.Stage.Open(str(p))
+    except Exception as exc:  # pxr raises Tf.ErrorException
+        msg = str(exc).strip().splitlines()
+        raise UserError(f"{path}: cannot open as a USD stage: {msg[-1] if msg else exc}") from None
+    if stage is None:
+        raise UserError(f"{path}: cannot open as a USD stage")
+    return stage
+
+
+def stage_source(stage) -> str:
+    layer = stage.GetRootLayer()
+    return layer.realPath or layer.identifier
+
+
+def up_axis(stage) -> str:
+    from pxr import UsdGeom
+
+    return str(UsdGeom.GetStageUpAxis(stage)).upper()
+
+
+def time_range(stage):
+    """(start, end) time codes authored on the stage, or None."""
+    if stage.HasAuthoredTimeCodeRange():
+        return float(stage.GetStartTimeCode()), float(stage.GetEndTimeCode())
+    return None
+
+
+def default_time(stage):
+    """The stage's start time code if it has one, else the default time."""
+    from pxr import Usd
+
+    r = time_range(stage)
+    return Usd.TimeCode(r[0]) if r else Usd.TimeCode.Default()
+
+
+def _time(t):
+    from pxr import Usd
+
+    if t is None:
+        return Usd.TimeCode.Default()
+    if isinstance(t, Usd.TimeCode):
+        return t
+    return Usd.TimeCode(float(t))
+
+
+def _drawn_prims(stage, time):
+    from pxr import Usd, UsdGeom
+
+    it = iter(Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)))
+    for prim in it:
+        img = UsdGeom.Imageable(prim)
+        if not img:
+            continue
+        if img.ComputeVisibility(time) == UsdGeom.Tokens.invisible or str(img.ComputePurpose()) in ("guide", "proxy"):
+            it.PruneChildren()
+            continue
+        yield prim
+
+
+def _world(prim, time) -> np.ndarray:
+    """Local-to-world transform of ``prim`` at ``time`` for column vectors."""
+    from pxr import UsdGeom
+
+    return np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64).T
+
+
+def _finite(values, source, prim, name):
+    bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+    if bad.any():
+        raise UserError(f"{source}: {prim.GetPath()}: {name}[{int(np.argmax(bad))}] is not finite")
+
+
+def read_scene(stage, time=None, source: str | None = None) -> RenderScene:
+    """Everything drawn at ``time`` (a number, a Usd.TimeCode or None = default)."""
+    from pxr import UsdGeom
+
+    time = _time(time)
+    source = source or stage_source(stage)
+    strands = []  # (points, counts, radii, colors)
+    shapes = []
+    mesh_pts, mesh_tris = [], []
+    n_mesh = 0
+    for prim in _drawn_prims(stage, time):
+        if prim.IsA(UsdGeom.BasisCurves):
+            s = _read_curves(prim, time, source)
+            if s is not None:
+                strands.append(s)
+        elif prim.IsA(UsdGeom.Sphere):
+            r = UsdGeom.Sphere(prim).GetRadiusAttr().Get(time)
+            shapes.append(Shape(SPHERE, _world(prim, time), (float(r), 0.0, 0.0), str(prim.GetPath())))
+        elif prim.IsA(UsdGeom.Capsule):
+            c = UsdGeom.Capsule(prim)
+            axis = "XYZ".index(str(c.GetAxisAttr().Get(time)))
+            shapes.append(Shape(CAPSULE, _world(prim, time),
+                                (float(c.GetRadiusAttr().Get(time)), 0.5 * float(c.GetHeightAttr().Get(time)), float(axis)),
+                                str(prim.GetPath())))
+        elif prim.IsA(UsdGeom.Cube):
+            h = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get(time))
+            shapes.append(Shape(BOX, _world(prim, time), (h, h, h), str(prim.GetPath())))
+        elif prim.IsA(UsdGeom.Mesh):
+            m = _read_mesh(prim, time, source)
+            if m is not None:
+                mesh_pts.append(m[0])
+                mesh_tris.append(m[1] + n_mesh)
+                n_mesh += len(m[0])
+    scene = RenderScene(shapes=shapes, up_axis=up_axis(stage))
+    for s in shapes:
+        if not np.isfinite(s.world_from_local).all() or not np.isfinite(s.params).all() or s.params[0] < 0:
+            raise UserError(f"{source}: {s.path}: transform or size is not a finite, non-negative value")
+    if strands:
+        scene.points = np.concatenate([s[0] for s in strands])
+        scene.curve_vertex_counts = np.concatenate([s[1] for s in strands])
+        scene.radii = np.concatenate([s[2] for s in strands])
+        scene.colors = np.concatenate([s[3] for s in strands])
+    if mesh_pts:
+        scene.mesh_points = np.concatenate(mesh_pts)
+        scene.mesh_triangles = np.concatenate(mesh_tris)
+    return scene
+
+
+def _primvar(prim, name, time):
+    """(values, interpolation) of primvar ``name`` (flattened), or (None, None)."""
+    from pxr import UsdGeom
+
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
+    if not pv or not pv.HasAuthoredValue():
+        return None, None
+    v = pv.ComputeFlattened(time)
+    if v is None:
+        return None, None
+    return np.asarray(v, dtype=np.float64), str(pv.GetInterpolation())
+
+
+def _expected(interp, n_curves, n_vertices, n_varying):
+    return {"constant": 1, "uniform": n_curves, "varying": n_varying,
+            "faceVarying": n_varying, "vertex": n_vertices}.get(interp)
+
+
+def _spans(counts, curve_type, basis, wrap):
+    """Number of spans (linear segments or cubic pieces) per curve."""
+    if curve_type == "linear":
+        return counts if wrap == "periodic" else np.maximum(counts - 1, 0)
+    _, vstep = _BASIS[basis]
+    if wrap == "periodic":
+        return counts // vstep
+    if wrap == "pinned" and basis != "bezier":
+        return np.maximum(counts - 1, 0)
+    return np.maximum((counts - 4) // vstep + 1, 0)
+
+
+def _read_curves(prim, time, source):
+    from pxr import UsdGeom
+
+    curves = UsdGeom.BasisCurves(prim)
+    path = prim.GetPath()
+    pts = curves.GetPointsAttr().Get(time)
+    counts = curves.GetCurveVertexCountsAttr().Get(time)
+    if pts is None or counts is None or len(counts) == 0:
+        return None
+    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    counts = np.asarray(counts, dtype=np.int64)
+    if (counts < 0).any():
+        raise UserError(f"{source}: {path}: curveVertexCounts[{int(np.argmax(counts < 0))}] is negative")
+    if counts.sum() != len(pts):
+        raise UserError(f"{source}: {path}: points has {len(pts)} entries but curveVertexCounts sums to {int(counts.sum())}")
+    _finite(pts, source, prim, "points")
+    curve_type = str(curves.GetTypeAttr().Get(time) or "cubic")
+    basis = str(curves.GetBasisAttr().Get(time) or "bezier")
+    wrap = str(curves.GetWrapAttr().Get(time) or "nonperiodic")
+    if curve_type not in ("linear", "cubic"):
+        raise UserError(f"{source}: {path}: unknown curve type {curve_type!r}")
+    if curve_type == "cubic" and basis not in _BASIS:
+        raise UserError(f"{source}: {path}: unsupported cubic basis {basis!r} (bezier, bspline, catmullRom)")
+    if wrap not in ("nonperiodic", "periodic", "pinned"):
+        raise UserError(f"{source}: {path}: unknown wrap {wrap!r}")
+    spans = _spans(counts, curve_type, basis, wrap)
+    n_varying = int((spans + (0 if wrap == "periodic" else 1)).sum()) if curve_type == "cubic" else len(pts)
+
+    def per_vertex(values, interp, name, width):
+        """Expand a primvar to (values per control point, values per varying point or None)."""
+        values = values.reshape(-1, width)
+        expected = _expected(interp, len(counts), len(pts), n_varying)
+        if expected is None:
+            raise UserError(f"{source}: {path}: {name}: unknown interpolation {interp!r}")
+        if len(values) != expected:
+            raise UserError(f"{source}: {path}: {name}: {len(values)} values for {interp!r} interpolation, expected {expected}")
+        _finite(values, source, prim, name)
+        if interp == "constant":
+            return np.repeat(values, len(pts), axis=0), None
+        if interp == "uniform":
+            return np.repeat(values, counts, axis=0), None
+        if interp in ("varying", "faceVarying") and curve_type == "cubic":
+            return None, values
+        return values, None
+
+    # widths: primvars:widths wins over the widths attribute
+    widths, w_interp = _primvar(prim, "widths", time)
+    if widths is None:
+        w = curves.GetWidthsAttr().Get(time)
+        if w is not None and len(w):
+            widths, w_interp = np.asarray(w, dtype=np.float64), str(curves.GetWidthsInterpolation())
+    if widths is None:
+        w_v, w_var = np.full((len(pts), 1), default_width(pts)), None
+    else:
+        w_v, w_var = per_vertex(widths, w_interp, "widths", 1)
+        if (widths < 0).any():
+            raise UserError(f"{source}: {path}: widths[{int(np.argmax(widths < 0))}] is negative")
+
+    colors, c_interp = _primvar(prim, "displayColor", time)
+    c_v = c_var = None
+    ramp = colors is None or c_interp in ("constant", "uniform")
+    if colors is not None:
+        c_v, c_var = per_vertex(colors, c_interp, "primvars:displayColor", 3)
+
+    world = _world(prim, time)
+    if curve_type == "linear":
+        out_pts, out_counts, out_w, out_c = _linear(pts, counts, wrap, w_v, c_v)
+    else:
+        out_pts, out_counts, out_w, out_c = _cubic(pts, counts, basis, wrap, spans, w_v, w_var, c_v, c_var)
+    out_pts = out_pts @ world[:3, :3].T + world[:3, 3]
+    scale = abs(np.linalg.det(world[:3, :3])) ** (1.0 / 3.0)
+    radii = 0.5 * out_w.reshape(-1) * scale
+    if ramp:
+        base = None if colors is None else out_c.reshape(-1, 3)
+        if base is None:
+            cols = strand_colors(out_counts, None)
+        else:
+            u = root_to_tip(out_counts)[:, None]
+            from .scene import ROOT_DARKENING
+
+            cols = base * (ROOT_DARKENING + (1.0 - ROOT_DARKENING) * u)
+    else:
+        cols = out_c.reshape(-1, 3)
+    return out_pts, out_counts, radii, np.clip(cols, 0.0, None)
+
+
+def _linear(pts, counts, wrap, w_v, c_v):
+    if wrap != "periodic":
+        return pts, counts, w_v, (c_v if c_v is not None else np.zeros((len(pts), 3)))
+    # close every loop by repeating its first vertex
+    starts = np.cumsum(counts) - counts
+    idx = np.concatenate([np.r_[np.arange(s, s + n), s] if n > 0 else np.zeros(0, int) for s, n in zip(starts, counts)])
+    c = c_v if c_v is not None else np.zeros((len(pts), 3))
+    return pts[idx], np.where(counts > 0, counts + 1, 0), w_v[idx], c[idx]
+
+
+def _cubic(pts, counts, basis, wrap, spans, w_v, w_var, c_v, c_var):
+    """Evaluate cubic curves into linear pieces; vertex primvars follow the basis, varying ones
+    are linear per span."""
+    m, vstep = _BASIS[basis]
+    u = np.linspace(0.0, 1.0, CUBIC_STEPS + 1)
+    weights = np.stack([np.ones_like(u), u, u * u, u * u * u], axis=1) @ m  # (steps+1, 4)
+    starts = np.cumsum(counts) - counts
+    var_starts = np.cumsum(spans + (0 if wrap == "periodic" else 1)) - (spans + (0 if wrap == "periodic" else 1))
+    vertex_data = [pts]
+    if w_v is not None:
+        vertex_data.append(w_v)
+    if c_v is not None:
+        vertex_data.append(c_v)
+    stacked = np.concatenate(vertex_data, axis=1)
+    out, out_counts, out_var_w, out_var_c = [], [], [], []
+    for k, (s, n, ns) in enumerate(zip(starts, counts, spans)):
+        if ns <= 0:
+            out_counts.append(0)
+            continue
+        cv = stacked[s:s + n]
+        if wrap == "pinned" and basis != "bezier":
+            cv = np.concatenate([2 * cv[:1] - cv[1:2], cv, 2 * cv[-1:] - cv[-2:-1]])
+        elif wrap == "periodic":
+            cv = np.concatenate([cv, cv[:3]])
+        idx = (np.arange(ns)[:, None] * vstep + np.arange(4)[None, :])  # (ns, 4)
+        pieces = np.einsum("uk,skd->sud", weights, cv[idx])  # (ns, steps+1, d)
+        curve = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
+        out.append(curve)
+        out_counts.append(len(curve))
+        t = np.concatenate([[0.0], (np.arange(ns)[:, None] + u[None, 1:]).reshape(-1)])  # span param
+        for var, dst in ((w_var, out_var_w), (c_var, out_var_c)):
+            if var is not None:
+                vv = var[var_starts[k]:var_starts[k] + ns + (0 if wrap == "periodic" else 1)]
+                if wrap == "periodic":
+                    vv = np.concatenate([vv, vv[:1]])
+                dst.append(np.stack([np.interp(t, np.arange(len(vv)), vv[:, j]) for j in range(vv.shape[1])], axis=1))
+    out_counts = np.asarray(out_counts, dtype=np.int64)
+    if not out:
+        return np.zeros((0, 3)), out_counts, np.zeros((0, 1)), np.zeros((0, 3))
+    allv = np.concatenate(out)
+    col = 3
+    if w_v is not None:
+        widths = allv[:, col:col + 1]
+        col += 1
+    else:
+        widths = np.concatenate(out_var_w)
+    if c_v is not None:
+        colors = allv[:, col:col + 3]
+    elif out_var_c:
+        colors = np.concatenate(out_var_c)
+    else:
+        colors = np.zeros((len(allv), 3))
+    return allv[:, :3], out_counts, np.maximum(widths, 0.0), colors
+
+
+def _read_mesh(prim, time, source):
+    from pxr import UsdGeom
+
+    mesh = UsdGeom.Mesh(prim)
+    path = prim.GetPath()
+    pts = mesh.GetPointsAttr().Get(time)
+    fvc = mesh.GetFaceVertexCountsAttr().Get(time)
+    fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
+    if pts is None or fvc is None or fvi is None or len(fvc) == 0:
+        return None
+    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+    fvc = np.asarray(fvc, dtype=np.int64)
+    fvi = np.asarray(fvi, dtype=np.int64)
+    _finite(pts, source, prim, "points")
+    if fvc.sum() != len(fvi):
+        raise UserError(f"{source}: {path}: faceVertexIndices has {len(fvi)} entries but faceVertexCounts sums to {int(fvc.sum())}")
+    bad = (fvi < 0) | (fvi >= len(pts))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise UserError(f"{source}: {path}: faceVertexIndices[{i}] = {int(fvi[i])} is not a point index (0..{len(pts) - 1})")
+    # fan triangulation of every polygon with 3+ corners
+    starts = np.cumsum(fvc) - fvc
+    keep = fvc >= 3
+    n_tri = np.where(keep, fvc - 2, 0)
+    face = np.repeat(np.arange(len(fvc)), n_tri)
+    k = np.arange(int(n_tri.sum())) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
+    s = starts[face]
+    tris = np.stack([fvi[s], fvi[s + k + 1], fvi[s + k + 2]], axis=1)
+    world = _world(prim, time)
+    return pts @ world[:3, :3].T + world[:3, 3], tris
+
+
+def cameras(stage):
+    """Paths of the UsdGeom.Camera prims on the stage, in traversal order."""
+    from pxr import UsdGeom
+
+    return [str(p.GetPath()) for p in stage.Traverse() if p.IsA(UsdGeom.Camera)]
+
+
+def read_camera(stage, path, time=None, source: str | None = None) -> Camera:
+    """The UsdGeom.Camera at ``path`` at ``time``."""
+    from pxr import Sdf, UsdGeom
+
+    source = source or stage_source(stage)
+    time = _time(time)
+    prim = stage.GetPrimAtPath(Sdf.Path(path)) if Sdf.Path.IsValidPathString(path) else None
+    if not prim or not prim.IsA(UsdGeom.Camera):
+        found = cameras(stage)
+        hint = f" (cameras: {', '.join(found[:5])})" if found else " (the stage has no camera)"
+        raise UserError(f"{source}: {path}: no UsdGeom.Camera prim at this path{hint}")
+    cam = UsdGeom.Camera(prim)
+
+    def get(attr, default):
+        v = attr.Get(time)
+        return float(default if v is None else v)
+
+    clip = cam.GetClippingRangeAttr().Get(time)
+    near, far = (float(clip[0]), float(clip[1])) if clip is not None else (1.0, 1.0e6)
+    result = Camera(
+        world_from_camera=_world(prim, time),
+        focal_length=get(cam.GetFocalLengthAttr(), 50.0),
+        horizontal_aperture=get(cam.GetHorizontalApertureAttr(), 20.955),
+        vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
+        horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
+        vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
+        near=near, far=far,
+        projection=str(cam.GetProjectionAttr().Get(time) or "perspective"),
+        path=str(path),
+    )
+    if not (result.focal_length > 0 and result.horizontal_aperture > 0 and result.vertical_aperture > 0):
+        raise UserError(f"{source}: {path}: focal length and apertures must be positive")
+    if not (0 <= near < far) or not np.isfinite(result.world_from_camera).all():
+        raise UserError(f"{source}: {path}: clippingRange {clip} or transform is invalid")
+    return result

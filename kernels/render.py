@@ -1,0 +1,534 @@
+"""Ray-traced hair preview: camera rays, strand tubes through a BVH, gprims, hair shading.
+
+Everything is float32 and relative to the render's world ``origin`` (the host subtracts it), so
+a groom far from (0, 0, 0) keeps its precision. Lengths are in stage units (metres for the
+simulator's output).
+
+- Strands are *round linear curves*: each segment is the sweep of a sphere whose radius varies
+  linearly from ``r0`` at ``p0`` to ``r1`` at ``p1`` (a cone with spherical joints, as Embree's
+  and Mitsuba's ``linearcurve``). :func:`segment_bounds` writes the segment boxes of a
+  ``wp.Bvh``; a new frame rewrites them and refits the tree.
+- Other geometry: analytic spheres, capsules and boxes (each in its own local frame) and one
+  triangle ``wp.Mesh``.
+- Shading (:func:`hair_marschner`): the R, TT and TRT lobes of Marschner et al. 2003 in the
+  practical form of Karis 2016 ("Physically Based Hair Shading in Unreal"), plus a diffuse
+  term for multiple scattering; or Kajiya-Kay 1989. A key light casts ray-traced shadows in
+  which every hair crossed keeps ``hair_shadow_transmittance`` of the light, a fill light does
+  not; an ambient term lifts the shadows.
+- :func:`render_kernel`: one thread per pixel, ``spp`` stratified jittered samples; writes the
+  mean linear radiance of the samples that hit something (straight colour) and the fraction
+  that hit (alpha = coverage).
+"""
+
+import warp as wp
+
+HIT_NONE = wp.constant(-1)
+HIT_HAIR = wp.constant(0)
+HIT_SHAPE = wp.constant(1)
+HIT_MESH = wp.constant(2)
+
+SHAPE_SPHERE = wp.constant(0)
+SHAPE_CAPSULE = wp.constant(1)
+SHAPE_BOX = wp.constant(2)
+
+SHADING_MARSCHNER = wp.constant(0)
+SHADING_KAJIYA_KAY = wp.constant(1)
+
+BIG = wp.constant(1.0e30)
+
+
+@wp.struct
+class RenderCamera:
+    """A pinhole (or orthographic) camera in render space.
+
+    ``world_from_camera`` maps camera space (looking down -z, +y up) to render space.
+    ``window`` = (left, right, bottom, top) of the image on the plane z = -1 (perspective) or
+    z = 0 in stage units (orthographic), already conformed to the image aspect. ``near``/``far``
+    are clipping distances along -z.
+    """
+
+    world_from_camera: wp.mat44
+    window: wp.vec4
+    near: float
+    far: float
+    orthographic: int
+    width: int
+    height: int
+
+
+@wp.struct
+class RenderLights:
+    """Directional lights (unit vectors towards the light), colours are linear radiance."""
+
+    key_dir: wp.vec3
+    key_color: wp.vec3
+    fill_dir: wp.vec3
+    fill_color: wp.vec3
+    ambient: wp.vec3
+    hair_shadow_transmittance: float
+    shading: int
+    roughness: float
+    geometry_albedo: wp.vec3
+
+
+@wp.struct
+class RenderHair:
+    """Strand segments: ``seg_v0[i]`` is the first of the two vertices of segment ``i``."""
+
+    bvh: wp.uint64
+    count: int
+    seg_v0: wp.array(dtype=wp.int32)
+    seg_strand: wp.array(dtype=wp.int32)
+    points: wp.array(dtype=wp.vec3)
+    radii: wp.array(dtype=float)
+    colors: wp.array(dtype=wp.vec3)
+
+
+@wp.struct
+class RenderShapes:
+    """Analytic gprims: ``local_from_world`` per shape, params (see :func:`shape_hit`)."""
+
+    count: int
+    kind: wp.array(dtype=wp.int32)
+    local_from_world: wp.array(dtype=wp.mat44)
+    params: wp.array(dtype=wp.vec3)
+    mesh: wp.uint64
+    has_mesh: int
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def segment_bounds(
+    seg_v0: wp.array(dtype=wp.int32),
+    points: wp.array(dtype=wp.vec3),
+    radii: wp.array(dtype=float),
+    lowers: wp.array(dtype=wp.vec3),
+    uppers: wp.array(dtype=wp.vec3),
+):
+    """Axis-aligned box of every segment tube (the BVH items)."""
+    i = wp.tid()
+    v = seg_v0[i]
+    a = points[v]
+    b = points[v + 1]
+    r = wp.max(radii[v], radii[v + 1])
+    pad = wp.vec3(r, r, r)
+    lowers[i] = wp.min(a, b) - pad
+    uppers[i] = wp.max(a, b) + pad
+
+
+@wp.func
+def round_cone_hit(ro: wp.vec3, rd: wp.vec3, pa: wp.vec3, pb: wp.vec3, ra: float, rb: float):
+    """Entry distance of the unit ray ``ro + t rd`` into the sphere-swept cone from (pa, ra) to
+    (pb, rb), or ``BIG`` if it misses or starts inside (after I. Quilez, "rounded cone").
+
+    The ray origin is first moved next to the segment so that the quadratic does not lose the
+    tube's (tiny) radius to cancellation in float32.
+    """
+    t_shift = wp.dot(pa - ro, rd)
+    o = ro + t_shift * rd
+    ba = pb - pa
+    oa = o - pa
+    ob = o - pb
+    rr = ra - rb
+    m0 = wp.dot(ba, ba)
+    m1 = wp.dot(ba, oa)
+    m2 = wp.dot(ba, rd)
+    m3 = wp.dot(rd, oa)
+    m5 = wp.dot(oa, oa)
+    m6 = wp.dot(ob, rd)
+    m7 = wp.dot(ob, ob)
+    d2 = m0 - rr * rr
+    result = BIG
+    if d2 > 0.0:
+        # the conical body
+        k2 = d2 - m2 * m2
+        k1 = d2 * m3 - m1 * m2 + m2 * rr * ra
+        k0 = d2 * m5 - m1 * m1 + m1 * rr * ra * 2.0 - m0 * ra * ra
+        h = k1 * k1 - k0 * k2
+        if h >= 0.0 and k2 > 0.0:
+            t = (-wp.sqrt(h) - k1) / k2
+            y = m1 - ra * rr + t * m2
+            if y > 0.0 and y < d2:
+                return t + t_shift
+    # the two spheres at the ends
+    h1 = m3 * m3 - m5 + ra * ra
+    if h1 > 0.0:
+        result = -m3 - wp.sqrt(h1)
+    h2 = m6 * m6 - m7 + rb * rb
+    if h2 > 0.0:
+        t = -m6 - wp.sqrt(h2)
+        if t < result:
+            result = t
+    if result < BIG:
+        return result + t_shift
+    return BIG
+
+
+@wp.func
+def sphere_hit(o: wp.vec3, d: wp.vec3, r: float):
+    """Entry parameter of ``o + t d`` into the sphere of radius ``r`` at 0 (BIG if none)."""
+    a = wp.dot(d, d)
+    b = wp.dot(o, d)
+    c = wp.dot(o, o) - r * r
+    h = b * b - a * c
+    if h < 0.0:
+        return BIG
+    t = (-b - wp.sqrt(h)) / a
+    if t < 0.0:
+        return BIG
+    return t
+
+
+@wp.func
+def box_hit(o: wp.vec3, d: wp.vec3, half: wp.vec3):
+    """Entry parameter of ``o + t d`` into the box ``[-half, half]`` (BIG if none)."""
+    t0 = float(-BIG)
+    t1 = float(BIG)
+    for k in range(3):
+        if wp.abs(d[k]) < 1.0e-20:
+            if o[k] < -half[k] or o[k] > half[k]:
+                return BIG
+        else:
+            ta = (-half[k] - o[k]) / d[k]
+            tb = (half[k] - o[k]) / d[k]
+            t0 = wp.max(t0, wp.min(ta, tb))
+            t1 = wp.min(t1, wp.max(ta, tb))
+    if t0 > t1 or t0 < 0.0:
+        return BIG
+    return t0
+
+
+@wp.func
+def capsule_axis(axis: float):
+    if axis < 0.5:
+        return wp.vec3(1.0, 0.0, 0.0)
+    if axis < 1.5:
+        return wp.vec3(0.0, 1.0, 0.0)
+    return wp.vec3(0.0, 0.0, 1.0)
+
+
+@wp.func
+def shape_hit(kind: int, m: wp.mat44, params: wp.vec3, ro: wp.vec3, rd: wp.vec3):
+    """Hit parameter (distance along the unit world ray) of one gprim, or BIG.
+
+    params: sphere (radius, -, -); capsule (radius, half height of the cylinder, axis 0/1/2);
+    box (half extents).
+    """
+    o = wp.transform_point(m, ro)
+    d = wp.transform_vector(m, rd)
+    if kind == SHAPE_SPHERE:
+        return sphere_hit(o, d, params[0])
+    if kind == SHAPE_CAPSULE:
+        ax = capsule_axis(params[2]) * params[1]
+        # the round-cone test wants a unit ray: scale t back
+        dl = wp.length(d)
+        t = round_cone_hit(o, d / dl, -ax, ax, params[0], params[0])
+        if t < BIG and t > 0.0:
+            return t / dl
+        return BIG
+    return box_hit(o, d, params)
+
+
+@wp.func
+def shape_normal(kind: int, m: wp.mat44, params: wp.vec3, p: wp.vec3):
+    """World normal of a gprim at the world point ``p``."""
+    q = wp.transform_point(m, p)
+    n = q
+    if kind == SHAPE_CAPSULE:
+        ax = capsule_axis(params[2])
+        s = wp.clamp(wp.dot(q, ax), -params[1], params[1])
+        n = q - s * ax
+    if kind == SHAPE_BOX:
+        a = wp.vec3(wp.abs(q[0]) / params[0], wp.abs(q[1]) / params[1], wp.abs(q[2]) / params[2])
+        if a[0] >= a[1] and a[0] >= a[2]:
+            n = wp.vec3(wp.sign(q[0]), 0.0, 0.0)
+        elif a[1] >= a[2]:
+            n = wp.vec3(0.0, wp.sign(q[1]), 0.0)
+        else:
+            n = wp.vec3(0.0, 0.0, wp.sign(q[2]))
+    # normals transform with the transpose of local_from_world
+    nw = wp.vec3(
+        m[0, 0] * n[0] + m[1, 0] * n[1] + m[2, 0] * n[2],
+        m[0, 1] * n[0] + m[1, 1] * n[1] + m[2, 1] * n[2],
+        m[0, 2] * n[0] + m[1, 2] * n[1] + m[2, 2] * n[2],
+    )
+    return wp.normalize(nw)
+
+
+@wp.func
+def hair_closest(hair: RenderHair, ro: wp.vec3, rd: wp.vec3, t_min: float, t_max: float):
+    """Closest strand segment hit in (t_min, t_max): returns (t, segment) or (t_max, -1)."""
+    best_t = t_max
+    best = int(-1)
+    if hair.count > 0:
+        query = wp.bvh_query_ray(hair.bvh, ro, rd)
+        i = int(0)
+        while wp.bvh_query_next(query, i, best_t):
+            v = hair.seg_v0[i]
+            t = round_cone_hit(ro, rd, hair.points[v], hair.points[v + 1], hair.radii[v], hair.radii[v + 1])
+            if t > t_min and t < best_t:
+                best_t = t
+                best = i
+    return best_t, best
+
+
+@wp.func
+def hair_transmittance(hair: RenderHair, ro: wp.vec3, rd: wp.vec3, skip_segment: int, per_hair: float):
+    """Light left after the strands crossed by the shadow ray ``ro + t rd`` (t > 0).
+
+    The segment ``skip_segment`` and its neighbours on the same strand are not counted (the
+    ray leaves from their surface).
+    """
+    tr = float(1.0)
+    if hair.count > 0:
+        skip_strand = int(-1)
+        if skip_segment >= 0:
+            skip_strand = hair.seg_strand[skip_segment]
+        query = wp.bvh_query_ray(hair.bvh, ro, rd)
+        i = int(0)
+        while wp.bvh_query_next(query, i):
+            if hair.seg_strand[i] == skip_strand and wp.abs(i - skip_segment) <= 1:
+                continue
+            v = hair.seg_v0[i]
+            t = round_cone_hit(ro, rd, hair.points[v], hair.points[v + 1], hair.radii[v], hair.radii[v + 1])
+            if t > 0.0 and t < BIG:
+                tr = tr * per_hair
+                if tr < 0.01:
+                    return 0.0
+    return tr
+
+
+@wp.func
+def geometry_closest(shapes: RenderShapes, ro: wp.vec3, rd: wp.vec3, t_min: float, t_max: float):
+    """Closest gprim or mesh hit: returns (t, kind HIT_*, index, world normal)."""
+    best_t = t_max
+    kind = int(HIT_NONE)
+    index = int(-1)
+    normal = wp.vec3(0.0, 0.0, 1.0)
+    for s in range(shapes.count):
+        t = shape_hit(shapes.kind[s], shapes.local_from_world[s], shapes.params[s], ro, rd)
+        if t > t_min and t < best_t:
+            best_t = t
+            kind = HIT_SHAPE
+            index = s
+    if kind == HIT_SHAPE:
+        normal = shape_normal(
+            shapes.kind[index], shapes.local_from_world[index], shapes.params[index], ro + best_t * rd
+        )
+    if shapes.has_mesh != 0:
+        q = wp.mesh_query_ray(shapes.mesh, ro, rd, best_t)
+        if q.result and q.t > t_min and q.t < best_t:
+            best_t = q.t
+            kind = HIT_MESH
+            index = q.face
+            normal = wp.normalize(q.normal)
+    return best_t, kind, index, normal
+
+
+@wp.func
+def geometry_blocks(shapes: RenderShapes, ro: wp.vec3, rd: wp.vec3):
+    """True if a gprim or mesh lies on the shadow ray ``ro + t rd`` (t > 0)."""
+    for s in range(shapes.count):
+        t = shape_hit(shapes.kind[s], shapes.local_from_world[s], shapes.params[s], ro, rd)
+        if t > 0.0 and t < BIG:
+            return True
+    if shapes.has_mesh != 0:
+        q = wp.mesh_query_ray(shapes.mesh, ro, rd, BIG)
+        if q.result and q.t > 0.0:
+            return True
+    return False
+
+
+@wp.func
+def gauss(width: float, x: float):
+    """Normalised Gaussian of standard deviation ``width`` at ``x``."""
+    return wp.exp(-0.5 * x * x / (width * width)) / (2.5066283 * width)
+
+
+@wp.func
+def fresnel_hair(cos_theta: float):
+    """Schlick Fresnel of a hair cuticle (index of refraction 1.55)."""
+    f0 = 0.04652  # ((1 - 1.55) / (1 + 1.55))^2
+    x = 1.0 - wp.clamp(cos_theta, 0.0, 1.0)
+    x2 = x * x
+    return f0 + (1.0 - f0) * x2 * x2 * x
+
+
+@wp.func
+def pow3(c: wp.vec3, e: float):
+    return wp.vec3(wp.pow(c[0], e), wp.pow(c[1], e), wp.pow(c[2], e))
+
+
+@wp.func
+def hair_marschner(T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughness: float):
+    """Reflected radiance per unit irradiance of a fibre with tangent ``T``: R, TT and TRT lobes
+    (Karis 2016 form of Marschner et al. 2003) plus a Kajiya-Kay-like multiple-scattering
+    diffuse term. ``color`` is the fibre colour (0..1, linear), ``roughness`` its longitudinal
+    roughness."""
+    n_ior = 1.55
+    shift = 0.035
+    r = wp.clamp(roughness, 0.02, 1.0)
+    r2 = r * r
+    vol = wp.dot(V, L)
+    sin_l = wp.clamp(wp.dot(T, L), -1.0, 1.0)
+    sin_v = wp.clamp(wp.dot(T, V), -1.0, 1.0)
+    cos_d = wp.cos(0.5 * wp.abs(wp.asin(sin_v) - wp.asin(sin_l)))
+    cos_d = wp.max(cos_d, 0.05)
+    lp = L - sin_l * T
+    vp = V - sin_v * T
+    cos_phi = wp.dot(lp, vp) / wp.sqrt(wp.dot(lp, lp) * wp.dot(vp, vp) + 1.0e-4)
+    cos_half_phi = wp.sqrt(wp.clamp(0.5 + 0.5 * cos_phi, 0.0, 1.0))
+    s = wp.vec3(0.0, 0.0, 0.0)
+    # R: white, shifted towards the root
+    mp = gauss(r2 * wp.sqrt(2.0) * wp.max(cos_half_phi, 0.05), sin_l + sin_v + 2.0 * shift)
+    np_ = 0.25 * cos_half_phi
+    fp = fresnel_hair(wp.sqrt(wp.clamp(0.5 + 0.5 * vol, 0.0, 1.0)))
+    s = s + wp.vec3(mp * np_ * fp)
+    # TT: through the fibre, tinted, strong when back-lit
+    mp = gauss(0.5 * r2, sin_l + sin_v - shift)
+    a = 1.0 / n_ior
+    h = cos_half_phi * (1.0 + a * (0.6 - 0.8 * cos_phi))
+    f = fresnel_hair(cos_d * wp.sqrt(wp.clamp(1.0 - h * h, 0.0, 1.0)))
+    fp = (1.0 - f) * (1.0 - f)
+    tp = pow3(color, 0.5 * wp.sqrt(wp.clamp(1.0 - (h * a) * (h * a), 0.0, 1.0)) / cos_d)
+    np_ = wp.exp(-3.65 * cos_phi - 3.98)
+    s = s + tp * (mp * np_ * fp)
+    # TRT: the tinted secondary highlight
+    mp = gauss(2.0 * r2, sin_l + sin_v - 4.0 * shift)
+    f = fresnel_hair(cos_d * 0.5)
+    fp = (1.0 - f) * (1.0 - f) * f
+    tp = pow3(color, 0.8 / cos_d)
+    np_ = wp.exp(17.0 * cos_phi - 16.78)
+    s = s + tp * (mp * np_ * fp)
+    # multiple scattering: a wrapped Kajiya-Kay diffuse
+    kk = wp.sqrt(wp.clamp(1.0 - sin_l * sin_l, 0.0, 1.0))
+    wrap = wp.clamp(0.5 + 0.5 * wp.dot(V, L), 0.0, 1.0)
+    diffuse = color * (kk * (0.6 + 0.4 * wrap) / 3.14159265)
+    return s + diffuse
+
+
+@wp.func
+def hair_kajiya_kay(T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughness: float):
+    """Kajiya-Kay 1989: diffuse ``sin(T, L)`` and a specular cone around the tangent."""
+    sin_l2 = 1.0 - wp.dot(T, L) * wp.dot(T, L)
+    sin_v2 = 1.0 - wp.dot(T, V) * wp.dot(T, V)
+    tl = wp.dot(T, L)
+    tv = wp.dot(T, V)
+    cos_spec = wp.clamp(-tl * tv + wp.sqrt(wp.max(sin_l2, 0.0) * wp.max(sin_v2, 0.0)), 0.0, 1.0)
+    exponent = 2.0 / wp.max(roughness * roughness, 1.0e-3)
+    spec = 0.08 * wp.pow(cos_spec, exponent)
+    return color * (wp.sqrt(wp.max(sin_l2, 0.0)) / 3.14159265) + wp.vec3(spec)
+
+
+@wp.func
+def hair_bsdf(shading: int, T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughness: float):
+    if shading == SHADING_KAJIYA_KAY:
+        return hair_kajiya_kay(T, V, L, color, roughness)
+    return hair_marschner(T, V, L, color, roughness)
+
+
+@wp.func
+def camera_ray(cam: RenderCamera, x: float, y: float):
+    """Origin, unit direction and (near, far) distances of the ray through image position
+    (x, y) in pixels (0..width, 0..height from the top-left corner)."""
+    w = cam.window
+    sx = w[0] + (w[1] - w[0]) * (x / float(cam.width))
+    sy = w[3] - (w[3] - w[2]) * (y / float(cam.height))
+    origin_c = wp.vec3(0.0, 0.0, 0.0)
+    dir_c = wp.vec3(sx, sy, -1.0)
+    if cam.orthographic != 0:
+        origin_c = wp.vec3(sx, sy, 0.0)
+        dir_c = wp.vec3(0.0, 0.0, -1.0)
+    ro = wp.transform_point(cam.world_from_camera, origin_c)
+    dv = wp.transform_vector(cam.world_from_camera, dir_c)
+    scale = wp.length(dv)  # world distance per unit of camera depth
+    rd = dv / scale
+    return ro, rd, cam.near * scale, cam.far * scale
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def render_kernel(
+    cam: RenderCamera,
+    hair: RenderHair,
+    shapes: RenderShapes,
+    lights: RenderLights,
+    spp: int,
+    seed: int,
+    row_offset: int,
+    image: wp.array2d(dtype=wp.vec4),
+):
+    """One pixel: ``spp`` jittered samples on a stratified grid; straight colour + coverage.
+    Launched over (rows, width) from image row ``row_offset`` (the CPU splits the image in
+    bands rendered by several threads)."""
+    ty, px = wp.tid()
+    py = ty + row_offset
+    state = wp.rand_init(seed, py * cam.width + px)
+    grid = int(wp.ceil(wp.sqrt(float(spp))))
+    rows = (spp + grid - 1) // grid
+    radiance = wp.vec3(0.0, 0.0, 0.0)
+    hits = int(0)
+    for s in range(spp):
+        jx = (float(s % grid) + wp.randf(state)) / float(grid)
+        jy = (float(s // grid) + wp.randf(state)) / float(rows)
+        ro, rd, t_near, t_far = camera_ray(cam, float(px) + jx, float(py) + jy)
+        t_hair, seg = hair_closest(hair, ro, rd, t_near, t_far)
+        t_geo, kind, index, n_geo = geometry_closest(shapes, ro, rd, t_near, t_hair)
+        if seg < 0 and kind == HIT_NONE:
+            continue
+        hits += 1
+        V = -rd
+        if kind != HIT_NONE:
+            # neutral Lambertian geometry; normals face the camera
+            p = ro + t_geo * rd
+            n = n_geo
+            if wp.dot(n, V) < 0.0:
+                n = -n
+            eps = 1.0e-4 * (1.0 + wp.length(p))
+            e = wp.vec3(0.0, 0.0, 0.0)  # irradiance from the two lights
+            nl = wp.dot(n, lights.key_dir)
+            if nl > 0.0:
+                so = p + n * eps
+                vis = float(1.0)
+                if geometry_blocks(shapes, so, lights.key_dir):
+                    vis = 0.0
+                else:
+                    vis = hair_transmittance(hair, so, lights.key_dir, -1, lights.hair_shadow_transmittance)
+                e = e + lights.key_color * (nl * vis)
+            nf = wp.dot(n, lights.fill_dir)
+            if nf > 0.0:
+                e = e + lights.fill_color * nf
+            radiance += wp.cw_mul(lights.geometry_albedo, e / 3.14159265 + lights.ambient)
+        else:
+            v = hair.seg_v0[seg]
+            a = hair.points[v]
+            b = hair.points[v + 1]
+            p = ro + t_hair * rd
+            ab = b - a
+            len2 = wp.dot(ab, ab)
+            u = float(0.0)
+            T = wp.vec3(1.0, 0.0, 0.0)
+            if len2 > 0.0:
+                u = wp.clamp(wp.dot(p - a, ab) / len2, 0.0, 1.0)
+                T = ab / wp.sqrt(len2)
+            color = hair.colors[v] * (1.0 - u) + hair.colors[v + 1] * u
+            axis_p = a + u * ab
+            n = p - axis_p
+            nlen = wp.length(n)
+            if nlen > 0.0:
+                n = n / nlen
+            else:
+                n = V
+            eps = 1.0e-4 * (1.0 + wp.length(p))
+            so = p + n * eps
+            vis = float(1.0)
+            if geometry_blocks(shapes, so, lights.key_dir):
+                vis = 0.0
+            else:
+                vis = hair_transmittance(hair, so, lights.key_dir, seg, lights.hair_shadow_transmittance)
+            c = wp.cw_mul(lights.ambient, color)
+            if vis > 0.0:
+                c = c + wp.cw_mul(hair_bsdf(lights.shading, T, V, lights.key_dir, color, lights.roughness), lights.key_color) * vis
+            c = c + wp.cw_mul(hair_bsdf(lights.shading, T, V, lights.fill_dir, color, lights.roughness), lights.fill_color)
+            radiance += c
+    if hits > 0:
+        radiance = radiance / float(hits)
+    image[py, px] = wp.vec4(radiance[0], radiance[1], radiance[2], float(hits) / float(spp))

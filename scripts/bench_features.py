@@ -1,0 +1,294 @@
+#!/usr/bin/env python3
+"""Per-step cost of each optional feature on its own, against the bare DFTL step.
+
+The scene: a head-sized groom (roots on the upper half of a 10 cm sphere, strands of 32 vertices
+combed outward and down), stepped a frame of 10 substeps at a time (a CUDA graph on the GPU),
+timed after 12 frames (0.5 s) in which it falls onto the head and settles. The colliders
+stand for the head (sphere, mesh) or sit below it (capsule: a neck, box: shoulders). Each row runs the same groom with one feature; the ratio is to the bare
+step timed in the same run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
+path features take; the fused-substep figure is given for reference.
+
+    python scripts/bench_features.py --device cpu --out docs/bench/features-cpu
+    python scripts/bench_features.py --device cuda:0 --out $OUT
+
+:func:`run` returns the markdown table rows; ``--out`` also gets ``features-<device>.md`` and
+``features-<device>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import dftl_warp as dw  # noqa: E402
+from dftl_warp import features as F  # noqa: E402
+
+G = (0.0, -9.81, 0.0)
+FPS = 24
+SUBSTEPS = 10
+#: frames run before timing: the groom falls onto the head and settles
+SETTLE_FRAMES = 12
+HEAD = 0.1  # m
+
+
+def uv_sphere(radius, rings=24, segments=48):
+    """Closed UV sphere mesh with outward-facing triangles: points (P, 3), indices (T, 3)."""
+    theta = np.linspace(0, np.pi, rings + 1)[1:-1]
+    phi = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    ring_pts = np.stack([np.sin(t) * np.cos(p), np.cos(t), np.sin(t) * np.sin(p)], -1).reshape(-1, 3)
+    pts = np.concatenate([[[0, 1, 0]], ring_pts, [[0, -1, 0]]]) * radius
+    tris = []
+    ring = lambda r, s: 1 + r * segments + s % segments  # noqa: E731
+    for s in range(segments):
+        tris.append((0, ring(0, s + 1), ring(0, s)))
+        last = len(pts) - 1
+        tris.append((last, ring(rings - 2, s), ring(rings - 2, s + 1)))
+        for r in range(rings - 2):
+            a, b, c, d = ring(r, s), ring(r, s + 1), ring(r + 1, s), ring(r + 1, s + 1)
+            tris += [(a, b, d), (a, d, c)]
+    tris = np.array(tris)
+    tri = pts[tris]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    flip = np.sum(normal * tri.mean(1), axis=1) < 0
+    tris[flip] = tris[flip][:, ::-1]
+    return pts, tris
+
+
+def groom(num_strands, count=32, seed=0):
+    """Strands rooted on the upper half of the head sphere, combed outward then down."""
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(num_strands, 3))
+    d[:, 1] = np.abs(d[:, 1])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    roots = d * (HEAD + 0.002)
+    seg = 0.01
+    out = d + np.array([0.0, -0.5, 0.0])
+    out /= np.linalg.norm(out, axis=1, keepdims=True)
+    pts = roots[:, None] + np.arange(count)[None, :, None] * seg * out[:, None]
+    return pts.reshape(-1, 3), np.full(num_strands, count), roots
+
+
+def scenarios(pts, counts, roots):
+    mesh_pts, mesh_tris = uv_sphere(HEAD)
+    n = len(counts)
+    bind_tris = np.array([[0, 1, 2]])
+    return [
+        ("bare DFTL step", None, {}),
+        ("gravity-only scene (features=[])", [], {}),
+        ("root binding (per frame only)", [F.RootBinding(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]), bind_tris,
+                                                          triangles=np.zeros(n, int),
+                                                          weights=np.tile([1.0, 0, 0], (n, 1)))], {}),
+        ("sphere collider", [F.Colliders([F.Sphere(radius=HEAD)])], {}),
+        ("capsule collider", [F.Colliders([F.Capsule(radius=0.05, half_height=0.1, axis="Y",
+                                                     position=(0, -0.2, 0))])], {}),
+        ("box collider", [F.Colliders([F.Box(half_extents=(0.15, 0.1, 0.1), position=(0, -0.35, 0))])], {}),
+        (f"mesh collider ({len(mesh_tris)} triangles)",
+         [F.Colliders([F.TriangleMesh(points=mesh_pts, indices=mesh_tris)])], {}),
+        ("drag", [F.Drag(1.0)], {}),
+        ("wind + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0.0, 0.0))], {}),
+        ("wind with curl noise + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], {}),
+        ("hair-hair grid (1 cm cells)", [F.HairHair(cell_size=0.01)], {}),
+        ("shape retention", [F.ShapeRetention(0.9)], {}),
+    ]
+
+
+def time_frames(fn, device, repeats):
+    fn()  # warm-up (compiles, captures)
+    wp.synchronize_device(device)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        wp.synchronize_device(device)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
+def box_mesh(half):
+    """Closed box mesh of half extents ``half`` (8 points, 12 outward triangles)."""
+    hx, hy, hz = half
+    p = np.array([[x, y, z] for x in (-hx, hx) for y in (-hy, hy) for z in (-hz, hz)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return p, np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+
+
+def segment_stretch(x, counts, rest):
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    d = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    keep = np.ones(len(d), dtype=bool)
+    keep[starts[1:] - 1] = False
+    return np.abs(d[keep] / rest - 1).max()
+
+
+def collision_guarantees(device="cpu", precision="float32"):
+    """Worst penetration and stretch over every substep of the acceptance scenes (as in
+    tests/test_features.py): strands draped on a sphere, ploughed by a capsule at 1 m/s (10
+    substeps at 24 fps); a strand falling at 10 m/s onto a 2 cm mesh slab (1 substep at 24 fps)."""
+    out = {}
+    sphere_r, cap_r, cap_half, width, n = 0.1, 0.03, 0.1, 0.002, 40
+    pts = np.concatenate([np.stack([np.full(n, x), np.full(n, sphere_r + 0.005), np.arange(n) * 0.01 - 0.02], 1)
+                          for x in np.linspace(-0.04, 0.04, 9)])
+    counts = np.full(9, n)
+    start = np.array([0.3, -0.17, 0.11])
+    centre = lambda t: start + np.array([-1.0, 0.0, 0.0]) * max(t - 1.0, 0.0)  # noqa: E731
+    cols = F.Colliders([F.Sphere(radius=sphere_r), F.Capsule(radius=cap_r, half_height=cap_half, axis="Z",
+                                                               position=start)])
+    with wp.ScopedDevice(device):
+        model = dw.Model.from_strands(pts, counts, widths=width, features=[cols], device=device, precision=precision)
+        solver = dw.DFTLSolver(model, gravity=G)
+        state, control = solver.state(), model.control()
+        worst_s = worst_c = stretch = 0.0
+        for f in range(60):
+            ident = [0, 0, 0, 0, 0, 0, 1]
+            control.features.set_collider_poses([ident, [*centre(f / FPS), 0, 0, 0, 1]],
+                                                [ident, [*centre((f + 1) / FPS), 0, 0, 0, 1]])
+            for k in range(SUBSTEPS):
+                solver.step(state, state, control, 1 / FPS / SUBSTEPS, (k + 1) / SUBSTEPS)
+                x = model.points_from_device(state.positions)
+                q = x - centre((f + (k + 1) / SUBSTEPS) / FPS)
+                axial = np.clip(q[:, 2], -cap_half, cap_half)
+                dc = np.linalg.norm(q - axial[:, None] * [0, 0, 1], axis=1)
+                worst_s = max(worst_s, (sphere_r + width / 2 - np.linalg.norm(x, axis=1)).max())
+                worst_c = max(worst_c, (cap_r + width / 2 - dc).max())
+                stretch = max(stretch, segment_stretch(x, counts, 0.01))
+        out["sphere penetration / radius"] = max(worst_s, 0.0) / sphere_r
+        out["moving capsule penetration / radius"] = max(worst_c, 0.0) / cap_r
+        out["drape stretch"] = stretch
+        points, tris = box_mesh((1.0, 0.01, 1.0))
+        n = 20
+        pts = np.stack([np.linspace(-0.3, 0.3, n), np.full(n, 0.3), np.zeros(n)], 1)
+        model = dw.Model.from_strands(pts, [n], widths=width, device=device, precision=precision,
+                                      features=[F.Colliders([F.TriangleMesh(points=points, indices=tris)])])
+        solver = dw.DFTLSolver(model, gravity=G)
+        state, control = solver.state(), model.control()
+        v = np.zeros_like(pts)
+        v[1:, 1] = -10.0
+        state.velocities.assign(model.points_to_device(v, relative=False))
+        lowest, stretch = np.inf, 0.0
+        for _ in range(FPS):
+            solver.step(state, state, control, 1 / FPS)
+            x = model.points_from_device(state.positions)
+            lowest = min(lowest, x[:, 1].min())
+            stretch = max(stretch, segment_stretch(x, [n], np.linalg.norm(pts[1] - pts[0])))
+        out["slab penetration (10 m/s, 1 substep) / hair radius"] = max(0.01 + width / 2 - lowest, 0.0) / (width / 2)
+        out["slab stretch"] = stretch
+    return out
+
+
+def machine_line(device):
+    d = wp.get_device(device)
+    if d.is_cuda:
+        return f"{d.name}, Warp {wp.__version__}"
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, Warp {wp.__version__} (CPU backend)"
+
+
+def run(device="cpu", out_dir=None, strands=None, repeats=None):
+    """Time every scenario on ``device``; return the markdown rows (header first)."""
+    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
+    wp.init()
+    device = wp.get_device(device)
+    strands = strands or (100_000 if device.is_cuda else 1_000)
+    repeats = repeats or (20 if device.is_cuda else 15)
+    pts, counts, roots = groom(strands)
+    particles = int(counts.sum())
+    dt = 1.0 / FPS / SUBSTEPS
+    runs = []
+    for name, feats, _ in scenarios(pts, counts, roots):
+        with wp.ScopedDevice(device):
+            model = dw.Model.from_strands(pts, counts, device=device, widths=1e-4, features=feats)
+            solver = dw.DFTLSolver(model, gravity=G, fused=False)
+            state, control = solver.state(), model.control()
+            binding = model.feature_data is not None and model.feature_data.binding is not None
+
+            def one_frame(solver=solver, state=state, control=control, binding=binding):
+                if binding:
+                    control.features.set_binding_points(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]))
+                solver.advance(state, control, dt, SUBSTEPS)
+
+            for _ in range(SETTLE_FRAMES):  # warm-up (compile, capture), and let the groom settle
+                one_frame()
+            runs.append((name, model, solver, state, one_frame, []))
+    # rounds over all scenarios, so that load from elsewhere spreads evenly over them
+    for _ in range(repeats):
+        for *_, one_frame, times in runs:
+            wp.synchronize_device(device)
+            t = time.perf_counter()
+            one_frame()
+            wp.synchronize_device(device)
+            times.append(time.perf_counter() - t)
+    results = []
+    bare = None
+    for name, model, solver, state, _, times in runs:
+        seconds = statistics.median(times) / SUBSTEPS
+        if bare is None:
+            bare = seconds
+        results.append(dict(scenario=name, flags=sorted(model.feature_flags), seconds_per_step=seconds,
+                            particle_steps_per_s=particles / seconds, vs_bare=seconds / bare,
+                            max_stretch=solver.diagnostics(state)["max_stretch"]))
+    if device.is_cuda:
+        with wp.ScopedDevice(device):
+            model = dw.Model.from_strands(pts, counts, device=device)
+            solver = dw.DFTLSolver(model, gravity=G, fused=True)
+            state, control = solver.state(), model.control()
+            seconds = time_frames(lambda: solver.advance(state, control, dt, SUBSTEPS), device, repeats) / SUBSTEPS
+        results.append(dict(scenario="bare, fused substeps (reference)", flags=[], seconds_per_step=seconds,
+                            particle_steps_per_s=particles / seconds, vs_bare=seconds / bare, max_stretch=0.0))
+
+    guarantees = collision_guarantees(device)
+    rows = ["| scenario | kernel flags | time per step | particle-steps/s | vs bare |",
+            "|---|---|---:|---:|---:|"]
+    for r in results:
+        flags = ", ".join(r["flags"]) or "(none: bare kernel)"
+        rows.append(f"| {r['scenario']} | {flags} | {r['seconds_per_step'] * 1e3:.3f} ms | "
+                    f"{r['particle_steps_per_s']:.3g} | {r['vs_bare']:.2f}x |")
+    rows += ["", "| collision measure (worst over every substep) | value |", "|---|---:|"]
+    rows += [f"| {k} | {v:.3g} |" for k, v in guarantees.items()]
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        tag = device.alias.replace(":", "")
+        header = (f"Feature costs on {machine_line(device)}; {strands} strands x 32 vertices "
+                  f"({particles} particles), float32, prior correction, dt = 1/{FPS * SUBSTEPS} s, "
+                  f"median of {repeats} frames of {SUBSTEPS} substeps after {SETTLE_FRAMES} settling frames (rounds over all scenarios); "
+                  f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.\n\n")
+        (out / f"features-{tag}.md").write_text(header + "\n".join(rows) + "\n")
+        (out / f"features-{tag}.json").write_text(json.dumps(
+            dict(device=machine_line(device), strands=strands, particles=particles, results=results,
+                 collision=guarantees), indent=2))
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--out", default=None, help="folder for features-<device>.md and .json")
+    ap.add_argument("--strands", type=int, default=None, help="groom size (default 1k on CPU, 100k on CUDA)")
+    ap.add_argument("--repeats", type=int, default=None)
+    args = ap.parse_args(argv)
+    print("\n".join(run(args.device, args.out, args.strands, args.repeats)))
+
+
+if __name__ == "__main__":
+    main()

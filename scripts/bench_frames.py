@@ -1,0 +1,99 @@
+#!/usr/bin/env python3
+"""Frames end to end: `dftl-warp simulate`'s frame rate against simulating alone and writing alone.
+
+A frame is its substeps, the root update and the device-to-host copy (``Simulation.advance`` +
+``Simulation.samples``); writing is authoring its points, velocities and extent into the
+streaming .usdc. ``simulate`` overlaps the two (the next frame runs on the device while the host
+writes the current one), so its frame rate should approach the slower of the two alone.
+
+    python scripts/bench_frames.py --device cuda:0 --strands 100000 --out DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import warp as wp  # noqa: E402
+
+from dftl_warp.simulate import Simulation, SimulationOptions, simulate_usd  # noqa: E402
+from dftl_warp.usd_read import read_scene  # noqa: E402
+from dftl_warp.usd_write import UsdWriter  # noqa: E402
+from make_scenes import make_default  # noqa: E402
+
+
+def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path) -> dict:
+    groom = workdir / "groom.usda"
+    make_default(groom, strands=strands, vertices=16)
+    first, last = 1, frames
+    opts = SimulationOptions(start=first, end=last, substeps=substeps, device=device)
+    scene = read_scene(str(groom))
+
+    # simulating alone (one frame first to compile and capture)
+    sim = Simulation(scene, opts, first)
+    sim.advance()
+    sim.samples()
+    sim = Simulation(scene, opts, first)
+    a = time.perf_counter()
+    for _ in range(frames - 1):
+        sim.advance()
+        samples = sim.samples()
+    t_sim = time.perf_counter() - a
+
+    # writing alone: the same number of frames of real samples, saved and committed
+    out = workdir / "write_only.usdc"
+    a = time.perf_counter()
+    with UsdWriter.create(out, scene, frames=(first, last)) as writer:
+        for f in range(first, last + 1):
+            writer.write_frame(f, samples)
+        writer.commit()
+    t_write = time.perf_counter() - a
+
+    summary = simulate_usd(str(groom), str(workdir / "simulated.usdc"), start=first, end=last,
+                           substeps=substeps, device=device)
+    t_both = summary.seconds_simulating + summary.seconds_writing
+    fps = {"simulating alone": (frames - 1) / t_sim, "writing alone": frames / t_write, "simulate": frames / t_both}
+    slower = min(fps["simulating alone"], fps["writing alone"])
+    return {"device": device, "strands": summary.strands, "particles": summary.particles, "frames": frames,
+            "substeps": substeps, "fps": fps, "of_slower": fps["simulate"] / slower}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--strands", type=int, default=100_000)
+    ap.add_argument("--frames", type=int, default=24)
+    ap.add_argument("--substeps", type=int, default=8)
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args(argv)
+    wp.config.log_level = wp.LOG_WARNING
+    wp.init()
+    with tempfile.TemporaryDirectory() as tmp:
+        res = measure(args.device, args.strands, args.frames, args.substeps, Path(tmp))
+    res["date"] = datetime.date.today().isoformat()
+    res["device_name"] = wp.get_device(args.device).name
+    lines = [f"Frames end to end on {res['device_name']} ({args.device}), {res['strands']:,} strands / "
+             f"{res['particles']:,} particles, {res['frames']} frames x {res['substeps']} substeps, {res['date']}:", "",
+             "| run | frames/s |", "|---|---|"]
+    lines += [f"| {k} | {v:.2f} |" for k, v in res["fps"].items()]
+    lines += ["", f"simulate reaches **{100 * res['of_slower']:.0f}%** of the slower of simulating alone and writing alone."]
+    md = "\n".join(lines)
+    print(md)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        tag = args.device.replace(":", "")
+        (out / f"frames-{tag}.md").write_text(md + "\n")
+        (out / f"frames-{tag}.json").write_text(json.dumps(res, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,151 @@
+"""Features from USD: colliders from UsdPhysics.CollisionAPI prims (static, animated, deforming
+meshes), scene and per-curve ``dftl:`` feature attributes, roots bound to a deforming mesh, and
+what ``dftl-warp info`` reports."""
+
+import numpy as np
+import pytest
+from pxr import Gf, Sdf, UsdGeom, UsdPhysics, Vt
+from usd_stages import add_curves, animated_xform, chain, composed_samples, new_stage, set_attr
+
+from dftl_warp import cli
+from dftl_warp.simulate import simulate_usd
+
+
+def sphere_collider(stage, path, radius, translate=(0.0, 0.0, 0.0)):
+    s = UsdGeom.Sphere.Define(stage, path)
+    s.CreateRadiusAttr(radius)
+    s.AddTranslateOp().Set(Gf.Vec3d(*translate))
+    UsdPhysics.CollisionAPI.Apply(s.GetPrim())
+    return s
+
+
+def quad_mesh(stage, path, points):
+    m = UsdGeom.Mesh.Define(stage, path)
+    m.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
+    m.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
+    m.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.asarray(points, dtype=np.float32)))
+    return m
+
+
+def test_strands_drape_on_a_sphere_collider_and_an_animated_capsule_pushes_them(tmp_path):
+    stage = new_stage(tmp_path / "in.usda", start=1, end=36)
+    pts = np.concatenate([chain(21, 0.02, origin=(-0.2, 0.12, z)) for z in (-0.02, 0.0, 0.02)])
+    curves = add_curves(stage, "/World/Hair", pts, [21, 21, 21], widths=0.004)
+    sphere_collider(stage, "/World/Ball", 0.1)
+    mover = animated_xform(stage, "/World/Mover", translate={1: (0.6, -0.1, 0.0), 36: (-0.6, -0.1, 0.0)})
+    cap = UsdGeom.Capsule.Define(stage, "/World/Mover/Pusher")
+    cap.CreateRadiusAttr(0.03)
+    cap.CreateHeightAttr(0.3)
+    cap.CreateAxisAttr("Z")
+    UsdPhysics.CollisionAPI.Apply(cap.GetPrim())
+    set_attr(cap.GetPrim(), "dftl:friction", "Float", 0.0)
+    assert curves and mover
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    summary = simulate_usd(tmp_path / "in.usda", out, substeps=10)
+    assert summary.colliders == 2
+    samples = composed_samples(out, "/World/Hair")
+    worst_ball = worst_capsule = 0.0
+    for t, x in samples.items():
+        worst_ball = max(worst_ball, (0.1 + 0.002 - np.linalg.norm(x, axis=1)).max())
+        centre = np.array([0.6 - 1.2 * (t - 1) / 35, -0.1, 0.0])
+        q = x - centre
+        axial = np.clip(q[:, 2], -0.15, 0.15)
+        worst_capsule = max(worst_capsule, (0.032 - np.linalg.norm(q - axial[:, None] * [0, 0, 1], axis=1)).max())
+    assert worst_ball < 0.02 * 0.1 and worst_capsule < 0.05 * 0.03
+    # it did drape: the free ends hang below the ball's equator
+    assert samples[36.0][:, 1].min() < -0.05
+
+
+def test_deforming_mesh_collider_and_roots_bound_to_a_deforming_mesh(tmp_path):
+    stage = new_stage(tmp_path / "in.usda", start=1, end=12)
+    # a ground quad rising from y = -0.3 to y = -0.1; strands hang toward it
+    ground = quad_mesh(stage, "/World/Ground", [(-1, -0.3, 1), (1, -0.3, 1), (1, -0.3, -1), (-1, -0.3, -1)])
+    pts_attr = ground.GetPointsAttr()
+    for f, y in ((1, -0.3), (12, -0.1)):
+        pts_attr.Set(Vt.Vec3fArray.FromNumpy(np.array([(-1, y, 1), (1, y, 1), (1, y, -1), (-1, y, -1)],
+                                                      dtype=np.float32)), f)
+    UsdPhysics.CollisionAPI.Apply(ground.GetPrim())
+    # a scalp quad sliding along +x; the roots sit on it
+    scalp = quad_mesh(stage, "/World/Scalp", [(-0.1, 0.2, 0.1), (0.1, 0.2, 0.1), (0.1, 0.2, -0.1), (-0.1, 0.2, -0.1)])
+    for f, dx in ((1, 0.0), (12, 0.22)):
+        scalp.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.array(
+            [(-0.1 + dx, 0.2, 0.1), (0.1 + dx, 0.2, 0.1), (0.1 + dx, 0.2, -0.1), (-0.1 + dx, 0.2, -0.1)],
+            dtype=np.float32)), f)
+    hair = add_curves(stage, "/World/Hair", np.concatenate([chain(16, 0.025, (0, -1, 0), (x, 0.2, 0.0))
+                                                            for x in (-0.05, 0.05)]), [16, 16], widths=0.002)
+    hair.GetPrim().CreateRelationship("dftl:rootMesh", custom=True).AddTarget(Sdf.Path("/World/Scalp"))
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    simulate_usd(tmp_path / "in.usda", out, substeps=8)
+    samples = composed_samples(out, "/World/Hair")
+    gaps = []
+    for t, x in samples.items():
+        dx = 0.22 * (t - 1) / 11
+        np.testing.assert_allclose(x[[0, 16], 0], [-0.05 + dx, 0.05 + dx], atol=1e-5)  # roots ride the scalp
+        gaps.append(x[:, 1].min() - (-0.3 + 0.2 * (t - 1) / 11) - 0.001)
+    assert min(gaps) > -1e-4  # nothing below the rising ground (hair radius 1 mm) ...
+    assert min(gaps) < 1e-4  # ... which did reach the strands and push them up
+
+
+def test_scene_wind_and_drag_and_per_curve_shape_retention(tmp_path):
+    stage = new_stage(tmp_path / "in.usda", start=1, end=48)
+    scene = UsdPhysics.Scene.Define(stage, "/World/Physics")
+    set_attr(scene.GetPrim(), "dftl:drag", "Float", 2.0)
+    wind = scene.GetPrim().CreateAttribute("dftl:wind", Sdf.ValueTypeNames.Vector3f, custom=True)
+    wind.Set(Gf.Vec3f(0.0, 0.0, 0.0), 1)
+    wind.Set(Gf.Vec3f(2.0, 0.0, 0.0), 12)
+    add_curves(stage, "/World/Straight", chain(20, 0.01, (0, -1, 0)), [20])
+    t = np.linspace(0, 8 * np.pi, 81)
+    helix = np.stack([0.02 * np.cos(t), -0.015 * t / (2 * np.pi), 0.02 * np.sin(t)], 1)
+    curl = add_curves(stage, "/World/Curl", helix + [0.5, 0, 0], [81])
+    set_attr(curl.GetPrim(), "dftl:shapeStiffness", "Float", 0.9)
+    set_attr(curl.GetPrim(), "dftl:drag", "Float", 0.0)
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    simulate_usd(tmp_path / "in.usda", out, substeps=10)
+    tip = composed_samples(out, "/World/Straight")[48.0][-1]
+    # a hanging chain in a 2 m/s wind with drag 2/s settles at atan(4 / 9.81) = 22 degrees downwind
+    assert np.degrees(np.arctan2(tip[0], -(tip[1]))) == pytest.approx(np.degrees(np.arctan(4 / 9.81)), abs=3)
+    x = composed_samples(out, "/World/Curl")[48.0]
+    a, b, c = x[:-10], x[5:-5], x[10:]
+    kappa = 2 * np.linalg.norm(np.cross(b - a, c - a), axis=1) / (
+        np.linalg.norm(b - a, axis=1) * np.linalg.norm(c - b, axis=1) * np.linalg.norm(a - c, axis=1))
+    a0, b0, c0 = helix[:-10], helix[5:-5], helix[10:]
+    kappa0 = 2 * np.linalg.norm(np.cross(b0 - a0, c0 - a0), axis=1) / (
+        np.linalg.norm(b0 - a0, axis=1) * np.linalg.norm(c0 - b0, axis=1) * np.linalg.norm(a0 - c0, axis=1))
+    assert np.median(kappa) == pytest.approx(np.median(kappa0), rel=0.1)  # the curl (no drag) holds
+
+
+def test_info_lists_features_and_memory(tmp_path, capsys):
+    stage = new_stage(tmp_path / "in.usda")
+    scene = UsdPhysics.Scene.Define(stage, "/World/Physics")
+    set_attr(scene.GetPrim(), "dftl:drag", "Float", 1.0)
+    set_attr(scene.GetPrim(), "dftl:hairHair", "Bool", True)
+    add_curves(stage, "/World/Hair", chain(10, 0.01), [10])
+    sphere_collider(stage, "/World/Ball", 0.1, translate=(0, -1, 0))
+    stage.Save()
+    assert cli.main(["info", str(tmp_path / "in.usda")]) == 0
+    text = capsys.readouterr().out
+    assert "features    air drag, hair-hair interaction, sphere colliders" in text
+    assert "per strand and" in text and "features included" in text
+    assert cli.main(["info", "--json", str(tmp_path / "in.usda")]) == 0
+    import json
+
+    d = json.loads(capsys.readouterr().out)
+    assert d["feature_flags"] == ["drag", "hair_hair", "spheres"]
+    # drag 4 B per strand + hair radius 4 B per particle; the grid is fixed memory
+    assert d["feature_bytes_per_strand"]["float32"] == 4 + 10 * 4
+    assert d["feature_fixed_bytes"]["float32"] > 0
+
+
+def test_bad_feature_attribute_is_one_line_error(tmp_path, capsys):
+    stage = new_stage(tmp_path / "in.usda")
+    hair = add_curves(stage, "/World/Hair", chain(5, 0.01), [5])
+    set_attr(hair.GetPrim(), "dftl:shapeStiffness", "Float", 1.5)
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "/World/Hair: dftl:shapeStiffness = 1.5: must be in [0, 1]" in err[0]
+    assert not out.exists()
