@@ -180,7 +180,7 @@ def bench_simulate(devices, strands, vertices, substeps, frames):
             t = time.perf_counter()
             samples = sim.samples()
             t_samples += time.perf_counter() - t
-        outputs[device] = samples
+        outputs[device] = [(p.copy(), v.copy()) for p, v in samples]  # CPU samples may be views
         rows.append({
             "device_list": device, "devices": len(parse_devices(device)), "strands": strands, "vertices": vertices,
             "substeps": substeps, "frames": frames,

@@ -267,3 +267,15 @@ def test_unreachable_ray_address_fails_fast(address, message):
     with pytest.raises(UserError, match=None) as info:
         connect(address)
     assert str(info.value).startswith(message)
+
+
+def test_quality_preset_fills_unset_options(tmp_path):
+    jobs = load_jobs(write_jobs(tmp_path / "jobs.toml", [
+        {"input": "a.usda", "output": "a.usdc", "quality": "production", "substeps": 4},
+        {"input": "b.usda", "output": "b.usdc", "solver": "pbd", "iterations": 6},
+        {"input": "c.usda", "output": "c.usdc", "quality": "best"},
+    ], defaults={"precision": "float64"}))
+    assert jobs[0].options == {"solver": "dftl", "damping": 1.0, "correction": "prior", "substeps": 4,
+                               "precision": "float64"}
+    assert jobs[1].options == {"precision": "float64", "solver": "pbd", "iterations": 6}
+    assert "quality must be one of draft, production, reference" in jobs[2].error
