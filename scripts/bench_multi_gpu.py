@@ -293,7 +293,10 @@ def main(argv=None):
         (out / "results.json").write_text(json.dumps(res, indent=1))
         (out / "bench_multi_gpu.md").write_text(md + "\n")
         if res.get("compute"):
-            plot(res, out / "speedup.png")
+            try:
+                plot(res, out / "speedup.png")
+            except ImportError:
+                print("matplotlib not available: no speedup.png", file=sys.stderr)
 
 
 if __name__ == "__main__":
