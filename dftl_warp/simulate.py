@@ -269,6 +269,8 @@ class Simulation:
         self.warnings: list[str] = []
         #: called with each new warning as it happens (e.g. to print it above a progress bar)
         self.on_warning = None
+        #: the last frame whose energy was checked
+        self._checked = None
 
     # -- geometry helpers ---------------------------------------------------------------------
 
@@ -297,12 +299,30 @@ class Simulation:
     def num_points(self) -> int:
         return sum(g.num_points for g in self.groups)
 
+    def check_energy(self) -> None:
+        """Run each group's energy monitor on the current frame (once per frame); a new warning
+        goes to :attr:`warnings` and :attr:`on_warning`. It reads results back, so it waits for
+        the device: :meth:`samples` calls it, after the frame's results are needed anyway."""
+        if self._checked == self.frame or self._at_rest:
+            return
+        self._checked = self.frame
+        for g in self.groups:
+            if g.monitor is None or g.monitor.warned:
+                continue
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", EnergyGrowthWarning)
+                if g.monitor.check(g.state, self.frame):
+                    self.warnings.append(g.monitor.message)
+                    if self.on_warning is not None:
+                        self.on_warning(g.monitor.message)
+
     def samples(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
         prim's local space (stage units, stage units per second), float64.
 
         The gather into input order and the transforms run on the simulation device
         (:mod:`dftl_warp.kernels.output`); the host receives one copy per group."""
+        self.check_energy()
         out: list = [None] * len(self.scene.curves)
         for g in self.groups:
             to_local = np.empty((len(g.members), 4, 4))
@@ -327,8 +347,11 @@ class Simulation:
         return (m1 - m0) * self.scene.stage.time_codes_per_second
 
     def advance(self) -> None:
-        """Simulate from the current frame to the next one."""
+        """Simulate from the current frame to the next one. On a GPU this only launches the work
+        (it returns before the device is done); :meth:`samples` waits for it."""
         import warp as wp
+
+        self.check_energy()  # the frame being left, if nobody looked at it
 
         from .scene_features import update_frame
 
@@ -339,13 +362,6 @@ class Simulation:
                     g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
                 update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
-                if g.monitor is not None and not g.monitor.warned:
-                    with warnings.catch_warnings():
-                        warnings.simplefilter("ignore", EnergyGrowthWarning)
-                        if g.monitor.check(g.state, nxt):
-                            self.warnings.append(g.monitor.message)
-                            if self.on_warning is not None:
-                                self.on_warning(g.monitor.message)
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 1)
