@@ -93,6 +93,7 @@ class Model:
         layout: str | None = None,
         widths=None,
         features=None,
+        origin=None,
     ) -> Model:
         """Model of strands given as concatenated ``points`` (N, 3) and vertex ``counts`` (S,).
 
@@ -100,6 +101,7 @@ class Model:
         ``layout`` defaults to the fastest for ``device`` (:func:`~dftl_warp.layout.default_layout`).
         ``features``: optional feature objects (:mod:`dftl_warp.features`); ``widths``: hair
         diameter (m), one value or one per point, used as the contact distance of colliders.
+        ``origin`` (3,) overrides the world origin (models sharing one give identical results).
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         counts = np.asarray(counts, dtype=np.int64).reshape(-1)
@@ -116,7 +118,7 @@ class Model:
         if layout_name not in LAYOUTS:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")
         lay = make_layout(counts, layout_name)
-        origin = _world_origin(points)
+        origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         local = points - origin
 
         starts = np.zeros(counts.shape[0], dtype=np.int64)

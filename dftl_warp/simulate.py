@@ -242,19 +242,25 @@ class Simulation:
         self.scene = scene
         self.options = options
         self.frame = int(frame)
-        try:
-            self.device = wp.get_device(options.device)
-        except (ValueError, RuntimeError, KeyError) as exc:
-            available = ", ".join(d.alias for d in wp.get_devices())
-            raise UserError(f"--device {options.device}: not available here ({available}): {exc}") from None
-        options = replace(options, device=str(self.device))
+        devices = []
+        for name in str(options.device).split(","):  # a list splits the strands (multi_device)
+            try:
+                devices.append(wp.get_device(name.strip()))
+            except (ValueError, RuntimeError, KeyError) as exc:
+                available = ", ".join(d.alias for d in wp.get_devices())
+                raise UserError(f"--device {name.strip()}: not available here ({available}): {exc}") from None
+        self.device = devices[0]
+        options = replace(options, device=",".join(str(d) for d in devices))
         self.options = options
         # prims are grouped by solver settings and by the mesh their roots are bound to, if any
         by_settings: dict[tuple, list[int]] = {}
         for i, c in enumerate(scene.curves):
             key = (group_settings(scene, options, i), c.root_mesh.path if c.root_mesh is not None else None)
             by_settings.setdefault(key, []).append(i)
-        self.groups = [_Group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
+        group = _Group
+        if len(devices) > 1:
+            from .multi_device import SplitGroup as group
+        self.groups = [group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)

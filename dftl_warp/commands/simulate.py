@@ -38,7 +38,8 @@ def add_parser(sub):
     p.add_argument("--quality", choices=tuple(QUALITY_PRESETS),
                    help="a measured preset of solver, substeps and precision (docs/accuracy.md); "
                         "explicit flags override its parts")
-    p.add_argument("--device", default="cpu", help="cpu or cuda:N (default cpu)")
+    p.add_argument("--device", default="cpu",
+                   help="cpu or cuda:N (default cpu); a list (cuda:0,cuda:1) splits the strands across devices")
     p.add_argument("--prim", action="append", metavar="PATH",
                    help="simulate only the BasisCurves prims at or below PATH (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or warnings")

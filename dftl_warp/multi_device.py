@@ -1,0 +1,304 @@
+"""One groom on several devices: ``dftl-warp simulate --device cuda:0,cuda:1,...``.
+
+Strands of DFTL are independent of each other, so a simulation group's strands are cut into
+contiguous runs of about equal particle count, one per device, each with its own
+:class:`~dftl_warp.model.Model`, solver, :class:`~dftl_warp.state.State` and
+:class:`~dftl_warp.state.Control`. Every part shares the world origin of the whole group, so each
+strand is computed exactly as on one device: results are bitwise those of a single-device run on
+the same kind of device. A frame launches every part before waiting for any (CUDA launches and
+graph replays are asynchronous), so the devices work at the same time; the host gathers the parts
+when the frame is written.
+
+:class:`SplitGroup` stands in for ``simulate._Group`` (same attributes), with composite
+``model``/``solver``/``state``/``control`` objects that present the single-device interface the
+frame loop uses. A device may appear twice (``cpu,cpu``: two Models on one device, for tests).
+
+Features (:mod:`dftl_warp.features`): colliders and wind are shared by every part; per-strand
+values (drag rate, shape-retention stiffness, root-binding triangles) are sliced with the strands.
+Hair-hair interaction couples strands through a grid: splitting it would need the grids summed
+across devices every substep (one reduction per substep, which also rules out the fused substep
+kernels); it is refused with a clear error, not done.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import UserError
+
+
+def parse_devices(text: str) -> list[str]:
+    """``"cuda:0,cuda:1"`` -> ``["cuda:0", "cuda:1"]`` (names as given, blanks removed)."""
+    devices = [d.strip() for d in str(text).split(",")]
+    if not all(devices):
+        raise UserError(f"--device {text}: empty device name in the list")
+    return devices
+
+
+def split_strands(counts, parts: int) -> list[tuple[int, int]]:
+    """Contiguous strand ranges ``[(s0, s1), ...]``, at most ``parts`` of them, none empty, with
+    about equal numbers of particles (``counts`` are vertex counts per strand)."""
+    counts = np.asarray(counts, dtype=np.int64)
+    n = counts.shape[0]
+    if n == 0:
+        return [(0, 0)]
+    ends = np.cumsum(counts)
+    targets = ends[-1] * np.arange(1, parts) / parts
+    cuts = np.searchsorted(ends, targets, side="left") + 1  # first strand of the next part
+    bounds = sorted({0, n, *(int(c) for c in cuts if 0 < c < n)})
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+class SplitArray:
+    """A per-particle array held as one Warp array per part (concatenated in part order)."""
+
+    def __init__(self, parts):
+        self.parts = list(parts)
+
+    def numpy(self) -> np.ndarray:
+        return np.concatenate([p.numpy() for p in self.parts])
+
+    def assign(self, values) -> None:
+        import warp as wp
+
+        host = values.numpy() if isinstance(values, wp.array) else np.asarray(values)
+        start = 0
+        for p in self.parts:
+            p.assign(host[start:start + p.shape[0]])
+            start += p.shape[0]
+        if start != host.shape[0]:
+            raise ValueError(f"expected {start} values, got {host.shape[0]}")
+
+    @property
+    def shape(self):
+        return (sum(p.shape[0] for p in self.parts),)
+
+
+class SplitState:
+    def __init__(self, states):
+        self.parts = list(states)
+        self.positions = SplitArray(s.positions for s in states)
+        self.velocities = SplitArray(s.velocities for s in states)
+        has = [s.corrections is not None for s in states]
+        self.corrections = SplitArray(s.corrections for s in states) if all(has) else None
+
+
+class SplitModel:
+    """The parts' Models seen as one, in input strand and point order."""
+
+    def __init__(self, models, strand_ranges):
+        self.parts = list(models)
+        self.strand_ranges = list(strand_ranges)
+        first = self.parts[0]
+        self.device = first.device
+        self.precision = first.precision
+        self.vec3 = first.vec3
+        self.scalar = first.scalar
+        self.origin = first.origin
+        self.counts = np.concatenate([m.counts for m in self.parts])
+        self.feature_flags = first.feature_flags
+
+    @property
+    def num_strands(self) -> int:
+        return sum(m.num_strands for m in self.parts)
+
+    @property
+    def num_points(self) -> int:
+        return sum(m.num_points for m in self.parts)
+
+    def points_from_device(self, array: SplitArray, *, relative: bool = True) -> np.ndarray:
+        return np.concatenate([m.points_from_device(a, relative=relative) for m, a in zip(self.parts, array.parts)])
+
+
+class _Broadcast:
+    """The parts' feature controls seen as one: calls go to every part (their arguments are
+    per-scene data: collider poses, mesh points, times); attributes are read from the first."""
+
+    def __init__(self, parts):
+        self._parts = list(parts)
+
+    def __getattr__(self, name):
+        values = [getattr(p, name) for p in self._parts]
+        if callable(values[0]):
+            return lambda *args, **kwargs: [v(*args, **kwargs) for v in values][0]
+        return values[0]
+
+
+class SplitControl:
+    def __init__(self, controls, strand_ranges):
+        self.parts = list(controls)
+        self.strand_ranges = list(strand_ranges)
+        has = [c.features is not None for c in self.parts]
+        self.features = _Broadcast(c.features for c in self.parts) if all(has) else None
+
+    def set_root_targets(self, start, end=None) -> None:
+        start = np.asarray(start)
+        end = start if end is None else np.asarray(end)
+        for c, (s0, s1) in zip(self.parts, self.strand_ranges):
+            c.set_root_targets(start[s0:s1], end[s0:s1])
+
+
+class SplitSolver:
+    """Advances every part on its own device; all parts are launched before any is waited for."""
+
+    def __init__(self, solvers):
+        self.parts = list(solvers)
+        self.gravity = self.parts[0].gravity
+
+    @property
+    def carries_corrections(self) -> bool:
+        return self.parts[0].carries_corrections
+
+    def advance(self, state: SplitState, control: SplitControl, dt: float, substeps: int) -> None:
+        import warp as wp
+
+        for solver, s, c in zip(self.parts, state.parts, control.parts):
+            with wp.ScopedDevice(solver.model.device):
+                solver.advance(s, c, dt, substeps)
+
+
+class SplitMonitor:
+    """One energy monitor per part (dftl_warp.monitor); warns once, for the first part that does."""
+
+    def __init__(self, monitors):
+        self.parts = list(monitors)
+        self.warned = False
+        self.message = None
+
+    def check(self, state: SplitState, frame=None) -> bool:
+        if self.warned:
+            return False
+        for monitor, s in zip(self.parts, state.parts):
+            if monitor.check(s, frame):
+                self.warned, self.message = True, monitor.message
+                return True
+        return False
+
+
+def part_features(features, s0: int, s1: int, num_strands: int, where: str) -> list:
+    """The features of strands ``s0:s1`` of a group: per-strand values sliced, scene-wide ones
+    (colliders, wind) shared. Hair-hair interaction couples strands: refused."""
+    from dataclasses import replace
+
+    from .features import Drag, HairHair, RootBinding, ShapeRetention
+
+    def per_strand(values, what):
+        v = np.asarray(values)
+        if v.ndim == 0:
+            return values
+        if v.shape[0] != num_strands:
+            raise UserError(f"{where}: {what} has {v.shape[0]} values for {num_strands} strands; cannot split it")
+        return v[s0:s1]
+
+    out = []
+    for f in features:
+        if isinstance(f, HairHair):
+            raise UserError(f"{where}: hair-hair interaction couples strands and is not split across devices yet; "
+                            "simulate it on one device (docs/batch.md)")
+        if isinstance(f, RootBinding) and f.triangles is not None:
+            f = replace(f, triangles=per_strand(f.triangles, "dftl:rootMesh triangles"),
+                        weights=per_strand(f.weights, "dftl:rootMesh weights"))
+        elif isinstance(f, Drag):
+            f = replace(f, rate=per_strand(f.rate, "drag rate"))
+        elif isinstance(f, ShapeRetention):
+            f = replace(f, stiffness=per_strand(f.stiffness, "shape retention stiffness"))
+        out.append(f)
+    return out
+
+
+class SplitGroup:
+    """``simulate._Group`` with its strands split across ``options.device`` (a comma list)."""
+
+    def __init__(self, settings, members: list[int], scene, frame: int, options):
+        import warp as wp
+
+        from .model import Model, _world_origin
+        from .scene import transform_points
+        from .scene_features import group_features
+        from .simulate import _check_extent
+        from .solver import make_solver
+
+        self.settings = settings
+        self.members = members
+        self.curves = curves = [scene.curves[i] for i in members]
+        self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
+        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
+        counts = np.concatenate([c.counts for c in curves])
+        _check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        features, widths = group_features(scene, curves, frame)
+        origin = _world_origin(points)
+        devices = parse_devices(options.device)
+        ranges = split_strands(counts, len(devices))
+        starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
+        models, solvers, states, controls = [], [], [], []
+        extra = {} if options.iterations is None else {"iterations": options.iterations}
+        for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
+            part = part_features(features, s0, s1, len(counts), scene.source)
+            with wp.ScopedDevice(device):
+                try:
+                    model = Model.from_strands(
+                        points[p0:p1], counts[s0:s1], device=device, precision=options.precision, origin=origin,
+                        widths=None if widths is None else widths[p0:p1], features=part)
+                    solver = make_solver(model, settings.solver, damping=settings.damping,
+                                         correction=settings.correction, gravity=scene.gravity, **extra)
+                except ValueError as exc:
+                    raise UserError(f"{scene.source}: {exc}") from None
+                models.append(model)
+                solvers.append(solver)
+                states.append(solver.state())
+                controls.append(model.control())
+        self.devices = [str(m.device) for m in models]
+        self.model = SplitModel(models, ranges)
+        self.solver = SplitSolver(solvers)
+        self.state = SplitState(states)
+        self.control = SplitControl(controls, ranges)
+        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        self.monitor = None
+        if options.monitor:
+            from .monitor import EnergyMonitor
+
+            prims = ", ".join(scene.curves[i].path for i in members)
+            setting = (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
+                       f"{settings.substeps} substeps/frame (dt={self.dt:.3g} s), {options.precision}")
+            self.monitor = SplitMonitor(EnergyMonitor(s, setting, st) for s, st in zip(solvers, states))
+        self._sample_buffers = None
+
+    @property
+    def num_strands(self) -> int:
+        return self.model.num_strands
+
+    @property
+    def num_points(self) -> int:
+        return int(self.point_offsets[-1])
+
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """As ``simulate._Group.local_samples``: every part gathers and transforms its points on
+        its device (all launched first), then the host concatenates them in input order."""
+        import warp as wp
+
+        from .kernels.output import local_samples_kernel
+
+        if self._sample_buffers is None:
+            member = np.repeat(np.arange(len(self.members), dtype=np.int32), np.diff(self.point_offsets))
+            self._sample_buffers = []
+            for model, (p0, p1) in zip(self.model.parts, self.point_ranges):
+                d = model.device
+                self._sample_buffers.append((
+                    wp.array(model.layout.slot_of_point.astype(np.int32), dtype=wp.int32, device=d),
+                    wp.array(member[p0:p1], dtype=wp.int32, device=d),
+                    wp.empty(p1 - p0, dtype=wp.vec3d, device=d),
+                    wp.empty(p1 - p0, dtype=wp.vec3d, device=d),
+                ))
+        for model, state, (slots, member, points, velocities) in zip(
+                self.model.parts, self.state.parts, self._sample_buffers):
+            d = model.device
+            wp.launch(
+                local_samples_kernel(model.scalar), dim=points.shape[0], device=d,
+                inputs=[slots, member, wp.vec3d(*model.origin),
+                        wp.array(to_local, dtype=wp.mat44d, device=d), wp.array(rate, dtype=wp.mat44d, device=d),
+                        state.positions, state.velocities],
+                outputs=[points, velocities],
+            )
+        gathered = [(p.numpy().reshape(-1, 3), v.numpy().reshape(-1, 3)) for _, _, p, v in self._sample_buffers]
+        return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])

@@ -1,0 +1,158 @@
+"""simulate --device A,B,...: strands split across devices give exactly the single-device result."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from batch_stages import groom_stage, layer_content
+from dftl_warp.cli import main
+from dftl_warp.jobs import Job
+from dftl_warp.multi_device import SplitGroup, split_strands
+from dftl_warp.resumable import CheckpointPolicy, run_job
+from dftl_warp.simulate import Simulation, SimulationOptions, simulate_usd
+from dftl_warp.usd_read import read_scene
+from pxr import Sdf
+from usd_stages import add_curves, animated_xform, chain, new_stage
+
+
+@pytest.mark.parametrize("counts, parts", [
+    ([4] * 10, 2), ([4] * 10, 3), ([1, 50, 2, 2, 2, 2], 2), ([3, 3], 5), ([7], 4), ([5] * 1000, 8)])
+def test_split_strands_covers_every_strand_once_in_order(counts, parts):
+    ranges = split_strands(counts, parts)
+    assert ranges[0][0] == 0 and ranges[-1][1] == len(counts)
+    assert all(a < b for a, b in ranges) and all(r[1] == s[0] for r, s in zip(ranges, ranges[1:]))
+    assert len(ranges) == min(parts, len(counts))
+    if len(set(counts)) == 1 and len(counts) % parts == 0:
+        assert {b - a for a, b in ranges} == {len(counts) // parts}
+
+
+@pytest.fixture(scope="module")
+def far_stage(tmp_path_factory):
+    """Two prims of different strand lengths, far from the origin (so the Model origin is not
+    zero), under a moving, turning transform; float32 results depend on the origin."""
+    path = tmp_path_factory.mktemp("split") / "far.usda"
+    stage = new_stage(path, meters_per_unit=0.01, start=1, end=12)
+    animated_xform(stage, "/World/Head", translate={1: (5000, 100, -3000), 12: (5010, 100, -3000)},
+                   rotate_y={1: 0.0, 12: 40.0})
+    rng = np.random.default_rng(7)
+    for name, strands, vertices in (("Long", 37, 11), ("Short", 25, 4)):
+        pts = [chain(vertices, 0.8, direction=(rng.uniform(-1, 1), -1.0, 0.2), origin=(k * 0.3, 0, 0))
+               for k in range(strands)]
+        add_curves(stage, f"/World/Head/{name}", np.concatenate(pts), [vertices] * strands)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def _frames(stage, device, frames=8, **options):
+    scene = read_scene(str(stage))
+    sim = Simulation(scene, SimulationOptions(device=device, **options), 1)
+
+    def samples():  # copies: on the CPU, samples() may return views of buffers reused next frame
+        return [(p.copy(), v.copy()) for p, v in sim.samples()]
+
+    out = [samples()]
+    for _ in range(frames):
+        sim.advance()
+        out.append(samples())
+    return sim, out
+
+
+@pytest.mark.parametrize("devices, options", [
+    ("cpu,cpu", {}), ("cpu,cpu,cpu", {"correction": "posterior", "substeps": 3}),
+    ("cpu,cpu", {"precision": "float64", "solver": "ftl"})])
+def test_split_equals_single_device(far_stage, devices, options):
+    split, got = _frames(far_stage, devices, **options)
+    single, want = _frames(far_stage, "cpu", **options)
+    assert all(isinstance(g, SplitGroup) for g in split.groups)
+    assert any(len(g.model.parts) == len(devices.split(",")) for g in split.groups)
+    assert np.any(split.groups[0].model.origin != 0.0)
+    for frame_got, frame_want in zip(got, want):
+        for (p, v), (q, w) in zip(frame_got, frame_want):
+            assert p.tobytes() == q.tobytes() and v.tobytes() == w.tobytes()
+    assert split.num_strands == single.num_strands and split.num_points == single.num_points
+
+
+def test_split_through_simulate_and_resumable_batch(tmp_path, far_stage):
+    """The simulate path writes the same USD, and a split job checkpoints and resumes."""
+    for name in ("single", "split", "batch"):
+        (tmp_path / name).mkdir()
+    simulate_usd(str(far_stage), str(tmp_path / "single" / "o.usdc"), device="cpu")
+    simulate_usd(str(far_stage), str(tmp_path / "split" / "o.usdc"), device="cpu,cpu")
+    assert layer_content(tmp_path / "split" / "o.usdc") == layer_content(tmp_path / "single" / "o.usdc")
+
+    job = Job(index=1, name="far", input=str(far_stage), output=str(tmp_path / "batch" / "o.usdc"))
+
+    def stop(event):
+        if event["event"] == "frames" and event["done"] == 7:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_job(job, "cpu,cpu", CheckpointPolicy(every_frames=3), stop)
+    resumed = run_job(job, "cpu,cpu", CheckpointPolicy(every_frames=3))
+    assert resumed.status == "done" and resumed.resumed_from == 6
+    assert layer_content(tmp_path / "batch" / "o.usdc") == layer_content(tmp_path / "single" / "o.usdc")
+
+
+def test_unknown_device_in_the_list_is_one_line(tmp_path, far_stage, capsys):
+    code = main(["simulate", str(far_stage), "-o", str(tmp_path / "o.usdc"), "--device", "cpu,cuda:9", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.startswith("dftl-warp: error: --device cuda:9: not available here")
+    assert "\n" not in err and not (tmp_path / "o.usdc").exists()
+
+
+def test_more_devices_than_strands(tmp_path):
+    path = groom_stage(tmp_path / "two.usda", strands=2, vertices=5, end=4)
+    split, got = _frames(path, "cpu,cpu,cpu,cpu", frames=3)
+    _, want = _frames(path, "cpu", frames=3)
+    assert len(split.groups[0].model.parts) == 2
+    for frame_got, frame_want in zip(got, want):
+        for (p, v), (q, w) in zip(frame_got, frame_want):
+            assert np.array_equal(p, q) and np.array_equal(v, w)
+
+
+def _featured_stage(path, hair_hair=False):
+    """The far stage plus a moving sphere collider, per-prim drag and shape retention, wind."""
+    from pxr import Gf, UsdGeom, UsdPhysics
+
+    stage = new_stage(path, meters_per_unit=0.01, start=1, end=10)
+    world = stage.GetPrimAtPath("/World")
+    world.CreateAttribute("dftl:wind", Sdf.ValueTypeNames.Float3, custom=True).Set(Gf.Vec3f(30.0, 0.0, 0.0))
+    if hair_hair:
+        world.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    animated_xform(stage, "/World/Head", translate={1: (5000, 100, -3000), 10: (5006, 100, -3000)},
+                   rotate_y={1: 0.0, 10: 30.0})
+    ball = UsdGeom.Sphere.Define(stage, "/World/Head/Ball")
+    ball.CreateRadiusAttr(2.0)
+    UsdGeom.XformCommonAPI(ball).SetTranslate(Gf.Vec3d(3.0, -6.0, 0.5))
+    UsdPhysics.CollisionAPI.Apply(ball.GetPrim())
+    rng = np.random.default_rng(3)
+    for name, strands, vertices, drag, shape in (("Long", 30, 11, 2.0, 0.3), ("Short", 21, 5, 0.5, 0.0)):
+        pts = [chain(vertices, 0.8, direction=(rng.uniform(-1, 1), -1.0, 0.2), origin=(k * 0.3, 0, 0))
+               for k in range(strands)]
+        curves = add_curves(stage, f"/World/Head/{name}", np.concatenate(pts), [vertices] * strands, widths=0.05)
+        prim = curves.GetPrim()
+        prim.CreateAttribute("dftl:drag", Sdf.ValueTypeNames.Float, custom=True).Set(drag)
+        prim.CreateAttribute("dftl:shapeStiffness", Sdf.ValueTypeNames.Float, custom=True).Set(shape)
+    stage.GetRootLayer().Save()
+    return path
+
+
+def test_split_with_colliders_wind_drag_and_shape_equals_single_device(tmp_path):
+    path = _featured_stage(tmp_path / "featured.usda")
+    split, got = _frames(path, "cpu,cpu", frames=9)
+    single, want = _frames(path, "cpu", frames=9)
+    flags = single.groups[0].model.feature_flags
+    assert {"spheres", "drag", "wind", "shape"} <= set(flags), flags
+    assert split.groups[0].model.feature_flags == flags and len(split.groups[0].model.parts) == 2
+    for frame_got, frame_want in zip(got, want):
+        for (p, v), (q, w) in zip(frame_got, frame_want):
+            assert p.tobytes() == q.tobytes() and v.tobytes() == w.tobytes()
+
+
+def test_split_refuses_hair_hair(tmp_path, capsys):
+    path = _featured_stage(tmp_path / "hairhair.usda", hair_hair=True)
+    code = main(["simulate", str(path), "-o", str(tmp_path / "o.usdc"), "--device", "cpu,cpu", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "hair-hair interaction couples strands and is not split across devices" in err
+    assert not (tmp_path / "o.usdc").exists()
