@@ -226,7 +226,10 @@ class _Group:
                     self.state.positions, self.state.velocities],
             outputs=[points, velocities],
         )
-        return points.numpy().reshape(-1, 3), velocities.numpy().reshape(-1, 3)
+        points, velocities = points.numpy().reshape(-1, 3), velocities.numpy().reshape(-1, 3)
+        if not device.is_cuda:  # on the CPU numpy() is a view of the buffers the next call overwrites
+            points, velocities = points.copy(), velocities.copy()
+        return points, velocities
 
 
 class Simulation:

@@ -222,3 +222,19 @@ def test_info_command_describes_the_default_scene(capsys):
 
     d = json.loads(capsys.readouterr().out)
     assert d["strands"] == 3000 and d["device_bytes_per_strand"]["float64"] > d["device_bytes_per_strand"]["float32"]
+
+
+def test_samples_of_earlier_frames_stay_valid(tmp_path):
+    """samples() returns arrays the caller owns: the next frame does not overwrite them."""
+    from dftl_warp.simulate import Simulation, SimulationOptions
+    from dftl_warp.usd_read import read_scene
+
+    stage = new_stage(tmp_path / "s.usda", start=1, end=3)
+    add_curves(stage, "/World/Hair", chain(5, spacing=0.1), [5])
+    stage.GetRootLayer().Save()
+    sim = Simulation(read_scene(str(tmp_path / "s.usda")), SimulationOptions(start=1, end=3), 1)
+    first = sim.samples()[0][0]
+    kept = first.copy()
+    sim.advance()
+    second = sim.samples()[0][0]
+    assert np.array_equal(first, kept) and not np.array_equal(first, second)
