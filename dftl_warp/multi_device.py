@@ -275,30 +275,13 @@ class SplitGroup:
     def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """As ``simulate._Group.local_samples``: every part gathers and transforms its points on
         its device (all launched first), then the host concatenates them in input order."""
-        import warp as wp
-
-        from .kernels.output import local_samples_kernel
+        from .samples import LocalSamples
 
         if self._sample_buffers is None:
-            member = np.repeat(np.arange(len(self.members), dtype=np.int32), np.diff(self.point_offsets))
-            self._sample_buffers = []
-            for model, (p0, p1) in zip(self.model.parts, self.point_ranges):
-                d = model.device
-                self._sample_buffers.append((
-                    wp.array(model.layout.slot_of_point.astype(np.int32), dtype=wp.int32, device=d),
-                    wp.array(member[p0:p1], dtype=wp.int32, device=d),
-                    wp.empty(p1 - p0, dtype=wp.vec3d, device=d),
-                    wp.empty(p1 - p0, dtype=wp.vec3d, device=d),
-                ))
-        for model, state, (slots, member, points, velocities) in zip(
-                self.model.parts, self.state.parts, self._sample_buffers):
-            d = model.device
-            wp.launch(
-                local_samples_kernel(model.scalar), dim=points.shape[0], device=d,
-                inputs=[slots, member, wp.vec3d(*model.origin),
-                        wp.array(to_local, dtype=wp.mat44d, device=d), wp.array(rate, dtype=wp.mat44d, device=d),
-                        state.positions, state.velocities],
-                outputs=[points, velocities],
-            )
-        gathered = [(p.numpy().reshape(-1, 3), v.numpy().reshape(-1, 3)) for _, _, p, v in self._sample_buffers]
+            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
+            self._sample_buffers = [LocalSamples(model, member[p0:p1])
+                                    for model, (p0, p1) in zip(self.model.parts, self.point_ranges)]
+        for model, state, buffers in zip(self.model.parts, self.state.parts, self._sample_buffers):
+            buffers.launch(model, state, to_local, rate)
+        gathered = [buffers.fetch() for buffers in self._sample_buffers]
         return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])

@@ -202,34 +202,16 @@ class _Group:
         return int(self.point_offsets[-1])
 
     def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Points and velocities (N, 3) in input order and local space, from column-vector
-        world-to-local matrices and frame rates per member prim (see kernels/output.py)."""
-        import warp as wp
+        """Points and velocities (N, 3, float32) in input order and local space, from
+        column-vector world-to-local matrices and frame rates per member prim
+        (:class:`~dftl_warp.samples.LocalSamples`)."""
+        from .samples import LocalSamples
 
-        from .kernels.output import local_samples_kernel
-
-        device = self.model.device
         if self._sample_buffers is None:
-            n = self.num_points
-            member = np.repeat(np.arange(len(self.members), dtype=np.int32), np.diff(self.point_offsets))
-            self._sample_buffers = (
-                wp.array(self.model.layout.slot_of_point.astype(np.int32), dtype=wp.int32, device=device),
-                wp.array(member, dtype=wp.int32, device=device),
-                wp.empty(n, dtype=wp.vec3d, device=device),
-                wp.empty(n, dtype=wp.vec3d, device=device),
-            )
-        slots, member, points, velocities = self._sample_buffers
-        wp.launch(
-            local_samples_kernel(self.model.scalar), dim=self.num_points, device=device,
-            inputs=[slots, member, wp.vec3d(*self.model.origin),
-                    wp.array(to_local, dtype=wp.mat44d, device=device), wp.array(rate, dtype=wp.mat44d, device=device),
-                    self.state.positions, self.state.velocities],
-            outputs=[points, velocities],
-        )
-        points, velocities = points.numpy().reshape(-1, 3), velocities.numpy().reshape(-1, 3)
-        if not device.is_cuda:  # on the CPU numpy() is a view of the buffers the next call overwrites
-            points, velocities = points.copy(), velocities.copy()
-        return points, velocities
+            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
+            self._sample_buffers = LocalSamples(self.model, member)
+        self._sample_buffers.launch(self.model, self.state, to_local, rate)
+        return self._sample_buffers.fetch()
 
 
 class Simulation:
@@ -321,7 +303,7 @@ class Simulation:
 
     def samples(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
-        prim's local space (stage units, stage units per second), float64.
+        prim's local space (stage units, stage units per second), float32 as USD stores them.
 
         The gather into input order and the transforms run on the simulation device
         (:mod:`dftl_warp.kernels.output`); the host receives one copy per group."""

@@ -8,7 +8,8 @@ import warp as wp
 @functools.cache
 def local_samples_kernel(scalar):
     """Kernel writing, for every input point ``j``, its position and velocity in its prim's local
-    space (float64): ``points = world_to_local(x + origin)``,
+    space, computed in float64 and stored in float32 (what USD stores):
+    ``points = world_to_local(x + origin)``,
     ``velocities = linear(world_to_local)(v - frame_velocity(points))``.
 
     Matrices are column-vector 4x4 (the transposes of USD's row-vector matrices).
@@ -26,8 +27,8 @@ def local_samples_kernel(scalar):
         frame_rate: wp.array(dtype=wp.mat44d),
         positions: wp.array(dtype=vec3),
         velocities: wp.array(dtype=vec3),
-        points_out: wp.array(dtype=wp.vec3d),
-        velocities_out: wp.array(dtype=wp.vec3d),
+        points_out: wp.array(dtype=wp.vec3f),
+        velocities_out: wp.array(dtype=wp.vec3f),
     ):
         j = wp.tid()
         k = point_slot[j]
@@ -39,7 +40,9 @@ def local_samples_kernel(scalar):
         local = wp.transform_point(to_local, world)
         frame_velocity = wp.transform_point(frame_rate[m], local)
         velocity = wp.vec3d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2])) - frame_velocity
-        points_out[j] = local
-        velocities_out[j] = wp.transform_vector(to_local, velocity)
+        local_velocity = wp.transform_vector(to_local, velocity)
+        points_out[j] = wp.vec3f(wp.float32(local[0]), wp.float32(local[1]), wp.float32(local[2]))
+        velocities_out[j] = wp.vec3f(wp.float32(local_velocity[0]), wp.float32(local_velocity[1]),
+                                     wp.float32(local_velocity[2]))
 
     return local_samples
