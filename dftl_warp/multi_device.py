@@ -258,9 +258,9 @@ class SplitGroup:
         if options.monitor:
             from .monitor import EnergyMonitor
 
-            prims = ", ".join(scene.curves[i].path for i in members)
-            setting = (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
-                       f"{settings.substeps} substeps/frame (dt={self.dt:.3g} s), {options.precision}")
+            from .simulate import describe_setting
+
+            setting = describe_setting(scene, members, settings, options)
             self.monitor = SplitMonitor(EnergyMonitor(s, setting, st) for s, st in zip(solvers, states))
         self._sample_buffers = None
 

@@ -125,6 +125,14 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int) -> Grou
     )
 
 
+def describe_setting(scene: Scene, members: list[int], settings: GroupSettings, options) -> str:
+    """How a group is simulated, as the energy monitor's warning names it."""
+    prims = ", ".join(scene.curves[i].path for i in members)
+    dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+    return (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
+            f"{settings.substeps} substeps/frame (dt={dt:.3g} s), {options.precision}")
+
+
 #: largest world extent (stage units) a precision simulates without overflowing squared lengths
 MAX_EXTENT = {"float32": 1.0e15, "float64": 1.0e150}
 
@@ -186,10 +194,7 @@ class _Group:
         if options.monitor:
             from .monitor import EnergyMonitor
 
-            prims = ", ".join(scene.curves[i].path for i in members)
-            setting = (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
-                       f"{settings.substeps} substeps/frame (dt={self.dt:.3g} s), {options.precision}")
-            self.monitor = EnergyMonitor(self.solver, setting, self.state)
+            self.monitor = EnergyMonitor(self.solver, describe_setting(scene, members, settings, options), self.state)
         #: device buffers of local_samples, made on first use
         self._sample_buffers = None
 
