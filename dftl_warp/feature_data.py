@@ -256,20 +256,29 @@ def build(model_args, features, *, widths=None):
     hh = find(features, HairHair)
     if hh is not None:
         grid_cell = float(hh.cell_size)
-        if hh.extent is not None:
-            extent = np.asarray(hh.extent, dtype=np.float64).reshape(3)
-        else:
-            starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-            seg = np.zeros(len(points))
-            seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
-            seg[starts] = 0.0
-            longest = float(np.add.reduceat(seg, starts).max()) if len(points) else 0.0
-            extent = (points.max(0) - points.min(0) if len(points) else np.zeros(3)) + 2.0 * longest
+        extent = hair_hair_extent(hh, points, counts)
         grid_shape = tuple(int(np.ceil(e / grid_cell)) + 3 for e in extent)
         if int(np.prod(grid_shape)) > hh.max_cells:
             raise ValueError(f"hair-hair grid of {grid_shape} nodes exceeds max_cells={hh.max_cells}; "
                              f"increase cell_size ({grid_cell} m) or give a smaller extent")
     return ModelFeatures(features, flags, arrays, colliders, collider_order, binding, grid_shape, grid_cell)
+
+
+def hair_hair_extent(hh, points, counts) -> np.ndarray:
+    """Size (3,), m, of the hair-hair grid of strands ``points`` (N, 3, world) with vertex
+    ``counts``: ``hh.extent``, or the rest bounds plus twice the longest strand on each axis."""
+    if hh.extent is not None:
+        return np.asarray(hh.extent, dtype=np.float64).reshape(3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    if not len(points):
+        return np.zeros(3)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    seg = np.zeros(len(points))
+    seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    seg[starts] = 0.0
+    longest = float(np.add.reduceat(seg, starts).max())
+    return points.max(0) - points.min(0) + 2.0 * longest
 
 
 class FeatureControl:
@@ -496,28 +505,46 @@ class FeatureStep:
         return st
 
     def launch(self, state_in, state_out, control, dt, root_alpha, head_inputs):
+        self.pose_and_bounds(state_in, control, root_alpha)
+        self.splat(state_in)
+        self.sweep(state_in, state_out, control, head_inputs)
+
+    # the phases of :meth:`launch`; a split groom (dftl_warp.multi_device) combines its parts'
+    # grids between them
+
+    def pose_and_bounds(self, state_in, control, root_alpha) -> None:
+        """This substep's collider poses; the grid's lower corner from this model's particles."""
         m = self.model
         device = m.device
         if control.features is None:
             raise ValueError("this control was made before the model had features; use model.control()")
         fc = control.features
-        st = self._struct(control)
         if fc.pose is not None:
             wp.launch(collider_pose_kernel(m.scalar), dim=fc.pose.shape[0], device=device,
                       inputs=[fc.pose_start, fc.pose_end, root_alpha], outputs=[fc.pose, fc.pose_prev, fc.inv_pose, fc.inv_pose_prev])
         if self.grid is not None:
             g = self.grid
-            mf = m.feature_data
             wp.launch(grid_reset_kernel(m.scalar), dim=1, device=device, outputs=[g["lower"]])
             wp.launch(grid_bounds_kernel(m.scalar), dim=m.num_points, device=device,
                       inputs=[state_in.positions], outputs=[g["lower"]])
-            g["density"].zero_()
-            g["momentum"].zero_()
-            wp.launch(grid_splat_kernel(m.scalar), dim=m.num_points, device=device,
-                      inputs=[state_in.positions, state_in.velocities, g["lower"], 1.0 / mf.grid_cell,
-                              *mf.grid_shape],
-                      outputs=[g["density"], g["momentum"]])
-        wp.launch(self.kernel, dim=m.num_strands, device=device,
+
+    def splat(self, state_in) -> None:
+        """Density and momentum of this model's particles onto the grid (from ``lower``)."""
+        if self.grid is None:
+            return
+        m = self.model
+        g = self.grid
+        mf = m.feature_data
+        g["density"].zero_()
+        g["momentum"].zero_()
+        wp.launch(grid_splat_kernel(m.scalar), dim=m.num_points, device=m.device,
+                  inputs=[state_in.positions, state_in.velocities, g["lower"], 1.0 / mf.grid_cell, *mf.grid_shape],
+                  outputs=[g["density"], g["momentum"]])
+
+    def sweep(self, state_in, state_out, control, head_inputs) -> None:
+        """The featured sweep of every strand (reading the grid, if any)."""
+        st = self._struct(control)
+        wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device,
                   inputs=[*head_inputs, st, state_in.positions, state_in.velocities, state_in.corrections],
                   outputs=[state_out.positions, state_out.velocities, state_out.corrections])
 

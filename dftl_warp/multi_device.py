@@ -15,9 +15,14 @@ frame loop uses. A device may appear twice (``cpu,cpu``: two Models on one devic
 
 Features (:mod:`dftl_warp.features`): colliders and wind are shared by every part; per-strand
 values (drag rate, shape-retention stiffness, root-binding triangles) are sliced with the strands.
-Hair-hair interaction couples strands through a grid: splitting it would need the grids summed
-across devices every substep (one reduction per substep, which also rules out the fused substep
-kernels); it is refused with a clear error, not done.
+Hair-hair interaction (:class:`~dftl_warp.features.HairHair`) couples strands through a grid:
+every part gets the grid shape of the whole groom, and :class:`SplitSolver` then steps the parts
+in lockstep, exchanging the grid each substep (:class:`GridExchange`): the lower corner is the
+minimum of the parts' bounds and density and momentum are the sum of the parts' splats, both
+combined on the first part's device and copied back to every part before it sweeps. The grid is
+then the single-device one up to the order of the splat's sums (float rounding), and the results
+agree with a single-device run to rounding, not bitwise. That path launches substep by substep
+(no CUDA graph).
 """
 
 from __future__ import annotations
@@ -138,12 +143,74 @@ class SplitControl:
             c.set_root_targets(start[s0:s1], end[s0:s1])
 
 
+def _copy(dest, src) -> None:
+    """``wp.copy`` that first orders the copy after the work queued on ``src``'s device (Warp
+    orders a peer copy after the destination's work and the source's later work after it)."""
+    import warp as wp
+
+    if dest.device != src.device and dest.device.is_cuda and src.device.is_cuda:
+        dest.device.stream.wait_stream(src.device.stream)
+    wp.copy(dest, src)
+
+
+class GridExchange:
+    """Makes the hair-hair grids of the parts' :class:`~dftl_warp.feature_data.FeatureStep` objects
+    the grid of the whole groom: each part's grid is combined into the first part's (through a
+    scratch grid on its device), and the result copied back to every part."""
+
+    def __init__(self, steps):
+        import warp as wp
+
+        from .kernels.grid import grid_add_kernel, grid_min_kernel
+
+        self.steps = list(steps)
+        first = self.steps[0]
+        shapes = {tuple(s.model.feature_data.grid_shape) for s in self.steps}
+        if len(shapes) != 1:
+            raise ValueError(f"the parts' hair-hair grids differ in shape: {sorted(shapes)}")
+        self.scratch = {name: wp.empty_like(a) for name, a in first.grid.items()}
+        self._min = grid_min_kernel(first.model.scalar)
+        self._add = grid_add_kernel(first.model.scalar)
+
+    def _combine(self, names, launch) -> None:
+        first = self.steps[0]
+        for step in self.steps[1:]:
+            for name in names:
+                _copy(self.scratch[name], step.grid[name])
+            launch()
+        for step in self.steps[1:]:
+            for name in names:
+                _copy(step.grid[name], first.grid[name])
+
+    def combine_bounds(self) -> None:
+        """Every part's ``lower`` <- the minimum over the parts (m)."""
+        import warp as wp
+
+        g, device = self.steps[0].grid, self.steps[0].model.device
+        self._combine(("lower",), lambda: wp.launch(self._min, dim=3, device=device,
+                                                    inputs=[self.scratch["lower"]], outputs=[g["lower"]]))
+
+    def combine_splats(self) -> None:
+        """Every part's density and momentum <- the sum over the parts."""
+        import warp as wp
+
+        g, device = self.steps[0].grid, self.steps[0].model.device
+        self._combine(("density", "momentum"), lambda: wp.launch(
+            self._add, dim=g["density"].shape, device=device,
+            inputs=[self.scratch["density"], self.scratch["momentum"]], outputs=[g["density"], g["momentum"]]))
+
+
 class SplitSolver:
-    """Advances every part on its own device; all parts are launched before any is waited for."""
+    """Advances every part on its own device; all parts are launched before any is waited for.
+    With hair-hair interaction the parts step in lockstep, exchanging their grid every substep."""
 
     def __init__(self, solvers):
         self.parts = list(solvers)
         self.gravity = self.parts[0].gravity
+        steps = [getattr(s, "_features", None) for s in self.parts]
+        self.exchange = None
+        if all(step is not None and step.grid is not None for step in steps):
+            self.exchange = GridExchange(steps)
 
     @property
     def carries_corrections(self) -> bool:
@@ -152,9 +219,30 @@ class SplitSolver:
     def advance(self, state: SplitState, control: SplitControl, dt: float, substeps: int) -> None:
         import warp as wp
 
+        if self.exchange is not None:
+            self._advance_exchanging(state, control, dt, substeps)
+            return
         for solver, s, c in zip(self.parts, state.parts, control.parts):
             with wp.ScopedDevice(solver.model.device):
                 solver.advance(s, c, dt, substeps)
+
+    def _advance_exchanging(self, state: SplitState, control: SplitControl, dt: float, substeps: int) -> None:
+        """As ``DFTLSolver.advance`` substep by substep, every part's grid made the whole groom's
+        (:class:`GridExchange`) between the bounds, splat and sweep phases."""
+        if sum(s.model.num_strands for s in self.parts) == 0:
+            return
+        parts = [(solver, solver._features, s, c) for solver, s, c in zip(self.parts, state.parts, control.parts)]
+        real = np.dtype(self.parts[0].model.precision).type  # alpha rounded as on one device
+        for k in range(substeps):
+            alpha = float(real(k + 1) / real(substeps))
+            for _, step, s, c in parts:
+                step.pose_and_bounds(s, c, alpha)
+            self.exchange.combine_bounds()
+            for _, step, s, _ in parts:
+                step.splat(s)
+            self.exchange.combine_splats()
+            for solver, step, s, c in parts:
+                step.sweep(s, s, c, solver.feature_head(c, dt, alpha))
 
 
 class SplitMonitor:
@@ -175,9 +263,11 @@ class SplitMonitor:
         return False
 
 
-def part_features(features, s0: int, s1: int, num_strands: int, where: str) -> list:
+def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid_extent=None) -> list:
     """The features of strands ``s0:s1`` of a group: per-strand values sliced, scene-wide ones
-    (colliders, wind) shared. Hair-hair interaction couples strands: refused."""
+    (colliders, wind) shared; hair-hair interaction gets ``grid_extent`` (3,), m, the whole
+    group's grid size (:func:`~dftl_warp.feature_data.hair_hair_extent`), so that every part's
+    grid has the whole group's shape."""
     from dataclasses import replace
 
     from .features import Drag, HairHair, RootBinding, ShapeRetention
@@ -193,9 +283,10 @@ def part_features(features, s0: int, s1: int, num_strands: int, where: str) -> l
     out = []
     for f in features:
         if isinstance(f, HairHair):
-            raise UserError(f"{where}: hair-hair interaction couples strands and is not split across devices yet; "
-                            "simulate it on one device (docs/batch.md)")
-        if isinstance(f, RootBinding) and f.triangles is not None:
+            if grid_extent is None:
+                raise ValueError("part_features: a split hair-hair grid needs the whole group's grid_extent")
+            f = replace(f, extent=np.asarray(grid_extent, dtype=np.float64).reshape(3))
+        elif isinstance(f, RootBinding) and f.triangles is not None:
             f = replace(f, triangles=per_strand(f.triangles, "dftl:rootMesh triangles"),
                         weights=per_strand(f.weights, "dftl:rootMesh weights"))
         elif isinstance(f, Drag):
@@ -212,6 +303,8 @@ class SplitGroup:
     def __init__(self, settings, members: list[int], scene, frame: int, options):
         import warp as wp
 
+        from .feature_data import hair_hair_extent
+        from .features import HairHair, find
         from .model import Model, _world_origin
         from .scene import transform_points
         from .scene_features import group_features
@@ -226,6 +319,8 @@ class SplitGroup:
         counts = np.concatenate([c.counts for c in curves])
         _check_extent(points, self.point_offsets, curves, scene.source, options.precision)
         features, widths = group_features(scene, curves, frame)
+        hair_hair = find(features, HairHair)
+        grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
         origin = _world_origin(points)
         devices = parse_devices(options.device)
         ranges = split_strands(counts, len(devices))
@@ -234,7 +329,7 @@ class SplitGroup:
         models, solvers, states, controls = [], [], [], []
         extra = {} if options.iterations is None else {"iterations": options.iterations}
         for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
-            part = part_features(features, s0, s1, len(counts), scene.source)
+            part = part_features(features, s0, s1, len(counts), scene.source, grid_extent)
             with wp.ScopedDevice(device):
                 try:
                     model = Model.from_strands(

@@ -86,9 +86,8 @@ class DFTLSolver:
         if self.carries_corrections and (state_in.corrections is None or state_out.corrections is None):
             raise ValueError("the prior correction form needs states with corrections (solver.state())")
         if self._features is not None:
-            head = [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
-                    root_alpha, m.rest_lengths, self.gravity, dt, self.damping]
-            self._features.launch(state_in, state_out, control, dt, root_alpha, head)
+            self._features.launch(state_in, state_out, control, dt, root_alpha,
+                                  self.feature_head(control, dt, root_alpha))
             return
         inputs = [
             m.strand_base, m.strand_stride, m.strand_count,
@@ -103,6 +102,13 @@ class DFTLSolver:
             inputs.append(state_in.corrections)
             outputs.append(state_out.corrections)
         wp.launch(self._kernel, dim=m.num_strands, inputs=inputs, outputs=outputs, device=m.device)
+
+    def feature_head(self, control, dt: float, root_alpha: float) -> list:
+        """The leading inputs of the featured sweep (:meth:`FeatureStep.sweep
+        <dftl_warp.feature_data.FeatureStep.sweep>`)."""
+        m = self.model
+        return [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
+                root_alpha, m.rest_lengths, self.gravity, dt, self.damping]
 
     def advance(self, state, control, dt: float, substeps: int) -> None:
         """``substeps`` steps of ``dt`` in place, roots moving linearly across them.

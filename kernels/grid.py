@@ -17,6 +17,10 @@ During the sweep, :func:`grid_sample_func` gives each free particle, at its prev
   ``v -= repulsion h grad(rho) dt``.
 
 Nodes sit at ``lower + (ijk - 1) h``; particles outside the grid are neither splatted nor forced.
+
+A groom split across devices (:mod:`dftl_warp.multi_device`) combines its parts' grids with
+:func:`grid_min_kernel` (lower corners) and :func:`grid_add_kernel` (splats), so that every part
+sweeps against the grid of the whole groom.
 """
 
 
@@ -53,6 +57,37 @@ def grid_bounds_kernel(scalar):
         wp.atomic_min(lower, 2, x[2])
 
     return grid_bounds
+
+
+@functools.cache
+def grid_min_kernel(scalar):
+    """Kernel (3 threads): ``lower[i] <- min(lower[i], other[i])`` (m), combining two bounds."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def grid_min(other: wp.array(dtype=scalar), lower: wp.array(dtype=scalar)):
+        i = wp.tid()
+        lower[i] = wp.min(lower[i], other[i])
+
+    return grid_min
+
+
+@functools.cache
+def grid_add_kernel(scalar):
+    """Kernel (one thread per node): adds another splat's density and momentum to this grid's."""
+    vec3 = wp.types.vector(3, scalar)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def grid_add(
+        other_density: wp.array3d(dtype=scalar),
+        other_momentum: wp.array3d(dtype=vec3),
+        density: wp.array3d(dtype=scalar),
+        momentum: wp.array3d(dtype=vec3),
+    ):
+        i, j, k = wp.tid()
+        density[i, j, k] = density[i, j, k] + other_density[i, j, k]
+        momentum[i, j, k] = momentum[i, j, k] + other_momentum[i, j, k]
+
+    return grid_add
 
 
 @functools.cache

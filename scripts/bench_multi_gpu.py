@@ -15,12 +15,16 @@ Sections (``--sections``, comma separated; default both):
                  ``advance()`` alone and ``advance()`` + ``samples()`` (gathering every point to the
                  host in local space), single device against all of ``--devices``; identical
                  samples checked.
+- ``hairhair`` : as ``simulate`` with hair-hair interaction on (``dftl:hairHair``): the parts step
+                 in lockstep and exchange the grid every substep (not bitwise: the largest
+                 difference from one device is reported, stage units). Not in the default sections.
 
 Results go to ``--out``: results.json, bench_multi_gpu.md, speedup.png.
 
     python scripts/bench_multi_gpu.py --devices cuda:0,cuda:1 --out OUT
     python scripts/bench_multi_gpu.py --devices cuda:0,cuda:1,cuda:2,cuda:3 --out OUT
     python scripts/bench_multi_gpu.py --devices cpu,cpu --strands 8192 --usd-strands 2000 --out OUT  # smoke test
+    python scripts/bench_multi_gpu.py --devices cuda:0,cuda:1 --sections simulate,hairhair --out OUT
 """
 
 from __future__ import annotations
@@ -129,8 +133,9 @@ def bench_compute(devices, strands, vertices, substeps, frames, repeats=3):
     return rows
 
 
-def groom_usd(path: Path, strands: int, vertices: int, frames: int) -> Path:
-    """A .usdc with one BasisCurves prim of straight strands under a turning Xform (cm, Y up)."""
+def groom_usd(path: Path, strands: int, vertices: int, frames: int, hair_hair: bool = False) -> Path:
+    """A .usdc with one BasisCurves prim of straight strands under a turning Xform (cm, Y up);
+    ``hair_hair``: ``dftl:hairHair`` on (default cell size) on the Xform, made the default prim."""
     from pxr import Gf, Usd, UsdGeom, Vt
 
     stage = Usd.Stage.CreateNew(str(path))
@@ -144,6 +149,11 @@ def groom_usd(path: Path, strands: int, vertices: int, frames: int) -> Path:
     turn.Set(0.0, 1)
     turn.Set(60.0, frames)
     head.AddTranslateOp().Set(Gf.Vec3d(0, 160, 0))
+    if hair_hair:
+        from pxr import Sdf
+
+        stage.SetDefaultPrim(head.GetPrim())
+        head.GetPrim().CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
     side = int(np.ceil(np.sqrt(strands)))
     roots = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:strands] * 0.05
     points = np.zeros((strands, vertices, 3), dtype=np.float32)
@@ -158,12 +168,12 @@ def groom_usd(path: Path, strands: int, vertices: int, frames: int) -> Path:
     return path
 
 
-def bench_simulate(devices, strands, vertices, substeps, frames):
+def bench_simulate(devices, strands, vertices, substeps, frames, hair_hair=False):
     from dftl_warp.simulate import Simulation, SimulationOptions
     from dftl_warp.usd_read import read_scene
 
     with tempfile.TemporaryDirectory() as tmp:
-        path = groom_usd(Path(tmp) / "groom.usdc", strands, vertices, frames + 2)
+        path = groom_usd(Path(tmp) / "groom.usdc", strands, vertices, frames + 2, hair_hair)
         scene = read_scene(str(path))
     rows, outputs = [], {}
     for device in dict.fromkeys([devices[0], ",".join(devices)]):
@@ -188,13 +198,14 @@ def bench_simulate(devices, strands, vertices, substeps, frames):
             "advance_and_samples_frames_per_s": frames / (t_advance + t_samples),
             "samples_seconds_per_frame": t_samples / frames,
         })
-        print(f"simulate {strands} strands on {device}: advance {rows[-1]['advance_frames_per_s']:.1f} frames/s, "
+        print(f"simulate {strands} strands{' (hair-hair)' if hair_hair else ''} on {device}: advance {rows[-1]['advance_frames_per_s']:.1f} frames/s, "
               f"with samples {rows[-1]['advance_and_samples_frames_per_s']:.1f} frames/s", flush=True)
     one = outputs[devices[0]]
     for row in rows:
         got = outputs[row["device_list"]]
         row["identical_to_one_device"] = all(
             p.tobytes() == q.tobytes() and v.tobytes() == w.tobytes() for (p, v), (q, w) in zip(got, one))
+        row["max_abs_difference"] = max(float(np.max(np.abs(p - q), initial=0.0)) for (p, _), (q, _) in zip(got, one))
         row["speedup_advance"] = row["advance_frames_per_s"] / rows[0]["advance_frames_per_s"]
         row["speedup_with_samples"] = row["advance_and_samples_frames_per_s"] / rows[0]["advance_and_samples_frames_per_s"]
     return rows
@@ -224,15 +235,19 @@ def to_markdown(res) -> str:
                          f"{r['speedup_per_frame_sync']:.2f} | {r['particle_steps_per_s']:.3g} | "
                          f"{r['identical_to_one_device']} |")
         lines.append("")
-    if res.get("simulate"):
-        lines += ["Frame loop of `dftl-warp simulate` (USD groom, animated transform):", "",
-                  "| devices | strands x vertices | advance frames/s | speed-up | advance + samples frames/s | speed-up | samples s/frame | identical |",
-                  "|---|---|---:|---:|---:|---:|---:|---|"]
-        for r in res["simulate"]:
+    for key, title in (("simulate", "Frame loop of `dftl-warp simulate` (USD groom, animated transform):"),
+                       ("hairhair", "The same with hair-hair interaction (grid exchanged every substep; "
+                                    "max |difference| from one device in stage units):")):
+        if not res.get(key):
+            continue
+        lines += [title, "",
+                  "| devices | strands x vertices | advance frames/s | speed-up | advance + samples frames/s | speed-up | samples s/frame | identical | max diff |",
+                  "|---|---|---:|---:|---:|---:|---:|---|---:|"]
+        for r in res[key]:
             lines.append(f"| {r['device_list']} | {r['strands']} x {r['vertices']} | {r['advance_frames_per_s']:.1f} | "
                          f"{r['speedup_advance']:.2f} | {r['advance_and_samples_frames_per_s']:.1f} | "
                          f"{r['speedup_with_samples']:.2f} | {r['samples_seconds_per_frame']:.3f} | "
-                         f"{r['identical_to_one_device']} |")
+                         f"{r['identical_to_one_device']} | {r['max_abs_difference']:.2g} |")
         lines.append("")
     return "\n".join(lines)
 
@@ -284,6 +299,9 @@ def main(argv=None):
                                        args.substeps, args.frames)
     if "simulate" in sections:
         res["simulate"] = bench_simulate(devices, args.usd_strands, args.vertices, args.substeps, args.usd_frames)
+    if "hairhair" in sections:
+        res["hairhair"] = bench_simulate(devices, args.usd_strands, args.vertices, args.substeps, args.usd_frames,
+                                         hair_hair=True)
     md = to_markdown(res)
     print()
     print(md)
