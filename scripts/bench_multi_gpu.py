@@ -42,6 +42,9 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
+#: precision of the simulate-loop sections (--precision)
+PRECISION = "float32"
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from dftl_warp.multi_device import parse_devices  # noqa: E402
@@ -177,7 +180,7 @@ def bench_simulate(devices, strands, vertices, substeps, frames, hair_hair=False
         scene = read_scene(str(path))
     rows, outputs = [], {}
     for device in dict.fromkeys([devices[0], ",".join(devices)]):
-        sim = Simulation(scene, SimulationOptions(device=device, substeps=substeps), 1)
+        sim = Simulation(scene, SimulationOptions(device=device, substeps=substeps, precision=PRECISION), 1)
         sim.advance()  # compile, capture graphs
         sim.samples()
         t_advance = t_samples = 0.0
@@ -285,8 +288,12 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=100)
     ap.add_argument("--usd-strands", type=int, default=200000, help="strands of the 'simulate' groom")
     ap.add_argument("--usd-frames", type=int, default=20)
+    ap.add_argument("--precision", default="float32", choices=("float32", "float64"),
+                    help="precision of the simulate and hairhair sections (default float32)")
     ap.add_argument("--out", default=None, help="folder for results.json, bench_multi_gpu.md, speedup.png")
     args = ap.parse_args(argv)
+    global PRECISION
+    PRECISION = args.precision
     wp.config.log_level = wp.LOG_WARNING
     wp.init()
     devices = [str(wp.get_device(d)) for d in parse_devices(args.devices)]
