@@ -34,8 +34,8 @@ class DFTLSolver:
         correction: ``"prior"`` (seed eq. 4-6) or ``"posterior"`` (paper eq. 1-3).
         gravity: acceleration (3,), m/s^2 (stage units/s^2 for USD scenes).
         fused: run a frame's substeps in one launch per strand group, state kept on chip
-            (:mod:`dftl_warp.kernels.fused`; identical results). ``None``: on CUDA when every strand
-            has at most :data:`MAX_FUSED_VERTICES` vertices.
+            (:mod:`dftl_warp.kernels.fused`; identical results). ``None``: on CUDA, for the frames
+            where the H200 measurements say it is faster (:func:`fused_pays`).
     """
 
     name = "dftl"
@@ -67,6 +67,9 @@ class DFTLSolver:
                              f"({', '.join(sorted(model.feature_flags))})")
         fits = fits and self._features is None
         self.fused = bool(model.device.is_cuda and fits) if fused is None else bool(fused)
+        #: choose per frame with fused_pays (only when the caller left ``fused`` to us)
+        self._fused_auto = fused is None
+        self._longest = int(model.layout.strand_count.max()) if model.num_strands else 0
         self._fused_runs = fused_runs(model.layout.strand_count, model.scalar, correction) if self.fused else []
 
     @property
@@ -119,8 +122,10 @@ class DFTLSolver:
         if m.num_strands == 0:
             return
 
+        use_fused = self.fused and (not self._fused_auto or fused_pays(self._longest, substeps, m.precision))
+
         def run():
-            if self.fused:
+            if use_fused:
                 self._launch_fused(state, control, dt, substeps)
                 return
             real = np.dtype(m.precision).type  # alpha rounded as the fused kernels compute it
@@ -179,6 +184,17 @@ class DFTLSolver:
             "max_stretch": float(stretch.max()),
             "max_speed": float(speed.max()),
         }
+
+
+def fused_pays(longest: int, substeps: int, precision: str) -> bool:
+    """Whether fused substeps beat one launch per substep for strands of at most ``longest``
+    vertices, from the H200 measurements in docs/benchmarks.md: float32 strands of up to 16
+    vertices gain from 2 substeps per frame on (x2.4 at 4 for 16 vertices), up to 32 vertices
+    from 8 (x1.5 at 32 vertices, x3.1 at 24); float64 from 8 substeps up to 32 vertices (x1.2).
+    One substep never gains (x0.26-1.0)."""
+    if precision == "float32" and longest <= 16:
+        return substeps >= 2
+    return longest <= 32 and substeps >= 8
 
 
 def fused_capacity(count: int) -> int:

@@ -57,3 +57,12 @@ def test_fused_refuses_long_strands():
     assert not dw.DFTLSolver(model).fused
     with pytest.raises(ValueError, match="at most 64"):
         dw.DFTLSolver(model, fused=True)
+
+
+def test_fused_is_chosen_only_where_measured_faster():
+    from dftl_warp.solver import fused_pays
+
+    assert not fused_pays(8, 1, "float32")  # one substep per frame never gains
+    assert fused_pays(16, 2, "float32") and fused_pays(8, 8, "float64")
+    assert fused_pays(32, 8, "float32") and not fused_pays(32, 4, "float32")
+    assert not fused_pays(40, 16, "float32")  # longer strands spill registers: not measured faster
