@@ -80,7 +80,3 @@ class Control:
         m = self.model
         self.root_start.assign(m.roots_to_device(start))
         self.root_end.assign(m.roots_to_device(start if end is None else end))
-
-    def hold(self) -> None:
-        """Keep the roots where the last frame ended (start = end)."""
-        wp.copy(self.root_start, self.root_end)
