@@ -13,7 +13,7 @@ import warp as wp
 
 from .kernels.diagnostics import strand_diagnostics_kernel
 from .kernels.ftl import CORRECTIONS, step_kernel
-from .kernels.fused import fused_step_kernel
+from .kernels.fused import fused_block_dim, fused_step_kernel
 
 SOLVERS = ("dftl", "ftl", "pbd", "reference")
 
@@ -71,6 +71,8 @@ class DFTLSolver:
         self._fused_auto = fused is None
         self._longest = int(model.layout.strand_count.max()) if model.num_strands else 0
         self._fused_runs = fused_runs(model.layout.strand_count, model.scalar, correction) if self.fused else []
+        self._fused_block_dims = [fused_block_dim(model.scalar, fused_capacity(model.layout.strand_count[first]))
+                                  for _, first, _ in self._fused_runs]
 
     @property
     def carries_corrections(self) -> bool:
@@ -150,10 +152,11 @@ class DFTLSolver:
         m = self.model
         if self.carries_corrections and state.corrections is None:
             raise ValueError("the prior correction form needs states with corrections (solver.state())")
-        for kernel, first, size in self._fused_runs:
+        for (kernel, first, size), block_dim in zip(self._fused_runs, self._fused_block_dims):
             wp.launch(
                 kernel,
                 dim=size,
+                block_dim=block_dim,
                 inputs=[first, m.strand_base, m.strand_stride, m.strand_count, control.root_start,
                         control.root_end, m.rest_lengths, self.gravity, dt, self.damping, substeps,
                         state.positions, state.velocities, state.corrections],
@@ -188,13 +191,13 @@ class DFTLSolver:
 
 def fused_pays(longest: int, substeps: int, precision: str) -> bool:
     """Whether fused substeps beat one launch per substep for strands of at most ``longest``
-    vertices, from the H200 measurements in docs/benchmarks.md: float32 strands of up to 16
-    vertices gain from 2 substeps per frame on (x2.4 at 4 for 16 vertices), up to 32 vertices
-    from 8 (x1.5 at 32 vertices, x3.1 at 24); float64 from 8 substeps up to 32 vertices (x1.2).
-    One substep never gains (x0.26-1.0)."""
+    vertices, from the H200 measurements in docs/benchmarks.md (float32, x the per-step kernel):
+    strands of up to 16 vertices gain from 2 substeps per frame on (x3.5 at 4 for 16 vertices),
+    up to 32 vertices from 4 (x1.9 at 4, x2.9 at 8 for 32 vertices); float64 strands of up to 32
+    vertices from 4 (x1.1 at 4, x1.3 at 8). One substep never gains (x0.66-1.0)."""
     if precision == "float32" and longest <= 16:
         return substeps >= 2
-    return longest <= 32 and substeps >= 8
+    return longest <= 32 and substeps >= 4
 
 
 def fused_capacity(count: int) -> int:

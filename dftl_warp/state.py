@@ -26,6 +26,10 @@ class State:
 
     @classmethod
     def at_rest(cls, model, *, with_corrections: bool = True) -> State:
+        if model.rest_positions is None:
+            raise ValueError("this model has no host rest positions (a synthetic groom built on the device); "
+                             "copy an existing State with State.clone() instead")
+
         def zeros():
             return wp.zeros(model.num_points, dtype=model.vec3, device=model.device)
 
@@ -34,6 +38,11 @@ class State:
             velocities=zeros(),
             corrections=zeros() if with_corrections else None,
         )
+
+    def clone(self) -> State:
+        """A copy of this state in new device arrays."""
+        return State(positions=wp.clone(self.positions), velocities=wp.clone(self.velocities),
+                     corrections=None if self.corrections is None else wp.clone(self.corrections))
 
     def assign(self, other: State) -> None:
         """Copy ``other`` into this state (same model)."""

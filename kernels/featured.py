@@ -30,6 +30,7 @@ import functools
 import warp as wp
 
 from .collide import collide_funcs, transform_type
+from .arith import madd
 from .ftl import STEP_MODULE_OPTIONS, follow_func
 from .grid import grid_sample_func
 from .layout import particle
@@ -244,10 +245,10 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                         gust = features.noise_amplitude * vec3(wp.curlnoise(noise_state, xyzt))
                     w = w + gust
                 v = w + (v - w) * decay
-            p = x_old + dt * v + gdt2
+            p = madd(dt, v, x_old) + gdt2
             if wp.static(PRIOR):
                 if i + 1 < n:
-                    p = p - damping * corrections_in[particle(base, stride, i + 1)]
+                    p = madd(-damping, corrections_in[particle(base, stride, i + 1)], p)
             rest = rest_lengths[k]
             if wp.static(SHAPE):
                 if i > 1:
@@ -276,7 +277,7 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                 corrections_out[k] = correction
             else:
                 if i > 1:
-                    velocities_out[k_prev] = (leader - leader_old) * inv_dt - (damping * inv_dt) * correction
+                    velocities_out[k_prev] = madd(-(damping * inv_dt), correction, (leader - leader_old) * inv_dt)
             leader = x
             leader_old = x_old
             k_prev = k

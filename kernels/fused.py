@@ -25,8 +25,21 @@ import functools
 
 import warp as wp
 
+from .arith import madd
 from .ftl import CORRECTIONS, STEP_MODULE_OPTIONS, follow_func
 from .layout import particle
+
+
+#: CUDA launch bounds (threads per block, blocks per SM) of the fused kernels, by precision and
+#: capacity, measured on the H200 (docs/benchmarks.md): fewer registers for more resident warps
+#: where that is faster. Others run Warp's default block of 256 threads, unbounded.
+FUSED_LAUNCH_BOUNDS = {(wp.float32, 8): (128, 5), (wp.float32, 16): (128, 3), (wp.float32, 24): (128, 2)}
+
+
+def fused_block_dim(scalar, capacity: int) -> int:
+    """Threads per block to launch the fused kernel of ``scalar`` precision and ``capacity`` with."""
+    bounds = FUSED_LAUNCH_BOUNDS.get((scalar, int(capacity)))
+    return bounds[0] if bounds else 256
 
 
 @functools.cache
@@ -54,9 +67,10 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         next substep's prediction (before its follower's correction is subtracted)."""
         xi = follow(leader, p, rest, leader_old, x_old)
         vi = (xi - x_old) * inv_dt
-        return xi, vi, xi - p, xi + dt * vi + gdt2
+        return xi, vi, xi - p, madd(dt, vi, xi) + gdt2
 
-    @wp.kernel(enable_backward=False, module="unique", module_options=options)
+    @wp.kernel(enable_backward=False, module="unique", module_options=options,
+               launch_bounds=FUSED_LAUNCH_BOUNDS.get((scalar, N)))
     def dftl_fused(
         first_strand: wp.int32,
         strand_base: wp.array(dtype=wp.int32),
@@ -88,12 +102,12 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
             if i < n:
                 k = particle(base, stride, i)
                 x[i] = positions[k]
-                b[i] = x[i] + dt * velocities[k] + gdt2
+                b[i] = madd(dt, velocities[k], x[i]) + gdt2
                 if wp.static(rest_on_chip):
                     rest[i] = rest_lengths[k]
                 if wp.static(prior):
                     if i > 0:
-                        b[i - 1] = b[i - 1] - damping * corrections[k]
+                        b[i - 1] = madd(-damping, corrections[k], b[i - 1])
         r0 = root_start[s]
         r1 = root_end[s]
         # all substeps but the last: registers only, no global memory
@@ -117,14 +131,14 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                         xi, vi, ci, bi = sweep_prior(leader, leader_old, x_old, p, rest_i, dt, inv_dt, gdt2)
                         b[i] = bi
                         if i > 1:
-                            b[i - 1] = b[i - 1] - damping * ci
+                            b[i - 1] = madd(-damping, ci, b[i - 1])
                     else:
                         xi = follow(leader, p, rest_i, leader_old, x_old)
                         if i > 1:
-                            v_leader = (leader - leader_old) * inv_dt - (damping * inv_dt) * (xi - p)
-                            b[i - 1] = leader + dt * v_leader + gdt2
+                            v_leader = madd(-(damping * inv_dt), xi - p, (leader - leader_old) * inv_dt)
+                            b[i - 1] = madd(dt, v_leader, leader) + gdt2
                         if i + 1 == n:
-                            b[i] = xi + dt * ((xi - x_old) * inv_dt) + gdt2
+                            b[i] = madd(dt, (xi - x_old) * inv_dt, xi) + gdt2
                     x[i] = xi
                     leader = xi
                     leader_old = x_old
@@ -157,7 +171,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                 else:
                     xi = follow(leader, p, rest_i, leader_old, x_old)
                     if i > 1:
-                        velocities[k_prev] = (leader - leader_old) * inv_dt - (damping * inv_dt) * (xi - p)
+                        velocities[k_prev] = madd(-(damping * inv_dt), xi - p, (leader - leader_old) * inv_dt)
                     if i + 1 == n:
                         velocities[k] = (xi - x_old) * inv_dt
                 positions[k] = xi

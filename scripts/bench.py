@@ -109,7 +109,10 @@ def step_problem(device):
 
 
 def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "float64"),
-               layouts=("particle-major", "strand-major"), corrections=("prior", "posterior"), steps=10):
+               layouts=("particle-major", "strand-major"), corrections=("prior", "posterior"), steps=10,
+               swapped=True):
+    """One step per launch through ``advance`` (in place, a CUDA graph of ``steps`` launches); for
+    the particle-major layout also with two states swapped between steps (``swapped``)."""
     rows = []
     for precision in precisions:
         for layout in layouts:
@@ -121,16 +124,30 @@ def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "f
                 t = timer(lambda: solver.advance(state, control, DT, steps), repeats=5) / steps  # advance uses a CUDA graph
                 n = strands * count
                 mb = minimal_bytes(precision, correction)
-                rows.append({"precision": precision, "layout": layout, "correction": correction,
-                             "strands": strands, "particles_per_strand": count, "seconds_per_step": t,
-                             "particle_steps_per_s": n / t, "bytes_per_particle": mb,
-                             "bandwidth_Bps": n * mb / t, "of_copy": n * mb / t / copy_bw})
+                row = {"precision": precision, "layout": layout, "correction": correction,
+                       "strands": strands, "particles_per_strand": count, "seconds_per_step": t,
+                       "particle_steps_per_s": n / t, "bytes_per_particle": mb,
+                       "bandwidth_Bps": n * mb / t, "of_copy": n * mb / t / copy_bw}
+                if swapped and layout == "particle-major":
+                    # Newton style: step(state_in, state_out), the two states swapped between steps
+                    other = state.clone()
+
+                    def run():
+                        for k in range(steps):
+                            a, b = (state, other) if k % 2 == 0 else (other, state)
+                            solver.step(a, b, control, DT)
+
+                    ts = timer(graph_of(device, run), repeats=5) / steps
+                    row.update(seconds_per_step_swapped=ts, of_copy_swapped=n * mb / ts / copy_bw)
+                    del other
+                rows.append(row)
                 del model, state, solver
     return rows
 
 
-def bench_block_dim(device, timer, copy_bw, strands, count, block_dims=(64, 128, 256, 512, 1024), steps=10):
-    """The float32 prior step launched with several thread-block sizes (Warp's default: 256)."""
+def bench_block_dim(device, timer, copy_bw, strands, count, block_dims=(64, 128, 256), steps=10):
+    """The float32 prior step launched with several thread-block sizes (Warp's default and the
+    kernel's launch bound: 256)."""
     model, state = uniform_groom(strands, count, device=device)
     solver = dw.DFTLSolver(model, gravity=G, fused=False)
     control = model.control()
@@ -170,8 +187,9 @@ def bench_numpy(strands, count, steps=3):
             "particle_steps_per_s": strands * count / t}
 
 
-def bench_fused(device, timer, strands_times_count, ks=(1, 4, 8, 16, 32)):
-    """Fused substeps against one step per launch, for several strand lengths."""
+def bench_fused(device, timer, strands_times_count, copy_bw, ks=(1, 4, 8, 16, 32)):
+    """Fused substeps against one step per launch, for several strand lengths, and against the
+    per-step floor: the copy bandwidth over the form's minimal bytes per particle."""
     cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 24), ("float32", "prior", 32),
              ("float32", "posterior", 32), ("float64", "prior", 32)]
     rows = []
@@ -198,7 +216,9 @@ def bench_fused(device, timer, strands_times_count, ks=(1, 4, 8, 16, 32)):
             rows.append({"precision": precision, "correction": correction, "strands": strands,
                          "particles_per_strand": count, "substeps_per_launch": k,
                          "particle_substeps_per_s": n / t, "per_step_particle_steps_per_s": n / per_step,
-                         "speedup_vs_per_step": per_step / t, "max_abs_diff_vs_unfused": diff})
+                         "speedup_vs_per_step": per_step / t,
+                         "of_floor": n / t / (copy_bw / minimal_bytes(precision, correction)),
+                         "max_abs_diff_vs_unfused": diff})
         del model, state, start
     return rows
 
@@ -214,7 +234,8 @@ def bench_scaling(device, timer, copy_bw):
             if strands * count > limit:
                 continue
             rows += bench_step(device, timer, copy_bw, strands, count, precisions=("float32",),
-                               layouts=("particle-major",) if cuda else ("strand-major",), corrections=("prior",))
+                               layouts=("particle-major",) if cuda else ("strand-major",), corrections=("prior",),
+                               swapped=False)
     return rows
 
 
@@ -279,11 +300,15 @@ def to_markdown(res):
                   f"**{fmt(c['bandwidth_Bps'], 'B/s')}**", ""]
     if "step" in res:
         lines += ["One step per launch, " + f"{res['step'][0]['strands']} strands x {res['step'][0]['particles_per_strand']} particles:", "",
-                  "| precision | layout | correction | particle-steps/s | minimal B/particle | bandwidth | of copy |",
-                  "|---|---|---|---|---|---|---|"]
+                  "| precision | layout | correction | particle-steps/s | minimal B/particle | bandwidth | of copy | "
+                  "of copy, swapped states |",
+                  "|---|---|---|---|---|---|---|---|"]
         lines += [f"| {r['precision']} | {r['layout']} | {r['correction']} | {fmt(r['particle_steps_per_s'])} | "
-                  f"{r['bytes_per_particle']} | {fmt(r['bandwidth_Bps'], 'B/s')} | {100 * r['of_copy']:.1f}% |"
+                  f"{r['bytes_per_particle']} | {fmt(r['bandwidth_Bps'], 'B/s')} | {100 * r['of_copy']:.1f}% | "
+                  + (f"{100 * r['of_copy_swapped']:.1f}% |" if "of_copy_swapped" in r else "— |")
                   for r in res["step"]]
+        lines += ["", "*of copy*: `advance`, in place (one State, the memory-lean default); *swapped states*: "
+                  "`step(state_in, state_out)` with two States swapped between steps (Newton style, twice the state memory)."]
         lines.append("")
     if "blocks" in res:
         lines += ["float32 prior step by thread-block size:", "", "| block_dim | particle-steps/s | of copy |", "|---|---|---|"]
@@ -297,11 +322,16 @@ def to_markdown(res):
         lines += ["Fused substeps (state on chip), against one step per launch in the same run "
                   f"({res['fused'][0]['strands'] * res['fused'][0]['particles_per_strand'] / 1e6:.0f} M particles); "
                   "the last column is the largest difference of any state value after one 8-substep frame:", "",
-                  "| precision | correction | particles/strand | k | particle-substeps/s | x per-step | max diff vs unfused |",
-                  "|---|---|---|---|---|---|---|"]
+                  "| precision | correction | particles/strand | k | particle-substeps/s | x per-step (measured) | "
+                  "x per-step floor (copy) | max diff vs unfused |",
+                  "|---|---|---|---|---|---|---|---|"]
         lines += [f"| {r['precision']} | {r['correction']} | {r['particles_per_strand']} | {r['substeps_per_launch']} | "
-                  f"{fmt(r['particle_substeps_per_s'])} | {r['speedup_vs_per_step']:.2f} | {r['max_abs_diff_vs_unfused']:.2g} |"
+                  f"{fmt(r['particle_substeps_per_s'])} | {r['speedup_vs_per_step']:.2f} | {r['of_floor']:.2f} | "
+                  f"{r['max_abs_diff_vs_unfused']:.2g} |"
                   for r in res["fused"]]
+        lines += ["", "*x per-step (measured)*: against the per-step kernel at the same strand length in this run; "
+                  "*x per-step floor (copy)*: against the copy bandwidth over the form's minimal bytes per particle "
+                  "(the fastest any one-step-per-launch kernel could go)."]
         lines.append("")
     if "scaling" in res:
         lines += ["Scaling (float32, prior, a frame of 10 substeps per graph launch):", "",
@@ -361,7 +391,7 @@ def main(argv=None):
            "command": "python scripts/bench.py " + " ".join(argv if argv is not None else sys.argv[1:])}
     copy_bw = None
     with wp.ScopedDevice(device):
-        if sections & {"copy", "step", "scaling", "blocks"}:
+        if sections & {"copy", "step", "scaling", "blocks", "fused"}:
             res["copy"] = bench_copy(device, timer)
             copy_bw = res["copy"]["bandwidth_Bps"]
             print(f"copy: {fmt(copy_bw, 'B/s')}", flush=True)
@@ -379,10 +409,11 @@ def main(argv=None):
             res["numpy"] = bench_numpy(*((20000, 32) if device.is_cuda else (strands, count)))
             print(f"numpy: {fmt(res['numpy']['particle_steps_per_s'])} particle-steps/s", flush=True)
         if "fused" in sections:
-            res["fused"] = bench_fused(device, timer, strands * count)
+            res["fused"] = bench_fused(device, timer, strands * count, copy_bw)
             for r in res["fused"]:
                 print(f"fused {r['precision']} {r['correction']} n={r['particles_per_strand']} "
-                      f"k={r['substeps_per_launch']}: x{r['speedup_vs_per_step']:.2f} "
+                      f"k={r['substeps_per_launch']}: x{r['speedup_vs_per_step']:.2f} per-step, "
+                      f"x{r['of_floor']:.2f} floor "
                       f"(diff {r['max_abs_diff_vs_unfused']:.1g})", flush=True)
         if "scaling" in sections:
             res["scaling"] = bench_scaling(device, timer, copy_bw)

@@ -206,3 +206,19 @@ def test_bad_arguments_are_refused():
         dw.DFTLSolver(dw.Model.from_strands(chain(3), [3]), damping=1.5)
     with pytest.raises(ValueError, match="unknown solver"):
         dw.make_solver(dw.Model.from_strands(chain(3), [3]), "rk4")
+
+
+def test_synthetic_groom_states_are_cloned_not_made_at_rest():
+    from dftl_warp.synthetic import uniform_groom
+
+    model, state = uniform_groom(5, 4, layout="particle-major")
+    solver = dw.DFTLSolver(model, gravity=G)
+    with pytest.raises(ValueError, match="State.clone"):
+        solver.state()
+    other = state.clone()
+    assert other.positions.ptr != state.positions.ptr
+    assert np.array_equal(other.positions.numpy(), state.positions.numpy())
+    control = model.control()
+    solver.step(state, other, control, 0.01)  # swapped states over a synthetic groom
+    solver.step(state, state, control, 0.01)
+    assert np.array_equal(other.positions.numpy(), state.positions.numpy())
