@@ -367,9 +367,10 @@ class SplitGroup:
     def num_points(self) -> int:
         return int(self.point_offsets[-1])
 
-    def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """As ``simulate._Group.local_samples``: every part gathers and transforms its points on
-        its device (all launched first), then the host concatenates them in input order."""
+        its device (all launched first), then the host concatenates them in input order (new
+        arrays, so the result is the caller's whatever ``owned`` says)."""
         from .samples import LocalSamples
 
         if self._sample_buffers is None:
@@ -378,5 +379,5 @@ class SplitGroup:
                                     for model, (p0, p1) in zip(self.model.parts, self.point_ranges)]
         for model, state, buffers in zip(self.model.parts, self.state.parts, self._sample_buffers):
             buffers.launch(model, state, to_local, rate)
-        gathered = [buffers.fetch() for buffers in self._sample_buffers]
+        gathered = [buffers.fetch(owned=False) for buffers in self._sample_buffers]
         return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])

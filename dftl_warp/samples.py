@@ -44,8 +44,10 @@ class LocalSamples:
             wp.copy(self.host_points, self.points)
             wp.copy(self.host_velocities, self.velocities)
 
-    def fetch(self) -> tuple[np.ndarray, np.ndarray]:
-        """Wait for :meth:`launch`; (N, 3) float32 points and velocities the caller owns."""
+    def fetch(self, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Wait for :meth:`launch`; (N, 3) float32 points and velocities the caller owns, or
+        (``owned=False``) views of the host buffers, valid until the next :meth:`launch`."""
         wp.synchronize_device(self.device)
-        return (self.host_points.numpy().reshape(-1, 3).copy(),
-                self.host_velocities.numpy().reshape(-1, 3).copy())
+        points = self.host_points.numpy().reshape(-1, 3)
+        velocities = self.host_velocities.numpy().reshape(-1, 3)
+        return (points.copy(), velocities.copy()) if owned else (points, velocities)

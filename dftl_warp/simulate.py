@@ -206,17 +206,17 @@ class _Group:
     def num_points(self) -> int:
         return int(self.point_offsets[-1])
 
-    def local_samples(self, to_local: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Points and velocities (N, 3, float32) in input order and local space, from
         column-vector world-to-local matrices and frame rates per member prim
-        (:class:`~dftl_warp.samples.LocalSamples`)."""
+        (:class:`~dftl_warp.samples.LocalSamples`; ``owned=False``: views valid until the next call)."""
         from .samples import LocalSamples
 
         if self._sample_buffers is None:
             member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
             self._sample_buffers = LocalSamples(self.model, member)
         self._sample_buffers.launch(self.model, self.state, to_local, rate)
-        return self._sample_buffers.fetch()
+        return self._sample_buffers.fetch(owned)
 
 
 class Simulation:
@@ -306,12 +306,14 @@ class Simulation:
                     if self.on_warning is not None:
                         self.on_warning(g.monitor.message)
 
-    def samples(self) -> list[tuple[np.ndarray, np.ndarray]]:
+    def samples(self, owned: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
         prim's local space (stage units, stage units per second), float32 as USD stores them.
 
         The gather into input order and the transforms run on the simulation device
-        (:mod:`dftl_warp.kernels.output`); the host receives one copy per group."""
+        (:mod:`dftl_warp.kernels.output`); the host receives one copy per group. With
+        ``owned=False`` the arrays are views of the host buffers, valid until the next call
+        (no host copy: :func:`run_frames` writes them before it fetches again)."""
         self.check_energy()
         out: list = [None] * len(self.scene.curves)
         for g in self.groups:
@@ -321,7 +323,7 @@ class Simulation:
                 to_local[k] = np.linalg.inv(self._matrix(i, self.frame)).T
                 if self.scene.curves[i].animated and not self._at_rest:
                     rate[k] = self._matrix_rate(i, self.frame).T
-            points, velocities = g.local_samples(to_local, rate)
+            points, velocities = g.local_samples(to_local, rate, owned)
             for k, i in enumerate(g.members):
                 a, b = g.point_offsets[k], g.point_offsets[k + 1]
                 out[i] = (points[a:b], velocities[a:b])
@@ -414,7 +416,7 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
     def fetch():
         nonlocal t_sim
         a = time.perf_counter()
-        samples = sim.samples()
+        samples = sim.samples(owned=False)  # written before the next fetch reuses the buffers
         t_sim += time.perf_counter() - a
         return sim.frame, samples
 

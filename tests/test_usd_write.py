@@ -191,3 +191,22 @@ def test_output_adds_no_validation_errors_to_a_flawed_input(tmp_path):
     simulate_usd(src, tmp_path / "o.usda", end=3)
     after = _errors(tmp_path / "o.usda")
     assert after <= before, after - before
+
+
+def test_written_frames_are_each_frames_own_samples(tmp_path):
+    """run_frames writes straight from the host buffers (no copy); each frame must still be its own."""
+    src = groom_file(tmp_path / "in.usda")
+    out = tmp_path / "out.usdc"
+    simulate_usd(src, out, start=1, end=6)
+    sim = Simulation(read_scene(src), SimulationOptions(start=1, end=6), 1)
+    stage = Usd.Stage.Open(str(out))
+    curves = UsdGeom.BasisCurves(stage.GetPrimAtPath("/World/Hair"))
+    previous = None
+    for frame in range(1, 7):
+        if frame > 1:
+            sim.advance()
+        (points, velocities), = sim.samples()
+        assert np.array_equal(np.array(curves.GetPointsAttr().Get(frame)), points), frame
+        assert np.array_equal(np.array(curves.GetVelocitiesAttr().Get(frame)), velocities), frame
+        assert previous is None or not np.array_equal(previous, points)
+        previous = points
