@@ -192,9 +192,9 @@ class DFTLSolver:
 def fused_pays(longest: int, substeps: int, precision: str) -> bool:
     """Whether fused substeps beat one launch per substep for strands of at most ``longest``
     vertices, from the H200 measurements in docs/benchmarks.md (float32, x the per-step kernel):
-    strands of up to 16 vertices gain from 2 substeps per frame on (x3.5 at 4 for 16 vertices),
-    up to 32 vertices from 4 (x1.9 at 4, x2.9 at 8 for 32 vertices); float64 strands of up to 32
-    vertices from 4 (x1.1 at 4, x1.3 at 8). One substep never gains (x0.66-1.0)."""
+    strands of up to 16 vertices gain from 2 substeps per frame on (x3.6 at 4 for 16 vertices),
+    up to 32 vertices from 4 (x2.6 at 4, x3.9 at 8 for 32 vertices); float64 strands of up to 32
+    vertices from 4 (x1.1 at 4, x1.4 at 8). One substep gains little or loses (x0.64-1.22)."""
     if precision == "float32" and longest <= 16:
         return substeps >= 2
     return longest <= 32 and substeps >= 4

@@ -36,6 +36,12 @@ from .layout import particle
 FUSED_LAUNCH_BOUNDS = {(wp.float32, 8): (128, 5), (wp.float32, 16): (128, 3), (wp.float32, 24): (128, 2)}
 
 
+#: longest capacity whose rest lengths are kept on chip; longer ones re-read them every substep
+#: (L1 hits, but each adds its latency to the sweep: H200, k = 8, keeping them on chip made
+#: 24-vertex strands 1.5x and 32-vertex strands 1.35x faster)
+REST_ON_CHIP_MAX = 32
+
+
 def fused_block_dim(scalar, capacity: int) -> int:
     """Threads per block to launch the fused kernel of ``scalar`` precision and ``capacity`` with."""
     bounds = FUSED_LAUNCH_BOUNDS.get((scalar, int(capacity)))
@@ -57,8 +63,8 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     follow = follow_func(scalar)
     prior = correction == "prior"
     options = {**STEP_MODULE_OPTIONS, "max_unroll": 4 * N + 16}
-    # rest lengths stay on chip for short strands; longer ones re-read them (L1 hits) to save registers
-    rest_on_chip = N <= 16
+    # rest lengths stay on chip up to REST_ON_CHIP_MAX; longer strands re-read them to save registers
+    rest_on_chip = N <= REST_ON_CHIP_MAX
 
     @wp.func
     def sweep_prior(leader: vec3, leader_old: vec3, x_old: vec3, p: vec3, rest: scalar, dt: scalar,

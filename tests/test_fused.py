@@ -67,3 +67,17 @@ def test_fused_is_chosen_only_where_measured_faster():
     assert fused_pays(32, 4, "float32") and not fused_pays(32, 2, "float32")  # x1.9 at 4; 2 not measured
     assert fused_pays(32, 4, "float64") and not fused_pays(32, 1, "float64")
     assert not fused_pays(40, 16, "float32")  # longer strands spill registers: not measured faster
+
+
+def test_fused_equals_unfused_past_the_on_chip_rest_lengths(rng):
+    """Capacities above REST_ON_CHIP_MAX re-read rest lengths every substep: same results."""
+    from dftl_warp.kernels.fused import REST_ON_CHIP_MAX
+
+    n = REST_ON_CHIP_MAX + 5  # capacity REST_ON_CHIP_MAX + 8, not filled
+    steps = rng.normal(size=(n, 3))
+    steps /= np.linalg.norm(steps, axis=1, keepdims=True)
+    pts, counts = np.cumsum(steps * 0.02, axis=0), np.array([n])
+    assert fused_capacity(n) > REST_ON_CHIP_MAX
+    x0, v0 = run(pts, counts, fused=False, precision="float64", correction="prior", layout="strand-major")
+    x1, v1 = run(pts, counts, fused=True, precision="float64", correction="prior", layout="strand-major")
+    assert np.array_equal(x0, x1) and np.array_equal(v0, v1)
