@@ -7,7 +7,8 @@ particle on chip, in per-thread matrices addressed by unrolled constant indices 
 - ``b``: its next prediction, ``x + dt v + dt^2 g`` (prior form: minus ``s`` times its follower's
   correction, subtracted as soon as the follower has been swept).
 
-That is 6 values per particle instead of the 9 (x, v, correction) a step reads, which keeps
+That is 6 values per particle instead of the 9 (x, v, correction) a step reads, plus its rest
+length up to ``REST_ON_CHIP_MAX`` vertices (longer strands re-read it every substep), which keeps
 strands of 32 vertices in registers. Velocities and corrections are written to global memory only
 by the last substep; positions once at the end. Global memory is read and written once per
 launch instead of once per substep.
