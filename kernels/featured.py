@@ -29,8 +29,8 @@ import functools
 
 import warp as wp
 
-from .collide import collide_funcs, transform_type
 from .arith import madd
+from .collide import collide_funcs, transform_type
 from .ftl import STEP_MODULE_OPTIONS, follow_func
 from .grid import grid_sample_func
 from .layout import particle

@@ -35,8 +35,9 @@ CORRECTIONS = ("prior", "posterior")
 STEP_MODULE_OPTIONS = {"fuse_fp": False}
 
 #: CUDA launch bounds (threads per block, blocks per SM) of the bare step kernels, by precision.
-#: Measured on the H200 (docs/benchmarks.md): with the bound the compiler keeps more loads in
-#: flight (float32 prior: 88% of the copy bandwidth instead of 81%; float64: 92% instead of 90%).
+#: Chosen from H200 probe runs (2026-11-21; resulting figures in docs/benchmarks.md): with the
+#: bound the compiler keeps more loads in flight (float32 prior: 88% of the copy bandwidth
+#: instead of 81%; float64: 92% instead of 90%).
 #: Launch these kernels with Warp's default block of 256 threads.
 STEP_LAUNCH_BOUNDS = {wp.float32: (256, 6), wp.float64: (256, 4)}
 

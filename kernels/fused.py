@@ -32,14 +32,14 @@ from .layout import particle
 
 
 #: CUDA launch bounds (threads per block, blocks per SM) of the fused kernels, by precision and
-#: capacity, measured on the H200 (docs/benchmarks.md): fewer registers for more resident warps
-#: where that is faster. Others run Warp's default block of 256 threads, unbounded.
+#: capacity, chosen from H200 probe runs (2026-11-21; resulting figures in docs/benchmarks.md):
+#: fewer registers for more resident warps where that is faster. Others run Warp's default block of 256 threads, unbounded.
 FUSED_LAUNCH_BOUNDS = {(wp.float32, 8): (128, 5), (wp.float32, 16): (128, 3), (wp.float32, 24): (128, 2)}
 
 
 #: longest capacity whose rest lengths are kept on chip; longer ones re-read them every substep
-#: (L1 hits, but each adds its latency to the sweep: H200, k = 8, keeping them on chip made
-#: 24-vertex strands 1.5x and 32-vertex strands 1.35x faster)
+#: (L1 hits, but each adds its latency to the sweep: in an H200 probe run, k = 8, keeping them on
+#: chip made 24-vertex strands 1.5x and 32-vertex strands 1.35x faster)
 REST_ON_CHIP_MAX = 32
 
 

@@ -55,10 +55,10 @@ def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path
 
     # writing alone: the simulated frames themselves, each different, as simulate writes them
     sim = Simulation(scene, opts, first)
-    recorded = [[(p.copy(), v.copy()) for p, v in sim.samples()]]
+    recorded = [sim.samples()]  # arrays the caller owns (Simulation.samples copies them)
     for _ in range(frames - 1):
         sim.advance()
-        recorded.append([(p.copy(), v.copy()) for p, v in sim.samples()])
+        recorded.append(sim.samples())
     out = workdir / "write_only.usdc"
     a = time.perf_counter()
     with UsdWriter.create(out, scene, frames=(first, last)) as writer:
