@@ -8,17 +8,27 @@ velocities are physical). ``solver="ftl"`` is the same sweep without correction 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import warp as wp
 
 from .kernels.diagnostics import strand_diagnostics_kernel
 from .kernels.ftl import CORRECTIONS, step_kernel
 from .kernels.fused import fused_block_dim, fused_step_kernel
+from .kernels.pipelined import CUDA_LANES, pipelined_kernel, pipelined_serial_kernel
 
 SOLVERS = ("dftl", "ftl", "pbd", "reference")
 
-#: longest strand (vertices) the fused-substep kernels keep on chip
+#: longest strand (vertices) the fused-substep kernels keep on chip (posterior form)
 MAX_FUSED_VERTICES = 64
+
+#: longest strand (vertices) the prior form keeps on chip; longer strands take the pipelined
+#: kernel (:mod:`dftl_warp.kernels.pipelined`, any length), measured faster there on the H200
+ON_CHIP_PRIOR_VERTICES = 32
+
+#: threads per block of the pipelined CUDA kernel
+PIPELINED_BLOCK = 128
 
 #: standard gravity, m/s^2, along -Y (the default up axis)
 DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
@@ -58,9 +68,13 @@ class DFTLSolver:
 
             self._features = FeatureStep(model, self._kernel)
         self._graphs: dict = {}
-        fits = model.num_strands == 0 or int(model.layout.strand_count.max()) <= MAX_FUSED_VERTICES
+        # the prior form fuses strands of any length (the pipelined kernel); the posterior form
+        # keeps whole strands on chip
+        fits = (correction == "prior" or model.num_strands == 0
+                or int(model.layout.strand_count.max()) <= MAX_FUSED_VERTICES)
         if fused and not fits:
-            raise ValueError(f"fused substeps need strands of at most {MAX_FUSED_VERTICES} vertices")
+            raise ValueError(f"fused substeps in the posterior form need strands of at most {MAX_FUSED_VERTICES} "
+                             "vertices (the prior form has no limit)")
         # the fused kernels are the bare step; a scene with features steps substep by substep
         if fused and self._features is not None:
             raise ValueError("fused substeps run the bare step only; this model has features "
@@ -70,9 +84,14 @@ class DFTLSolver:
         #: choose per frame with fused_pays (only when the caller left ``fused`` to us)
         self._fused_auto = fused is None
         self._longest = int(model.layout.strand_count.max()) if model.num_strands else 0
-        self._fused_runs = fused_runs(model.layout.strand_count, model.scalar, correction) if self.fused else []
+        # strands kept on chip, by capacity; longer ones (prior form) pipelined, by vertex count
+        on_chip = ON_CHIP_PRIOR_VERTICES if correction == "prior" else MAX_FUSED_VERTICES
+        self._fused_runs = (fused_runs(model.layout.strand_count, model.scalar, correction, longest=on_chip)
+                            if self.fused else [])
         self._fused_block_dims = [fused_block_dim(model.scalar, fused_capacity(model.layout.strand_count[first]))
                                   for _, first, _ in self._fused_runs]
+        self._pipelined_runs = pipelined_runs(model.layout, on_chip) if self.fused else []
+        self._lane_scratch: dict = {}
 
     @property
     def carries_corrections(self) -> bool:
@@ -124,7 +143,9 @@ class DFTLSolver:
         if m.num_strands == 0:
             return
 
-        use_fused = self.fused and (not self._fused_auto or fused_pays(self._longest, substeps, m.precision))
+        use_fused = self.fused and (not self._fused_auto or fused_pays(self._longest, substeps, m.precision, self.correction))
+        if self._pipelined_runs and m.device.is_cuda and substeps not in CUDA_LANES:
+            use_fused = False  # the CUDA pipeline has one lane per substep, a divisor of the warp
 
         def run():
             if use_fused:
@@ -141,7 +162,10 @@ class DFTLSolver:
         graph = self._graphs.get(key)
         if graph is None:
             kernels = self._features.kernels() if self._features is not None else [self._kernel]
-            for kernel in kernels + [run[0] for run in self._fused_runs]:
+            kernels = kernels + [run[0] for run in self._fused_runs]
+            if use_fused and self._pipelined_runs:
+                kernels.append(pipelined_kernel(m.scalar, substeps))
+            for kernel in kernels:
                 kernel.module.load(m.device)  # compile before capturing
             with wp.ScopedCapture(device=m.device) as capture:
                 run()
@@ -162,6 +186,26 @@ class DFTLSolver:
                         state.positions, state.velocities, state.corrections],
                 device=m.device,
             )
+        for run in self._pipelined_runs:
+            head = [run.first, run.strands, run.groups, run.count, run.base, run.strand_step, run.stride,
+                    control.root_start, control.root_end, m.rest_lengths, self.gravity, dt, self.damping]
+            tail = [state.positions, state.velocities, state.corrections]
+            if m.device.is_cuda:
+                wp.launch(pipelined_kernel(m.scalar, substeps), dim=run.groups * substeps, block_dim=PIPELINED_BLOCK,
+                          inputs=head + tail, device=m.device)
+            else:
+                vectors, scalars = self._lanes(run.groups * substeps)
+                wp.launch(pipelined_serial_kernel(m.scalar), dim=run.groups,
+                          inputs=head + [substeps, vectors, scalars] + tail, device=m.device)
+
+    def _lanes(self, rows: int):
+        """Scratch lane states of the serial pipelined kernel (at least ``rows`` lanes)."""
+        m = self.model
+        if self._lane_scratch.get("rows", 0) < rows:
+            self._lane_scratch = {"rows": rows,
+                                  "vectors": wp.empty((rows, 6), dtype=m.vec3, device=m.device),
+                                  "scalars": wp.empty((rows, 2), dtype=m.scalar, device=m.device)}
+        return self._lane_scratch["vectors"], self._lane_scratch["scalars"]
 
     def diagnostics(self, state) -> dict:
         """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s)."""
@@ -189,15 +233,24 @@ class DFTLSolver:
         }
 
 
-def fused_pays(longest: int, substeps: int, precision: str) -> bool:
+def fused_pays(longest: int, substeps: int, precision: str, correction: str = "prior") -> bool:
     """Whether fused substeps beat one launch per substep for strands of at most ``longest``
     vertices, from the H200 measurements in docs/benchmarks.md (float32, x the per-step kernel):
-    strands of up to 16 vertices gain from 2 substeps per frame on (x3.6 at 4 for 16 vertices),
+    strands of up to 16 vertices gain from 2 substeps per frame on (x3.5 at 4 for 16 vertices),
     up to 32 vertices from 4 (x2.6 at 4, x3.9 at 8 for 32 vertices); float64 strands of up to 32
-    vertices from 4 (x1.1 at 4, x1.4 at 8). One substep gains little or loses (x0.64-1.22)."""
+    vertices from 4 (x1.1 at 4, x1.4 at 8). One substep gains little or loses (x0.64-1.22).
+    Longer strands in the prior form take the pipelined kernel, which gains from 2 substeps on
+    (64 and 128 vertices: x1.4-1.5 at 2, x2.6-2.8 at 8; float64 at 64: x1.7 at 2, x2.7 at 8);
+    longer posterior-form strands spill registers and do not gain."""
     if precision == "float32" and longest <= 16:
         return substeps >= 2
-    return longest <= 32 and substeps >= 4
+    if longest <= 32:
+        return substeps >= 4
+    return correction == "prior" and substeps >= PIPELINED_PAYS
+
+
+#: substeps per frame from which the pipelined kernel beats one launch per substep (H200)
+PIPELINED_PAYS = 2
 
 
 def fused_capacity(count: int) -> int:
@@ -206,15 +259,50 @@ def fused_capacity(count: int) -> int:
     return int(max(8, -(-int(count) // 8) * 8))
 
 
-def fused_runs(strand_count, scalar, correction):
+def fused_runs(strand_count, scalar, correction, longest: int = MAX_FUSED_VERTICES):
     """(kernel, first device strand, number of strands) for each run of consecutive device
-    strands that share a fused kernel: its capacity, and whether they fill it exactly."""
-    keys = [(fused_capacity(c), bool(fused_capacity(c) == c)) for c in strand_count]
+    strands that share a fused kernel: its capacity, and whether they fill it exactly. Strands
+    of more than ``longest`` vertices are left out (pipelined, :func:`pipelined_runs`)."""
+    keys = [(fused_capacity(c), bool(fused_capacity(c) == c)) if c <= longest else None for c in strand_count]
     runs, first = [], 0
     for s in range(1, len(keys) + 1):
         if s == len(keys) or keys[s] != keys[first]:
-            runs.append((fused_step_kernel(scalar, correction, *keys[first]), first, s - first))
+            if keys[first] is not None:
+                runs.append((fused_step_kernel(scalar, correction, *keys[first]), first, s - first))
             first = s
+    return runs
+
+
+@dataclass(frozen=True)
+class PipelinedRun:
+    """Strands ``first ... first + strands - 1`` (device order) of ``count`` vertices each, whose
+    particle ``i`` of strand ``first + r`` lives at ``base + r * strand_step + i * stride``,
+    streamed by ``groups`` lane groups (:mod:`dftl_warp.kernels.pipelined`)."""
+
+    first: int
+    strands: int
+    count: int
+    base: int
+    strand_step: int
+    stride: int
+    groups: int
+
+
+def pipelined_runs(layout, longer_than: int) -> list[PipelinedRun]:
+    """The runs of strands of more than ``longer_than`` vertices, one per layout group."""
+    runs = []
+    for count, first, size in layout.groups:
+        if count <= longer_than:
+            continue
+        base = layout.strand_base[first:first + size]
+        step = int(base[1] - base[0]) if size > 1 else 0
+        stride = layout.strand_stride[first:first + size]
+        if not (np.array_equal(base, base[0] + step * np.arange(size)) and (stride == stride[0]).all()):
+            raise ValueError(f"layout {layout.name!r}: strands {first}..{first + size - 1} are not evenly spaced")
+        # streams of a few hundred particles: fill and drain (2 substeps - 1 sweeps) stay small
+        per_group = max(2, 256 // int(count))
+        runs.append(PipelinedRun(first=int(first), strands=int(size), count=int(count), base=int(base[0]),
+                                 strand_step=step, stride=int(stride[0]), groups=-(-int(size) // per_group)))
     return runs
 
 

@@ -41,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import baseline  # noqa: E402
+from dftl_warp.kernels.pipelined import CUDA_LANES  # noqa: E402
 from dftl_warp.kernels.synthetic import copy_kernel  # noqa: E402
 from dftl_warp.synthetic import uniform_groom  # noqa: E402
 
@@ -187,11 +188,13 @@ def bench_numpy(strands, count, steps=3):
             "particle_steps_per_s": strands * count / t}
 
 
-def bench_fused(device, timer, strands_times_count, copy_bw, ks=(1, 4, 8, 16, 32)):
+def bench_fused(device, timer, strands_times_count, copy_bw, ks=(1, 2, 4, 8, 16, 32)):
     """Fused substeps against one step per launch, for several strand lengths, and against the
     per-step floor: the copy bandwidth over the form's minimal bytes per particle."""
     cases = [("float32", "prior", 8), ("float32", "prior", 16), ("float32", "prior", 24), ("float32", "prior", 32),
-             ("float32", "posterior", 32), ("float64", "prior", 32)]
+             ("float32", "posterior", 32), ("float64", "prior", 32),
+             # longer strands: the pipelined kernel (one lane per substep)
+             ("float32", "prior", 64), ("float32", "prior", 128), ("float64", "prior", 64)]
     rows = []
     for precision, correction, count in cases:
         strands = strands_times_count // count
@@ -213,7 +216,13 @@ def bench_fused(device, timer, strands_times_count, copy_bw, ks=(1, 4, 8, 16, 32
         diff = max(float(np.abs(a.numpy().astype(np.float64) - r).max()) for a, r in zip(arrays, ref))
         for k in ks:
             t = timer(lambda: fused.advance(state, control, DT, k)) / k
-            rows.append({"precision": precision, "correction": correction, "strands": strands,
+            if not fused._pipelined_runs:
+                kernel = "on chip"
+            elif wp.get_device(device).is_cuda and k not in CUDA_LANES:
+                kernel = "per step"  # the CUDA pipeline needs one lane per substep
+            else:
+                kernel = "pipelined"
+            rows.append({"kernel": kernel, "precision": precision, "correction": correction, "strands": strands,
                          "particles_per_strand": count, "substeps_per_launch": k,
                          "particle_substeps_per_s": n / t, "per_step_particle_steps_per_s": n / per_step,
                          "speedup_vs_per_step": per_step / t,
@@ -322,10 +331,11 @@ def to_markdown(res):
         lines += ["Fused substeps (state on chip), against one step per launch in the same run "
                   f"({res['fused'][0]['strands'] * res['fused'][0]['particles_per_strand'] / 1e6:.0f} M particles); "
                   "the last column is the largest difference of any state value after one 8-substep frame:", "",
-                  "| precision | correction | particles/strand | k | particle-substeps/s | x per-step (measured) | "
+                  "| kernel | precision | correction | particles/strand | k | particle-substeps/s | x per-step (measured) | "
                   "x per-step floor (copy) | max diff vs unfused |",
-                  "|---|---|---|---|---|---|---|---|"]
-        lines += [f"| {r['precision']} | {r['correction']} | {r['particles_per_strand']} | {r['substeps_per_launch']} | "
+                  "|---|---|---|---|---|---|---|---|---|"]
+        lines += [f"| {r.get('kernel', 'on chip')} | {r['precision']} | {r['correction']} | {r['particles_per_strand']} | "
+                  f"{r['substeps_per_launch']} | "
                   f"{fmt(r['particle_substeps_per_s'])} | {r['speedup_vs_per_step']:.2f} | {r['of_floor']:.2f} | "
                   f"{r['max_abs_diff_vs_unfused']:.2g} |"
                   for r in res["fused"]]

@@ -59,6 +59,13 @@ def headline(res: dict) -> list[str]:
                          f"**{r['particle_substeps_per_s'] / floor:.2f}x** ({r['particle_substeps_per_s'] / 1e9:.0f} G/s; "
                          f"x{r['speedup_vs_per_step']:.2f} the per-step kernel measured; "
                          f"max diff vs unfused: {r['max_abs_diff_vs_unfused']:g}) |")
+    for n in (64, 128):
+        r = fused.get(("float32", "prior", n, 8))
+        if r:
+            lines.append(f"| fused, pipelined (one lane per substep), k = 8, {n} particles/strand, x per-step floor | — | "
+                         f"**{r['particle_substeps_per_s'] / floor:.2f}x** ({r['particle_substeps_per_s'] / 1e9:.0f} G/s; "
+                         f"x{r['speedup_vs_per_step']:.2f} the per-step kernel measured; "
+                         f"max diff vs unfused: {r['max_abs_diff_vs_unfused']:g}) |")
     r64 = fused.get(("float64", "prior", 32, 8))
     r32 = fused.get(("float32", "prior", 32, 8))
     if r64 and r32:
@@ -95,14 +102,21 @@ def main():
         "particles per strand) is not counted and lowers the ratio.",
         "",
         "Where the issue-6 targets stand (H200 runs of 2026-11-21 with the current kernels): the",
-        "float32 prior step moves 87.7-88.7% of the copy bandwidth in place (`advance`, one State) and",
-        "89.2-90.2% with two States swapped between steps (three runs): at the 90% line, not reliably",
+        "float32 prior step moves 87.4-88.7% of the copy bandwidth in place (`advance`, one State) and",
+        "89.1-90.2% with two States swapped between steps (four runs): at the 90% line, not reliably",
         "over it. Fused substeps at k = 8 pass 4x the per-step floor for strands of up to 24",
-        "particles; 32-particle strands reach 3.5x the floor (3.9x the measured per-step kernel): their",
-        "224 on-chip values per thread (position, next prediction, rest length per particle) fill the",
-        "register file, so fewer strands are in flight. The sweep's",
+        "particles; 32-particle strands reach 3.4-3.5x the floor (3.9x the measured per-step kernel):",
+        "their 224 on-chip values per thread (position, next prediction, rest length per particle) fill",
+        "the register file, so fewer strands are in flight. Strands longer than 32 particles take the",
+        "pipelined kernel (`kernels/pipelined.py`): one lane per substep, the substeps a wavefront along",
+        "a stream of strands, handed on by warp shuffles, so no lane holds more than two particles",
+        "whatever the length: 2.3x the floor (2.6-2.8x the measured per-step kernel) at 64 and 128",
+        "particles, where the whole-strand kernels spill. The sweep's",
         "arithmetic is explicit fused multiply-adds and a reciprocal square root (`kernels/arith.py`), the",
-        "same in the fused and per-step kernels, so the two stay bitwise equal (last table column).",
+        "same in the fused, pipelined and per-step kernels, so all stay bitwise equal (last table column;",
+        "on a groom of mixed lengths, 1-159 particles, float32 and float64, k = 2, 3, 8 and 32:",
+        "`python scripts/check_fused_equal.py --device cuda:0`, all equal on the H200, output in",
+        "[bench/h200/check-fused-equal-cuda0.txt](bench/h200/check-fused-equal-cuda0.txt)).",
         "",
         "![throughput against problem size](bench/h200/throughput-cuda0.png)",
         "",

@@ -52,21 +52,24 @@ def test_fused_runs_group_strands_by_capacity():
     assert [fused_capacity(c) for c in counts] == [8, 8, 16, 16, 24, 8]
 
 
-def test_fused_refuses_long_strands():
+def test_fused_refuses_long_strands_only_in_the_posterior_form():
     model = dw.Model.from_strands(np.c_[np.arange(100.0), np.zeros(100), np.zeros(100)], [100])
-    assert not dw.DFTLSolver(model).fused
+    assert not dw.DFTLSolver(model).fused  # the CPU steps substep by substep unless asked
     with pytest.raises(ValueError, match="at most 64"):
-        dw.DFTLSolver(model, fused=True)
+        dw.DFTLSolver(model, correction="posterior", fused=True)
+    assert dw.DFTLSolver(model, fused=True).fused  # prior form: pipelined, any length
 
 
 def test_fused_is_chosen_only_where_measured_faster():
-    from dftl_warp.solver import fused_pays
+    from dftl_warp.solver import PIPELINED_PAYS, fused_pays
 
     assert not fused_pays(8, 1, "float32")  # one substep per frame never gains
     assert fused_pays(16, 2, "float32") and fused_pays(8, 8, "float64")
     assert fused_pays(32, 4, "float32") and not fused_pays(32, 2, "float32")  # x1.9 at 4; 2 not measured
     assert fused_pays(32, 4, "float64") and not fused_pays(32, 1, "float64")
-    assert not fused_pays(40, 16, "float32")  # longer strands spill registers: not measured faster
+    # longer strands: the pipelined kernel (prior form only)
+    assert fused_pays(40, PIPELINED_PAYS, "float32") and not fused_pays(40, PIPELINED_PAYS - 1, "float32")
+    assert fused_pays(128, 8, "float64") and not fused_pays(40, 16, "float32", "posterior")
 
 
 def test_fused_equals_unfused_past_the_on_chip_rest_lengths(rng):
