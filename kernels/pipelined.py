@@ -108,6 +108,17 @@ def pipeline_funcs(scalar):
         return x, b, rest, root_start
 
     @wp.func
+    def load_handed(r: wp.int32, i: wp.int32, k: wp.int32, n: wp.int32, first: wp.int32, stride: wp.int32,
+                    root_start: wp.array(dtype=vec3), root_end: wp.array(dtype=vec3),
+                    rest_lengths: wp.array(dtype=scalar), positions: wp.array(dtype=vec3),
+                    velocities: wp.array(dtype=vec3), corrections: wp.array(dtype=vec3), dt: scalar,
+                    damping: scalar, gdt2: vec3):
+        """Vertex ``i`` of run strand ``r`` at slot ``k`` (:func:`stream_slot`) from global memory,
+        in hand-over form (:func:`as_handed`)."""
+        return as_handed(i, n, positions[k], velocities[k], corrections[k + wp.where(i + 1 < n, stride, 0)],
+                         rest_lengths[k], root_start[first + r], root_end[first + r], dt, damping, gdt2)
+
+    @wp.func
     def sweep_particle(i: wp.int32, j: wp.int32, substeps: wp.int32, x_in: vec3, b_in: vec3, rest: scalar,
                        root_in: vec3, leader: vec3, leader_old: vec3, dt: scalar, inv_dt: scalar, gdt2: vec3):
         """Substep ``j`` of ``substeps`` on particle ``i`` as handed over (:func:`as_handed`; after
@@ -138,7 +149,7 @@ def pipeline_funcs(scalar):
             return madd(-damping, follower_correction, b)
         return b
 
-    return stream_slot, as_handed, sweep_particle, handover
+    return stream_slot, as_handed, load_handed, sweep_particle, handover
 
 
 def _shuffles(scalar):
@@ -165,7 +176,7 @@ def pipelined_kernel(scalar, substeps: int):
     if K not in CUDA_LANES:
         raise ValueError(f"pipelined substeps must be one of {CUDA_LANES}, got {substeps}")
     vec3 = wp.types.vector(3, scalar)
-    stream_slot, as_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
     vec_up, vec_from = _shuffles(scalar)
     group_mask = (1 << K) - 1 if K < 32 else 0xFFFFFFFF
     # the K sweeps of a block stay a loop: unrolled, the compiler hoists the block's independent
@@ -202,9 +213,9 @@ def pipelined_kernel(scalar, substeps: int):
         # the lane's share of the stream, one block of K particles ahead: loads are unconditional
         # (clamped to the stream) so that nothing waits for them before the block's end
         r, vi, k = stream_slot(wp.min(j, stream - 1), n, group, groups, run_base, strand_step, stride)
-        hand_x, hand_b, hand_r, hand_root = as_handed(
-            vi, n, positions[k], velocities[k], corrections[k + wp.where(vi + 1 < n, stride, 0)],
-            rest_lengths[k], root_start[first + r], root_end[first + r], dt, damping, gdt2)
+        hand_x, hand_b, hand_r, hand_root = load_handed(r, vi, k, n, first, stride, root_start, root_end,
+                                                        rest_lengths, positions, velocities, corrections,
+                                                        dt, damping, gdt2)
         # the lane's sweep: stream particle q = t - 2 j, vertex i of the lane's m-th strand. Lanes
         # sweep before and after the stream too (on values nobody uses) rather than branch: only
         # the stores check that q is in the stream
@@ -219,6 +230,7 @@ def pipelined_kernel(scalar, substeps: int):
         send_b = vec3()
         send_r = scalar(0.0)
         for block in range((stream + wp.static(3 * K - 2)) / wp.static(K)):
+            # the next block's loads now, their conversion (load_handed's as_handed) at the block's end
             r, vi, k = stream_slot(wp.min((block + 1) * wp.static(K) + j, stream - 1), n, group, groups,
                                    run_base, strand_step, stride)
             raw_x = positions[k]
@@ -274,7 +286,7 @@ def pipelined_serial_kernel(scalar):
     lanes in turn, last lane first. Launch with ``dim = groups``; ``lane_vectors``
     (``groups * substeps`` x 6) and ``lane_scalars`` (x 2) are scratch."""
     vec3 = wp.types.vector(3, scalar)
-    stream_slot, as_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_pipelined_serial(
@@ -316,9 +328,9 @@ def pipelined_serial_kernel(scalar):
                 if q >= 0 and q < stream:
                     r, i, k = stream_slot(q, n, group, groups, run_base, strand_step, stride)
                     if j == 0:
-                        in_x, in_b, in_r, in_root = as_handed(
-                            i, n, positions[k], velocities[k], corrections[k + wp.where(i + 1 < n, stride, 0)],
-                            rest_lengths[k], root_start[first + r], root_end[first + r], dt, damping, gdt2)
+                        in_x, in_b, in_r, in_root = load_handed(r, i, k, n, first, stride, root_start, root_end,
+                                                                rest_lengths, positions, velocities, corrections,
+                                                                dt, damping, gdt2)
                     else:
                         in_x = lane_vectors[row - 1, 4]
                         in_b = lane_vectors[row - 1, 5]

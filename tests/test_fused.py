@@ -5,32 +5,19 @@ import pytest
 
 import dftl_warp as dw
 from dftl_warp.solver import fused_capacity, fused_runs
+from fused_frames import random_groom, simulate
 
 LENGTHS = [1, 2, 7, 8, 9, 13]  # not multiples of the capacity blocks (8), except one exact fit
 
 
 def groom(rng):
-    pts = []
-    for n in LENGTHS:
-        steps = rng.normal(size=(n, 3))
-        steps /= np.linalg.norm(steps, axis=1, keepdims=True)
-        steps[0] = rng.uniform(-5, 5, size=3)
-        pts.append(np.cumsum(steps * 0.02, axis=0))
-    return np.concatenate(pts), np.array(LENGTHS)
+    return random_groom(rng, LENGTHS)
 
 
 def run(pts, counts, *, fused, precision, correction, layout):
-    model = dw.Model.from_strands(pts, counts, precision=precision, layout=layout)
-    solver = dw.DFTLSolver(model, correction=correction, fused=fused, gravity=(0.0, -9.81, 0.0))
-    state, control = solver.state(), model.control()
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    roots = pts[starts]
-    for frame in range(6):  # roots swing on a circle: they move inside every fused launch
-        a0, a1 = 0.7 * frame, 0.7 * (frame + 1)
-        offset = lambda a: 0.05 * np.array([np.sin(a), 1 - np.cos(a), 0.3 * a])  # noqa: E731
-        control.set_root_targets(roots + offset(a0), roots + offset(a1))
-        solver.advance(state, control, 1 / 240, 5)
-    return model.points_from_device(state.positions), model.points_from_device(state.velocities, relative=False)
+    x, v, _, _ = simulate(pts, counts, fused=fused, precision=precision, correction=correction, layout=layout,
+                          substeps=5, frames=6)
+    return x, v
 
 
 @pytest.mark.parametrize("precision,correction", [("float64", "prior"), ("float64", "posterior"),
@@ -73,7 +60,8 @@ def test_fused_is_chosen_only_where_measured_faster():
 
 
 def test_fused_equals_unfused_past_the_on_chip_rest_lengths(rng):
-    """Capacities above REST_ON_CHIP_MAX re-read rest lengths every substep: same results."""
+    """Capacities above REST_ON_CHIP_MAX re-read rest lengths every substep: same results. Only
+    the posterior form keeps such strands on chip (the prior form pipelines them)."""
     from dftl_warp.kernels.fused import REST_ON_CHIP_MAX
 
     n = REST_ON_CHIP_MAX + 5  # capacity REST_ON_CHIP_MAX + 8, not filled
@@ -81,6 +69,9 @@ def test_fused_equals_unfused_past_the_on_chip_rest_lengths(rng):
     steps /= np.linalg.norm(steps, axis=1, keepdims=True)
     pts, counts = np.cumsum(steps * 0.02, axis=0), np.array([n])
     assert fused_capacity(n) > REST_ON_CHIP_MAX
-    x0, v0 = run(pts, counts, fused=False, precision="float64", correction="prior", layout="strand-major")
-    x1, v1 = run(pts, counts, fused=True, precision="float64", correction="prior", layout="strand-major")
+    x0, v0, _, _ = simulate(pts, counts, fused=False, precision="float64", correction="posterior",
+                            layout="strand-major", substeps=5, frames=6)
+    x1, v1, _, solver = simulate(pts, counts, fused=True, precision="float64", correction="posterior",
+                                 layout="strand-major", substeps=5, frames=6)
+    assert [(first, size) for _, first, size in solver._fused_runs] == [(0, 1)] and not solver._pipelined_runs
     assert np.array_equal(x0, x1) and np.array_equal(v0, v1)

@@ -1,7 +1,8 @@
 """Pipelined substeps (one lane per substep, strands of any length) give the unfused path's results
 exactly. On the CPU the solver runs the serial form of the pipeline (one thread per lane group),
 which shares its per-particle functions and schedule with the CUDA kernel; the CUDA kernel's warp
-shuffles are checked against the unfused path on the GPU by scripts/bench.py (fused section)."""
+shuffles are checked against the unfused path on the GPU by scripts/check_fused_equal.py and
+scripts/bench.py (fused section)."""
 
 import numpy as np
 import pytest
@@ -10,43 +11,22 @@ import warp as wp
 import dftl_warp as dw
 from dftl_warp.kernels.pipelined import pipelined_serial_kernel
 from dftl_warp.solver import ON_CHIP_PRIOR_VERTICES, pipelined_runs
+from fused_frames import random_groom, simulate, swing_roots
 
 # longer than the on-chip limit (33, 37, 100), one run of several strands (40 x 3), mixed with
 # short strands that stay on chip (1, 2, 9)
 LENGTHS = [1, 33, 40, 2, 40, 37, 9, 100, 40]
 
 
-def groom(rng, lengths=LENGTHS):
-    pts = []
-    for n in lengths:
-        steps = rng.normal(size=(n, 3))
-        steps /= np.linalg.norm(steps, axis=1, keepdims=True)
-        steps[0] = rng.uniform(-5, 5, size=3)
-        pts.append(np.cumsum(steps * 0.02, axis=0))
-    return np.concatenate(pts), np.array(lengths)
-
-
 def run(pts, counts, *, fused, precision, layout, substeps, frames=4):
-    model = dw.Model.from_strands(pts, counts, precision=precision, layout=layout)
-    solver = dw.DFTLSolver(model, fused=fused, gravity=(0.0, -9.81, 0.0))
-    state, control = solver.state(), model.control()
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    roots = pts[starts]
-    for frame in range(frames):  # roots swing on a circle: they move inside every launch
-        a0, a1 = 0.7 * frame, 0.7 * (frame + 1)
-        offset = lambda a: 0.05 * np.array([np.sin(a), 1 - np.cos(a), 0.3 * a])  # noqa: E731
-        control.set_root_targets(roots + offset(a0), roots + offset(a1))
-        solver.advance(state, control, 1 / 240, substeps)
-    corrections = state.corrections.numpy()[model.layout.slot_of_point]
-    return (model.points_from_device(state.positions), model.points_from_device(state.velocities, relative=False),
-            corrections, solver)
+    return simulate(pts, counts, fused=fused, precision=precision, layout=layout, substeps=substeps, frames=frames)
 
 
 @pytest.mark.parametrize("precision", ["float64", "float32"])
 @pytest.mark.parametrize("layout", ["strand-major", "particle-major"])
 @pytest.mark.parametrize("substeps", [1, 2, 3, 8])
 def test_pipelined_equals_unfused(precision, layout, substeps, rng):
-    pts, counts = groom(rng)
+    pts, counts = random_groom(rng, LENGTHS)
     x0, v0, c0, _ = run(pts, counts, fused=False, precision=precision, layout=layout, substeps=substeps)
     x1, v1, c1, solver = run(pts, counts, fused=True, precision=precision, layout=layout, substeps=substeps)
     assert solver._pipelined_runs, "the long strands must take the pipelined kernel"
@@ -73,20 +53,17 @@ def test_pipelined_runs_cover_exactly_the_long_strands():
 def test_streams_of_several_strands_per_group(groups, rng):
     """Lane groups that stream several strands one after another (and groups with one strand
     fewer than others) give the unfused result."""
-    pts, counts = groom(rng, [45] * 7)
+    pts, counts = random_groom(rng, [45] * 7)
     ref = run(pts, counts, fused=False, precision="float64", layout="particle-major", substeps=4, frames=2)
     model = dw.Model.from_strands(pts, counts, precision="float64", layout="particle-major")
     solver = dw.DFTLSolver(model, fused=False, gravity=(0.0, -9.81, 0.0))
     state, control = solver.state(), model.control()
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    roots = pts[starts]
+    roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]
     K = 4
     vectors = wp.empty((groups * K, 6), dtype=model.vec3, device="cpu")
     scalars = wp.empty((groups * K, 2), dtype=model.scalar, device="cpu")
     for frame in range(2):
-        a0, a1 = 0.7 * frame, 0.7 * (frame + 1)
-        offset = lambda a: 0.05 * np.array([np.sin(a), 1 - np.cos(a), 0.3 * a])  # noqa: E731
-        control.set_root_targets(roots + offset(a0), roots + offset(a1))
+        swing_roots(control, roots, frame)
         wp.launch(pipelined_serial_kernel(model.scalar), dim=groups, device="cpu",
                   inputs=[0, 7, groups, 45, 0, 1, 7, control.root_start, control.root_end, model.rest_lengths,
                           solver.gravity, 1 / 240, solver.damping, K, vectors, scalars,
