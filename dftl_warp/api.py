@@ -66,7 +66,7 @@ def simulate_strands(
         state = sim.state()
         control = model.control()
         if velocities is not None:
-            state.velocities.assign(model.points_to_device(velocities, relative=False))
+            state.write("velocities", model.points_to_device(velocities, relative=False), layout=model.layout)
 
         def record():
             positions.append(model.points_from_device(state.positions))

@@ -525,7 +525,7 @@ class FeatureStep:
         if self.grid is not None:
             g = self.grid
             wp.launch(grid_reset_kernel(m.scalar), dim=1, device=device, outputs=[g["lower"]])
-            wp.launch(grid_bounds_kernel(m.scalar), dim=m.num_points, device=device,
+            wp.launch(grid_bounds_kernel(m.scalar), dim=m.num_slots, device=device,
                       inputs=[state_in.positions], outputs=[g["lower"]])
 
     def splat(self, state_in) -> None:
@@ -537,7 +537,7 @@ class FeatureStep:
         mf = m.feature_data
         g["density"].zero_()
         g["momentum"].zero_()
-        wp.launch(grid_splat_kernel(m.scalar), dim=m.num_points, device=m.device,
+        wp.launch(grid_splat_kernel(m.scalar), dim=m.num_slots, device=m.device,
                   inputs=[state_in.positions, state_in.velocities, g["lower"], 1.0 / mf.grid_cell, *mf.grid_shape],
                   outputs=[g["density"], g["momentum"]])
 

@@ -17,6 +17,18 @@ Two layouts exist:
     strand is contiguous (stride ``S``), so neighbouring GPU threads touch neighbouring memory.
     Best on CUDA (measured in ``scripts/bench.py``; see ``docs/benchmarks.md``).
 
+A particle-major layout may *interleave* ``F`` state vectors (``interleave=F``: positions,
+velocities and carried corrections, ``F = 3``): the strands of a group are padded to a multiple
+of 32 and every particle row is cut into chunks of 32 strands; a chunk holds ``32 F`` slots, the
+32 positions first, then the 32 velocities, then the 32 corrections. A particle's slot is its
+position's; its field ``f`` lives ``32 f`` slots further (:class:`~dftl_warp.state.State` keeps
+the fields in one buffer and hands out views offset by 32 and 64 slots). Still affine per strand,
+``slot(s, i) = strand_base[s] + i * strand_stride[s]`` with ``strand_stride = F * padded strands``,
+so every kernel is unchanged; a warp's state for one particle row is one contiguous 32 x 36 B
+block instead of three blocks in three arrays, which the H200 streams faster (docs/benchmarks.md).
+Slots past the chunk's 32 positions are holes in every other per-particle array (rest lengths):
+``num_slots`` is ``F x`` the padded point count, not the point count.
+
 Device strands are ordered so that strands of one group are consecutive. The host keeps the
 mapping back to the caller's order (:attr:`Layout.slot_of_point`).
 """
@@ -29,10 +41,25 @@ import numpy as np
 
 LAYOUTS = ("strand-major", "particle-major")
 
+#: strands per interleaved chunk (one warp)
+CHUNK_STRANDS = 32
+
 
 def default_layout(device: str) -> str:
     """The layout measured fastest on ``device`` (``"cpu"`` or ``"cuda:N"``)."""
     return "particle-major" if str(device).startswith("cuda") else "strand-major"
+
+
+#: most elements of one Warp array (its shapes are 32-bit)
+MAX_SLOTS = 2**31 - 1
+
+
+def default_interleave(layout: str, device: str, features: bool = False) -> int:
+    """State vectors to interleave: 3 (positions, velocities, corrections) for a particle-major
+    model on CUDA without features, else 1. Feature kernels that walk every slot (the hair
+    volume grid) need a slot space without holes. Builders fall back to 1 where the interleaved
+    slot space would pass :data:`MAX_SLOTS`."""
+    return 3 if layout == "particle-major" and str(device).startswith("cuda") and not features else 1
 
 
 @dataclass(frozen=True)
@@ -52,16 +79,42 @@ class Layout:
     slot_of_point: np.ndarray | None
     #: (count, first device strand, number of strands) for each group of equal vertex count
     groups: tuple[tuple[int, int, int], ...]
+    #: state vectors interleaved per 32-strand chunk (1: none; particle-major only)
+    interleave: int = 1
+    #: length of every per-particle device array (None: one slot per point)
+    slot_space: int | None = None
+
+    @property
+    def num_points(self) -> int:
+        return int(self.strand_count.sum())
 
     @property
     def num_slots(self) -> int:
-        return int(self.strand_count.sum())
+        """Length of every per-particle device array (the point count unless interleaved)."""
+        return self.num_points if self.slot_space is None else int(self.slot_space)
+
+    @property
+    def chunk_slots(self) -> int:
+        """Slot distance between neighbouring 32-strand chunks of one particle row."""
+        return CHUNK_STRANDS * self.interleave
 
 
-def make_layout(counts: np.ndarray, name: str) -> Layout:
-    """Build the layout ``name`` for strands with vertex ``counts`` (input order)."""
+def interleaved_bases(size: int, interleave: int) -> tuple[np.ndarray, int]:
+    """First slots (relative to the group) of ``size`` strands interleaving ``interleave`` state
+    vectors, and the group's row stride (slots between a strand's consecutive particles)."""
+    a = np.arange(size, dtype=np.int64)
+    padded = -(-size // CHUNK_STRANDS) * CHUNK_STRANDS
+    return (a // CHUNK_STRANDS) * (CHUNK_STRANDS * interleave) + a % CHUNK_STRANDS, interleave * padded
+
+
+def make_layout(counts: np.ndarray, name: str, interleave: int = 1) -> Layout:
+    """Build the layout ``name`` for strands with vertex ``counts`` (input order), interleaving
+    ``interleave`` state vectors per 32-strand chunk (particle-major only)."""
     if name not in LAYOUTS:
         raise ValueError(f"unknown layout {name!r}; choose one of {', '.join(LAYOUTS)}")
+    interleave = int(interleave)
+    if interleave < 1 or (interleave > 1 and name != "particle-major"):
+        raise ValueError(f"layout {name!r} cannot interleave {interleave} state vectors")
     counts = np.asarray(counts, dtype=np.int64)
     num_strands = counts.shape[0]
     point_start = np.zeros(num_strands + 1, dtype=np.int64)
@@ -88,9 +141,13 @@ def make_layout(counts: np.ndarray, name: str) -> Layout:
     else:
         offset = 0
         for count, first, size in groups:
-            base[first : first + size] = offset + np.arange(size)
-            stride[first : first + size] = size
-            offset += count * size
+            if interleave > 1:
+                rel, row = interleaved_bases(size, interleave)
+            else:
+                rel, row = np.arange(size), size
+            base[first : first + size] = offset + rel
+            stride[first : first + size] = row
+            offset += count * row
     # device strand of every input strand
     device_strand = np.empty(num_strands, dtype=np.int64)
     device_strand[order] = np.arange(num_strands)
@@ -104,4 +161,6 @@ def make_layout(counts: np.ndarray, name: str) -> Layout:
         strand_count=sorted_counts,
         slot_of_point=slot_of_point,
         groups=groups,
+        interleave=interleave,
+        slot_space=(offset if interleave > 1 else None) if name == "particle-major" else None,
     )

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .layout import LAYOUTS, Layout, default_layout, make_layout
+from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout
 from .precision import numpy_type, scalar_type, vec3_type
 
 
@@ -67,6 +67,13 @@ class Model:
 
     @property
     def num_points(self) -> int:
+        """Particles (vertices) of the groom."""
+        return self.layout.num_points
+
+    @property
+    def num_slots(self) -> int:
+        """Length of every per-particle device array (more than ``num_points`` when the layout
+        interleaves state vectors: :mod:`dftl_warp.layout`)."""
         return int(self.rest_lengths.shape[0])
 
     @property
@@ -94,6 +101,7 @@ class Model:
         widths=None,
         features=None,
         origin=None,
+        interleave: int | None = None,
     ) -> Model:
         """Model of strands given as concatenated ``points`` (N, 3) and vertex ``counts`` (S,).
 
@@ -102,6 +110,8 @@ class Model:
         ``features``: optional feature objects (:mod:`dftl_warp.features`); ``widths``: hair
         diameter (m), one value or one per point, used as the contact distance of colliders.
         ``origin`` (3,) overrides the world origin (models sharing one give identical results).
+        ``interleave``: state vectors per 32-strand chunk of a particle-major layout (default
+        :func:`~dftl_warp.layout.default_interleave`: 3 on CUDA without features).
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         counts = np.asarray(counts, dtype=np.int64).reshape(-1)
@@ -117,7 +127,12 @@ class Model:
         layout_name = layout or default_layout(str(device))
         if layout_name not in LAYOUTS:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")
-        lay = make_layout(counts, layout_name)
+        default = interleave is None
+        if default:
+            interleave = default_interleave(layout_name, str(device), bool(features))
+        lay = make_layout(counts, layout_name, interleave)
+        if default and interleave > 1 and lay.num_slots + 32 * (interleave - 1) > MAX_SLOTS:
+            lay = make_layout(counts, layout_name, 1)
         origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         local = points - origin
 
@@ -167,7 +182,7 @@ class Model:
 
         ``relative=False`` is for vectors (velocities), which the origin does not shift."""
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        out = np.zeros((self.num_points, 3), dtype=numpy_type(self.precision))
+        out = np.zeros((self.num_slots, 3), dtype=numpy_type(self.precision))
         out[self.layout.slot_of_point] = points - self.origin if relative else points
         return out
 

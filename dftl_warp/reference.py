@@ -60,7 +60,7 @@ class ReferenceSolver:
         self.max_iterations = int(max_iterations)
         self.accept = float(accept)
         self._kernel = rattle_kernel(model.scalar)
-        n, dev = model.num_points, model.device
+        n, dev = model.num_slots, model.device
         self._vectors = [wp.zeros(n, dtype=wp.vec3d, device=dev) for _ in range(3)]
         self._scalars = [wp.zeros(n, dtype=wp.float64, device=dev) for _ in range(3)]
         self._residual = wp.zeros(model.num_strands, dtype=wp.float64, device=dev)

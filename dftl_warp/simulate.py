@@ -364,6 +364,9 @@ class Simulation:
         """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
         state = {"frame": np.array(self.frame)}
         for k, g in enumerate(self.groups):
+            if getattr(g.state, "storage", None) is not None:  # interleaved: the fields share one buffer
+                state[f"group{k}.storage"] = g.state.storage.numpy()
+                continue
             state[f"group{k}.positions"] = g.state.positions.numpy()
             state[f"group{k}.velocities"] = g.state.velocities.numpy()
             if g.state.corrections is not None:
@@ -375,6 +378,13 @@ class Simulation:
         import warp as wp
 
         for k, g in enumerate(self.groups):
+            storage = getattr(g.state, "storage", None)
+            if storage is not None:
+                key = f"group{k}.storage"
+                if key not in state or np.asarray(state[key]).shape[0] != storage.shape[0]:
+                    raise ValueError(f"saved state has no {key} of {storage.shape[0]} slots")
+                storage.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
+                continue
             for name in ("positions", "velocities", "corrections"):
                 target = getattr(g.state, name)
                 key = f"group{k}.{name}"

@@ -187,7 +187,7 @@ class DFTLSolver:
                 device=m.device,
             )
         for run in self._pipelined_runs:
-            head = [run.first, run.strands, run.groups, run.count, run.base, run.strand_step, run.stride,
+            head = [run.first, run.strands, run.groups, run.count, run.base, run.strand_step, run.chunk, run.stride,
                     control.root_start, control.root_end, m.rest_lengths, self.gravity, dt, self.damping]
             tail = [state.positions, state.velocities, state.corrections]
             if m.device.is_cuda:
@@ -276,8 +276,9 @@ def fused_runs(strand_count, scalar, correction, longest: int = MAX_FUSED_VERTIC
 @dataclass(frozen=True)
 class PipelinedRun:
     """Strands ``first ... first + strands - 1`` (device order) of ``count`` vertices each, whose
-    particle ``i`` of strand ``first + r`` lives at ``base + r * strand_step + i * stride``,
-    streamed by ``groups`` lane groups (:mod:`dftl_warp.kernels.pipelined`)."""
+    particle ``i`` of strand ``first + r`` lives at
+    ``base + ((r // 32) * chunk + r % 32) * strand_step + i * stride``, streamed by ``groups`` lane
+    groups (:mod:`dftl_warp.kernels.pipelined`). ``chunk`` is 32 unless the layout interleaves."""
 
     first: int
     strands: int
@@ -286,6 +287,7 @@ class PipelinedRun:
     strand_step: int
     stride: int
     groups: int
+    chunk: int = 32
 
 
 def pipelined_runs(layout, longer_than: int) -> list[PipelinedRun]:
@@ -297,12 +299,15 @@ def pipelined_runs(layout, longer_than: int) -> list[PipelinedRun]:
         base = layout.strand_base[first:first + size]
         step = int(base[1] - base[0]) if size > 1 else 0
         stride = layout.strand_stride[first:first + size]
-        if not (np.array_equal(base, base[0] + step * np.arange(size)) and (stride == stride[0]).all()):
+        chunk = layout.chunk_slots
+        r = np.arange(size)
+        if not (np.array_equal(base, base[0] + step * ((r // 32) * chunk + r % 32)) and (stride == stride[0]).all()):
             raise ValueError(f"layout {layout.name!r}: strands {first}..{first + size - 1} are not evenly spaced")
         # streams of a few hundred particles: fill and drain (2 substeps - 1 sweeps) stay small
         per_group = max(2, 256 // int(count))
         runs.append(PipelinedRun(first=int(first), strands=int(size), count=int(count), base=int(base[0]),
-                                 strand_step=step, stride=int(stride[0]), groups=-(-int(size) // per_group)))
+                                 strand_step=step, stride=int(stride[0]), groups=-(-int(size) // per_group),
+                                 chunk=chunk))
     return runs
 
 

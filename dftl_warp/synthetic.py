@@ -11,31 +11,49 @@ import numpy as np
 import warp as wp
 
 from .kernels.synthetic import straight_strands_kernel
-from .layout import Layout, default_layout
+from .layout import MAX_SLOTS, Layout, default_interleave, default_layout, interleaved_bases
 from .model import Model
 from .precision import scalar_type, vec3_type
-from .state import State
+from .state import State, interleaved_length
 
 
 def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="float32", layout=None,
-                  spacing: float = 0.005, with_corrections: bool = True):
-    """(Model, State) of ``num_strands`` straight strands of ``count`` vertices, ``spacing`` m apart."""
+                  spacing: float = 0.005, with_corrections: bool = True, interleave: int | None = None):
+    """(Model, State) of ``num_strands`` straight strands of ``count`` vertices, ``spacing`` m apart.
+
+    ``interleave``: state vectors per 32-strand chunk of a particle-major layout (default
+    :func:`~dftl_warp.layout.default_interleave`)."""
     device = wp.get_device(device)
     name = layout or default_layout(str(device))
     S = int(num_strands)
     strands = np.arange(S, dtype=np.int64)
+    if interleave is None:
+        interleave = default_interleave(name, str(device))
+        padded = -(-S // 32) * 32
+        if interleave > 1 and int(count) * interleave * padded + 32 * (interleave - 1) > MAX_SLOTS:
+            interleave = 1  # past Warp's 32-bit array shapes: the plain layout holds 3x more
+    interleave = int(interleave)
+    slot_space = None
     if name == "strand-major":
         base, stride = strands * count, np.ones(S, dtype=np.int64)
+    elif interleave > 1:
+        base, row = interleaved_bases(S, interleave)
+        stride = np.full(S, row, dtype=np.int64)
+        slot_space = int(count) * row
     else:
         base, stride = strands, np.full(S, S, dtype=np.int64)
     lay = Layout(name=name, strand_order=strands, strand_base=base, strand_stride=stride,
                  strand_count=np.full(S, count, dtype=np.int64), slot_of_point=None,
-                 groups=((int(count), 0, S),))
+                 groups=((int(count), 0, S),), interleave=interleave, slot_space=slot_space)
     scalar, vec3 = scalar_type(precision), vec3_type(precision)
     i32 = lambda a: wp.array(a.astype(np.int32), dtype=wp.int32, device=device)  # noqa: E731
-    n = S * int(count)
-    rest = wp.empty(n, dtype=scalar, device=device)
-    positions = wp.empty(n, dtype=vec3, device=device)
+    n = lay.num_slots
+    rest = wp.zeros(n, dtype=scalar, device=device) if interleave > 1 else wp.empty(n, dtype=scalar, device=device)
+    if interleave > 1:
+        state = State.interleaved(wp.zeros(interleaved_length(lay), dtype=vec3, device=device), lay, with_corrections)
+        positions = state.positions
+    else:
+        positions = wp.empty(n, dtype=vec3, device=device)
     roots = wp.empty(S, dtype=vec3, device=device)
     model = Model(device=device, precision=precision, layout=lay, counts=lay.strand_count, origin=np.zeros(3),
                   strand_base=i32(base), strand_stride=i32(stride), strand_count=i32(lay.strand_count),
@@ -43,6 +61,7 @@ def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="floa
     wp.launch(straight_strands_kernel(scalar), dim=S, device=device,
               inputs=[model.strand_base, model.strand_stride, model.strand_count, spacing],
               outputs=[positions, rest, roots])
-    state = State(positions=positions, velocities=wp.zeros(n, dtype=vec3, device=device),
-                  corrections=wp.zeros(n, dtype=vec3, device=device) if with_corrections else None)
+    if interleave == 1:
+        state = State(positions=positions, velocities=wp.zeros(n, dtype=vec3, device=device),
+                      corrections=wp.zeros(n, dtype=vec3, device=device) if with_corrections else None)
     return model, state

@@ -81,19 +81,25 @@ def pipeline_funcs(scalar):
     """The per-particle functions both kernels share, for ``scalar`` precision.
 
     A run's strands are ``first + r`` for ``r`` in ``[0, strands)``; strand ``r``'s particle ``i``
-    lives at ``particle(run_base + r * strand_step, stride, i)`` (both layouts are affine within a
-    run of equal vertex counts; the host checks it)."""
+    lives at ``particle(run_strand_base(run_base, r, strand_step, chunk), stride, i)``: runs of
+    equal vertex counts are affine in ``r`` within chunks of 32 strands, ``chunk`` strand steps
+    apart (32 unless the layout interleaves state vectors; the host checks it)."""
     vec3 = wp.types.vector(3, scalar)
     follow = follow_func(scalar)
 
     @wp.func
+    def run_strand_base(run_base: wp.int32, r: wp.int32, strand_step: wp.int32, chunk: wp.int32):
+        """First slot of run strand ``r``."""
+        return run_base + ((r >> 5) * chunk + (r & 31)) * strand_step
+
+    @wp.func
     def stream_slot(q: wp.int32, n: wp.int32, group: wp.int32, groups: wp.int32, run_base: wp.int32,
-                    strand_step: wp.int32, stride: wp.int32):
+                    strand_step: wp.int32, chunk: wp.int32, stride: wp.int32):
         """Run strand, vertex index and slot of stream particle ``q`` of ``group``."""
         m = q / n
         i = q - m * n
         r = group + m * groups
-        return r, i, particle(run_base + r * strand_step, stride, i)
+        return r, i, particle(run_strand_base(run_base, r, strand_step, chunk), stride, i)
 
     @wp.func
     def as_handed(i: wp.int32, n: wp.int32, x: vec3, v: vec3, follower_correction: vec3, rest: scalar,
@@ -149,7 +155,7 @@ def pipeline_funcs(scalar):
             return madd(-damping, follower_correction, b)
         return b
 
-    return stream_slot, as_handed, load_handed, sweep_particle, handover
+    return run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover
 
 
 def _shuffles(scalar):
@@ -176,7 +182,7 @@ def pipelined_kernel(scalar, substeps: int):
     if K not in CUDA_LANES:
         raise ValueError(f"pipelined substeps must be one of {CUDA_LANES}, got {substeps}")
     vec3 = wp.types.vector(3, scalar)
-    stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
     vec_up, vec_from = _shuffles(scalar)
     group_mask = (1 << K) - 1 if K < 32 else 0xFFFFFFFF
     # the K sweeps of a block stay a loop: unrolled, the compiler hoists the block's independent
@@ -191,6 +197,7 @@ def pipelined_kernel(scalar, substeps: int):
         n: wp.int32,
         run_base: wp.int32,
         strand_step: wp.int32,
+        chunk: wp.int32,
         stride: wp.int32,
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
@@ -212,7 +219,7 @@ def pipelined_kernel(scalar, substeps: int):
         stream = ((strands - group + groups - 1) / groups) * n
         # the lane's share of the stream, one block of K particles ahead: loads are unconditional
         # (clamped to the stream) so that nothing waits for them before the block's end
-        r, vi, k = stream_slot(wp.min(j, stream - 1), n, group, groups, run_base, strand_step, stride)
+        r, vi, k = stream_slot(wp.min(j, stream - 1), n, group, groups, run_base, strand_step, chunk, stride)
         hand_x, hand_b, hand_r, hand_root = load_handed(r, vi, k, n, first, stride, root_start, root_end,
                                                         rest_lengths, positions, velocities, corrections,
                                                         dt, damping, gdt2)
@@ -232,7 +239,7 @@ def pipelined_kernel(scalar, substeps: int):
         for block in range((stream + wp.static(3 * K - 2)) / wp.static(K)):
             # the next block's loads now, their conversion (load_handed's as_handed) at the block's end
             r, vi, k = stream_slot(wp.min((block + 1) * wp.static(K) + j, stream - 1), n, group, groups,
-                                   run_base, strand_step, stride)
+                                   run_base, strand_step, chunk, stride)
             raw_x = positions[k]
             raw_v = velocities[k]
             raw_c = corrections[k + wp.where(vi + 1 < n, stride, 0)]
@@ -256,7 +263,7 @@ def pipelined_kernel(scalar, substeps: int):
                 x, v, c, x_old, hx, hb = sweep_particle(i, j, wp.static(K), in_x, in_b, in_r, in_root, leader,
                                                         leader_old, dt, inv_dt, gdt2)
                 if last and q >= 0 and q < stream:
-                    kq = particle(run_base + (group + m * groups) * strand_step, stride, i)
+                    kq = particle(run_strand_base(run_base, group + m * groups, strand_step, chunk), stride, i)
                     positions[kq] = x
                     velocities[kq] = v
                     corrections[kq] = c
@@ -286,7 +293,7 @@ def pipelined_serial_kernel(scalar):
     lanes in turn, last lane first. Launch with ``dim = groups``; ``lane_vectors``
     (``groups * substeps`` x 6) and ``lane_scalars`` (x 2) are scratch."""
     vec3 = wp.types.vector(3, scalar)
-    stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_pipelined_serial(
@@ -296,6 +303,7 @@ def pipelined_serial_kernel(scalar):
         n: wp.int32,
         run_base: wp.int32,
         strand_step: wp.int32,
+        chunk: wp.int32,
         stride: wp.int32,
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
@@ -326,7 +334,7 @@ def pipelined_serial_kernel(scalar):
                 row = group * substeps + j
                 q = t - 2 * j
                 if q >= 0 and q < stream:
-                    r, i, k = stream_slot(q, n, group, groups, run_base, strand_step, stride)
+                    r, i, k = stream_slot(q, n, group, groups, run_base, strand_step, chunk, stride)
                     if j == 0:
                         in_x, in_b, in_r, in_root = load_handed(r, i, k, n, first, stride, root_start, root_end,
                                                                 rest_lengths, positions, velocities, corrections,

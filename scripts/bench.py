@@ -109,8 +109,15 @@ def step_problem(device):
     return (1 << 20, 32) if wp.get_device(device).is_cuda else (20000, 32)
 
 
+#: layouts the step section compares: name -> uniform_groom options (``interleaved``: the CUDA
+#: default, particle-major with the state vectors interleaved per 32-strand chunk)
+STEP_LAYOUTS = {"interleaved": dict(layout="particle-major", interleave=3),
+                "particle-major": dict(layout="particle-major", interleave=1),
+                "strand-major": dict(layout="strand-major", interleave=1)}
+
+
 def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "float64"),
-               layouts=("particle-major", "strand-major"), corrections=("prior", "posterior"), steps=10,
+               layouts=("interleaved", "particle-major", "strand-major"), corrections=("prior", "posterior"), steps=10,
                swapped=True):
     """One step per launch through ``advance`` (in place, a CUDA graph of ``steps`` launches); for
     the particle-major layout also with two states swapped between steps (``swapped``)."""
@@ -118,8 +125,8 @@ def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "f
     for precision in precisions:
         for layout in layouts:
             for correction in corrections:
-                model, state = uniform_groom(strands, count, device=device, precision=precision, layout=layout,
-                                             with_corrections=correction == "prior")
+                model, state = uniform_groom(strands, count, device=device, precision=precision,
+                                             with_corrections=correction == "prior", **STEP_LAYOUTS[layout])
                 solver = dw.DFTLSolver(model, correction=correction, gravity=G, fused=False)
                 control = model.control()
                 t = timer(lambda: solver.advance(state, control, DT, steps), repeats=5) / steps  # advance uses a CUDA graph
@@ -129,7 +136,7 @@ def bench_step(device, timer, copy_bw, strands, count, precisions=("float32", "f
                        "strands": strands, "particles_per_strand": count, "seconds_per_step": t,
                        "particle_steps_per_s": n / t, "bytes_per_particle": mb,
                        "bandwidth_Bps": n * mb / t, "of_copy": n * mb / t / copy_bw}
-                if swapped and layout == "particle-major":
+                if swapped and layout != "strand-major":
                     # Newton style: step(state_in, state_out), the two states swapped between steps
                     other = state.clone()
 
@@ -243,7 +250,7 @@ def bench_scaling(device, timer, copy_bw):
             if strands * count > limit:
                 continue
             rows += bench_step(device, timer, copy_bw, strands, count, precisions=("float32",),
-                               layouts=("particle-major",) if cuda else ("strand-major",), corrections=("prior",),
+                               layouts=("interleaved",) if cuda else ("strand-major",), corrections=("prior",),
                                swapped=False)
     return rows
 
@@ -253,15 +260,22 @@ def bench_memory(device):
     out = {}
     for precision in ("float32", "float64"):
         for correction in ("prior", "posterior"):
-            model, state = uniform_groom(1000, 32, device=device, precision=precision,
-                                         with_corrections=correction == "prior")
-            arrays = [model.rest_lengths, state.positions, state.velocities, state.corrections]
-            per_particle = sum(a.capacity for a in arrays if a is not None) / model.num_points
-            per_strand = sum(a.capacity for a in (model.strand_base, model.strand_stride, model.strand_count,
-                                                   model.root_rest)) / model.num_strands + 2 * 3 * (4 if precision == "float32" else 8)
-            out[f"{precision}/{correction}"] = {"bytes_per_particle": per_particle, "bytes_per_strand": per_strand}
+            for layout in ("interleaved", "particle-major") if device.is_cuda else ("strand-major",):
+                model, state = uniform_groom(1024, 32, device=device, precision=precision,
+                                             with_corrections=correction == "prior", **STEP_LAYOUTS[layout])
+                fields = [state.storage] if state.storage is not None else [state.positions, state.velocities,
+                                                                            state.corrections]
+                arrays = [model.rest_lengths] + fields
+                per_particle = sum(a.capacity for a in arrays if a is not None) / model.num_points
+                per_strand = sum(a.capacity for a in (model.strand_base, model.strand_stride, model.strand_count,
+                                                       model.root_rest)) / model.num_strands + 2 * 3 * (4 if precision == "float32" else 8)
+                key = f"{precision}/{correction}" + ("" if layout == "interleaved" or not device.is_cuda else " (plain)")
+                out[key] = {"bytes_per_particle": per_particle, "bytes_per_strand": per_strand, "layout": layout}
     if device.is_cuda:
-        out["largest"] = [largest_groom(device, precision, out[f"{precision}/prior"]) for precision in ("float32", "float64")]
+        # the largest grooms take the plain layout: the interleaved one needs 3 slots per particle, past
+        # 2^31 elements per array sooner (uniform_groom falls back to it by itself)
+        out["largest"] = [largest_groom(device, precision, out[f"{precision}/prior (plain)"])
+                          for precision in ("float32", "float64")]
     return out
 
 
@@ -272,7 +286,7 @@ def largest_groom(device, precision, per, count=32):
     by_memory = int(0.97 * free / (per["bytes_per_particle"] * count + per["bytes_per_strand"]))
     by_index = (2**31 - 1) // count
     strands = min(by_memory, by_index)
-    model, state = uniform_groom(strands, count, device=device, precision=precision)
+    model, state = uniform_groom(strands, count, device=device, precision=precision, interleave=1)
     solver = dw.DFTLSolver(model, gravity=G, fused=False)
     solver.advance(state, model.control(), DT, 1)
     wp.synchronize_device(device)
@@ -354,6 +368,11 @@ def to_markdown(res):
                   "| precision/correction | B/particle | B/strand |", "|---|---|---|"]
         lines += [f"| {k} | {v['bytes_per_particle']:.0f} | {v['bytes_per_strand']:.0f} |"
                   for k, v in res["memory"].items() if k != "largest"]
+        if any(k.endswith("(plain)") for k in res["memory"]):
+            lines += ["", "Without *(plain)*: the CUDA default layout, state vectors interleaved per 32-strand "
+                      "chunk (one buffer of 3 vectors per slot, and every per-particle model array spans the 3 slots: "
+                      "the rest lengths' unused slots cost 2 x 4 B per particle in float32). *(plain)*: "
+                      "`Model.from_strands(..., interleave=1)`, the layout of the largest grooms below."]
         for big in res["memory"].get("largest", []):
             lines += ["", f"Largest groom allocated and stepped ({big['precision']}, prior): **{big['strands']:,} strands x "
                       f"{big['particles_per_strand']} = {big['particles'] / 1e9:.2f} G particles**, limited by "
@@ -407,7 +426,8 @@ def main(argv=None):
             print(f"copy: {fmt(copy_bw, 'B/s')}", flush=True)
         strands, count = step_problem(device)
         if "step" in sections:
-            res["step"] = bench_step(device, timer, copy_bw, strands, count)
+            res["step"] = bench_step(device, timer, copy_bw, strands, count,
+                                     layouts=tuple(STEP_LAYOUTS) if wp.get_device(device).is_cuda else ("strand-major", "particle-major"))
             for r in res["step"]:
                 print(f"step {r['precision']} {r['layout']} {r['correction']}: {fmt(r['particle_steps_per_s'])} "
                       f"particle-steps/s, {100 * r['of_copy']:.1f}% of copy", flush=True)

@@ -176,7 +176,7 @@ def collision_guarantees(device="cpu", precision="float32"):
         state, control = solver.state(), model.control()
         v = np.zeros_like(pts)
         v[1:, 1] = -10.0
-        state.velocities.assign(model.points_to_device(v, relative=False))
+        state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
         lowest, stretch = np.inf, 0.0
         for _ in range(FPS):
             solver.step(state, state, control, 1 / FPS)

@@ -25,7 +25,10 @@ def swing_roots(control, roots, frame):
 def simulate(pts, counts, *, fused, precision, layout, substeps, frames, correction="prior"):
     """``frames`` frames of ``substeps`` substeps: positions, velocities and corrections (None in
     the posterior form) in input order, and the solver."""
-    model = dw.Model.from_strands(pts, counts, precision=precision, layout=layout)
+    # "interleaved": particle-major with positions, velocities and corrections interleaved per
+    # 32-strand chunk (the CUDA default, built here on the CPU)
+    name, interleave = ("particle-major", 3) if layout == "interleaved" else (layout, None)
+    model = dw.Model.from_strands(pts, counts, precision=precision, layout=name, interleave=interleave)
     solver = dw.DFTLSolver(model, correction=correction, fused=fused, gravity=(0.0, -9.81, 0.0))
     state, control = solver.state(), model.control()
     roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]

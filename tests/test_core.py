@@ -144,6 +144,56 @@ def test_particle_major_layout_is_coalesced():
     assert sorted(slots) == list(range(8))
 
 
+def test_interleaved_layout_gives_each_field_its_own_slots():
+    counts = np.array([3, 2, 3] + [4] * 40)
+    lay = make_layout(counts, "particle-major", interleave=3)
+    assert lay.interleave == 3 and lay.chunk_slots == 96
+    slots = lay.slot_of_point
+    fields = np.concatenate([slots + 32 * f for f in range(3)])
+    assert np.unique(fields).size == fields.size  # no two fields of any particles share a slot
+    assert fields.max() < lay.num_slots + 64 and lay.num_slots % 96 == 0
+    # particle i of neighbouring strands of one group sit side by side, each field 32 slots on
+    s = lay.strand_base
+    first = lay.groups[-1][1]
+    assert s[first + 1] == s[first] + 1 and s[first + 32] == s[first] + 96
+    with pytest.raises(ValueError, match="cannot interleave"):
+        make_layout(counts, "strand-major", interleave=3)
+
+
+@pytest.mark.parametrize("correction", ["prior", "posterior"])
+def test_interleaved_states_are_views_of_one_buffer(correction, rng):
+    pts, counts = random_groom(rng, [5, 7, 5, 2])
+    model = dw.Model.from_strands(pts, counts, precision="float64", layout="particle-major", interleave=3)
+    solver = dw.DFTLSolver(model, gravity=G, correction=correction)
+    state, control = solver.state(), model.control()
+    assert state.storage is not None and state.positions.shape[0] == model.num_slots
+    assert model.num_points == counts.sum() < model.num_slots
+    assert np.array_equal(model.points_from_device(state.positions), pts)
+    v = rng.normal(size=pts.shape)
+    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
+    assert np.array_equal(model.points_from_device(state.positions), pts)  # untouched by the write
+    assert np.array_equal(model.points_from_device(state.velocities, relative=False), v)
+    copy = state.clone()
+    solver.advance(state, control, 1 / 240, 3)
+    other = solver.state()
+    other.assign(state)
+    for name in ("positions", "velocities"):
+        assert np.array_equal(getattr(other, name).numpy(), getattr(state, name).numpy())
+    assert np.array_equal(model.points_from_device(copy.velocities, relative=False), v)  # the clone is its own
+    # same motion as the plain particle-major layout
+    plain = dw.Model.from_strands(pts, counts, precision="float64", layout="particle-major", interleave=1)
+    psolver = dw.DFTLSolver(plain, gravity=G, correction=correction)
+    pstate = psolver.state()
+    pstate.write("velocities", plain.points_to_device(v, relative=False), layout=plain.layout)
+    psolver.advance(pstate, plain.control(), 1 / 240, 3)
+    assert np.array_equal(plain.points_from_device(pstate.positions), model.points_from_device(state.positions))
+    assert np.array_equal(plain.points_from_device(pstate.velocities), model.points_from_device(state.velocities))
+    if correction == "prior":
+        state.write("corrections", None, zero=True)
+        assert not state.corrections.numpy()[model.layout.slot_of_point].any()
+        assert np.array_equal(plain.points_from_device(pstate.positions), model.points_from_device(state.positions))
+
+
 def test_ftl_solver_is_dftl_without_damping(rng):
     pts, counts = random_groom(rng, [6, 4])
     ftl = dw.simulate_strands(pts, counts, steps=50, dt=1 / 60, gravity=G, solver="ftl", precision="float64")

@@ -144,7 +144,7 @@ def test_fast_strand_does_not_tunnel_through_a_thin_mesh():
     state, control = solver.state(), model.control()
     v = np.zeros_like(pts)
     v[1:, 1] = -10.0
-    state.velocities.assign(model.points_to_device(v, relative=False))
+    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
     lowest = np.inf
     for _ in range(FPS):
         solver.step(state, state, control, 1.0 / FPS)

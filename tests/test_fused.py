@@ -22,7 +22,7 @@ def run(pts, counts, *, fused, precision, correction, layout):
 
 @pytest.mark.parametrize("precision,correction", [("float64", "prior"), ("float64", "posterior"),
                                                   ("float32", "prior")])
-@pytest.mark.parametrize("layout", ["strand-major", "particle-major"])
+@pytest.mark.parametrize("layout", ["strand-major", "particle-major", "interleaved"])
 def test_fused_equals_unfused(precision, correction, layout, rng):
     pts, counts = groom(rng)
     x0, v0 = run(pts, counts, fused=False, precision=precision, correction=correction, layout=layout)

@@ -23,7 +23,7 @@ def run(pts, counts, *, fused, precision, layout, substeps, frames=4):
 
 
 @pytest.mark.parametrize("precision", ["float64", "float32"])
-@pytest.mark.parametrize("layout", ["strand-major", "particle-major"])
+@pytest.mark.parametrize("layout", ["strand-major", "particle-major", "interleaved"])
 @pytest.mark.parametrize("substeps", [1, 2, 3, 8])
 def test_pipelined_equals_unfused(precision, layout, substeps, rng):
     pts, counts = random_groom(rng, LENGTHS)
@@ -36,15 +36,18 @@ def test_pipelined_equals_unfused(precision, layout, substeps, rng):
     assert np.array_equal(c0, c1)
 
 
-def test_pipelined_runs_cover_exactly_the_long_strands():
-    counts = np.array(LENGTHS)
-    model = dw.Model.from_strands(np.zeros((int(counts.sum()), 3)), counts, layout="particle-major")
+@pytest.mark.parametrize("interleave", [1, 3])
+def test_pipelined_runs_cover_exactly_the_long_strands(interleave):
+    counts = np.array(LENGTHS + [40] * 60)
+    model = dw.Model.from_strands(np.zeros((int(counts.sum()), 3)), counts, layout="particle-major",
+                                  interleave=interleave)
     runs = pipelined_runs(model.layout, ON_CHIP_PRIOR_VERTICES)
-    assert sorted((r.count, r.strands) for r in runs) == [(33, 1), (37, 1), (40, 3), (100, 1)]
-    for r in runs:  # each run is affine: the kernel computes slots from (base, strand_step, stride)
+    assert sorted((r.count, r.strands) for r in runs) == [(33, 1), (37, 1), (40, 63), (100, 1)]
+    for r in runs:  # the kernel computes slots from (base, strand_step, chunk, stride)
+        assert r.chunk == 32 * interleave
         for k in range(r.strands):
             s = r.first + k
-            assert model.layout.strand_base[s] == r.base + k * r.strand_step
+            assert model.layout.strand_base[s] == r.base + ((k // 32) * r.chunk + k % 32) * r.strand_step
             assert model.layout.strand_stride[s] == r.stride
         assert 1 <= r.groups <= r.strands
 
@@ -65,7 +68,7 @@ def test_streams_of_several_strands_per_group(groups, rng):
     for frame in range(2):
         swing_roots(control, roots, frame)
         wp.launch(pipelined_serial_kernel(model.scalar), dim=groups, device="cpu",
-                  inputs=[0, 7, groups, 45, 0, 1, 7, control.root_start, control.root_end, model.rest_lengths,
+                  inputs=[0, 7, groups, 45, 0, 1, 32, 7, control.root_start, control.root_end, model.rest_lengths,
                           solver.gravity, 1 / 240, solver.damping, K, vectors, scalars,
                           state.positions, state.velocities, state.corrections])
     assert np.array_equal(model.points_from_device(state.positions), ref[0])
