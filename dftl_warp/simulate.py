@@ -252,6 +252,8 @@ class Simulation:
             from .multi_device import SplitGroup as group
         self.groups = [group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
+        #: group index -> (frame, world root targets at that frame): the last advance's end targets
+        self._end_roots: dict = {}
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)
         self._at_rest = True
@@ -349,9 +351,16 @@ class Simulation:
 
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
-            for g in self.groups:
+            for k, g in enumerate(self.groups):
                 if any(self.scene.curves[i].animated for i in g.members):
-                    g.control.set_root_targets(self._roots_world(g, self.frame), self._roots_world(g, nxt))
+                    # this frame's roots are the last frame's end targets: computed once, passed as
+                    # the same array, so the Control reuses their device-order copy too
+                    frame, start = self._end_roots.get(k, (None, None))
+                    if frame != self.frame:
+                        start = self._roots_world(g, self.frame)
+                    end = self._roots_world(g, nxt)
+                    self._end_roots[k] = (nxt, end)
+                    g.control.set_root_targets(start, end)
                 update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
         self.frame = nxt

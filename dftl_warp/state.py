@@ -167,7 +167,15 @@ class Control:
         return control
 
     def set_root_targets(self, start, end=None) -> None:
-        """Set the frame's root targets from world positions (S, 3) in input strand order."""
+        """Set the frame's root targets from world positions (S, 3) in input strand order.
+
+        Passing the previous call's ``end`` array as ``start`` (frame after frame, unchanged)
+        reuses its conversion to device order."""
         m = self.model
-        self.root_start.assign(m.roots_to_device(start))
-        self.root_end.assign(m.roots_to_device(start if end is None else end))
+        end = start if end is None else end
+        last = getattr(self, "_last_end", None)
+        device_start = last[1] if last is not None and last[0] is start else m.roots_to_device(start)
+        device_end = device_start if end is start else m.roots_to_device(end)
+        self.root_start.assign(device_start)
+        self.root_end.assign(device_end)
+        self._last_end = (end, device_end)

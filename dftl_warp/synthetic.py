@@ -33,6 +33,8 @@ def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="floa
         if interleave > 1 and int(count) * interleave * padded + 32 * (interleave - 1) > MAX_SLOTS:
             interleave = 1  # past Warp's 32-bit array shapes: the plain layout holds 3x more
     interleave = int(interleave)
+    if interleave > 1 and name == "particle-major" and int(count) * interleave * -(-S // 32) * 32 + 32 * (interleave - 1) > MAX_SLOTS:
+        raise ValueError(f"{S} strands x {count} interleaving {interleave} state vectors pass 2^31 slots; use interleave=1")
     slot_space = None
     if name == "strand-major":
         base, stride = strands * count, np.ones(S, dtype=np.int64)

@@ -31,9 +31,11 @@ def fragment(path: Path, demote: int = 1) -> str:
 def headline(res: dict) -> list[str]:
     copy = res["copy"]["bandwidth_Bps"]
     step = {(r["precision"], r["layout"], r["correction"]): r for r in res["step"]}
-    f32 = step[("float32", "particle-major", "prior")]
-    f64 = step[("float64", "particle-major", "prior")]
-    post = step[("float32", "particle-major", "posterior")]
+    f32 = step[("float32", "interleaved", "prior")]
+    plain = step[("float32", "particle-major", "prior")]
+    f64 = step[("float64", "interleaved", "prior")]
+    post = step[("float32", "interleaved", "posterior")]
+    post_plain = step[("float32", "particle-major", "posterior")]
     sm = step[("float32", "strand-major", "prior")]
     fused = {(r["precision"], r["correction"], r["particles_per_strand"], r["substeps_per_launch"]): r
              for r in res["fused"]}
@@ -43,9 +45,13 @@ def headline(res: dict) -> list[str]:
         "| measure (H200, float32 unless said) | target | measured |",
         "|---|---|---|",
         f"| copy bandwidth (ceiling, `wp.copy`, same run) | — | {copy / 1e12:.2f} TB/s |",
-        f"| prior step, 1M strands x 32, particle-major, of copy | >= 85% (issue 2), >= 90% (issue 6) | "
-        f"in place **{100 * f32['of_copy']:.1f}%** ({f32['particle_steps_per_s'] / 1e9:.1f} G particle-steps/s){swapped} |",
-        f"| posterior step (52 B/particle), of copy | — | {100 * post['of_copy']:.1f}% |",
+        f"| prior step, 1M strands x 32, default layout (particle-major, interleaved), of copy | >= 85% (issue 2), "
+        f">= 90% (issue 6) | in place **{100 * f32['of_copy']:.1f}%** ({f32['particle_steps_per_s'] / 1e9:.1f} G "
+        f"particle-steps/s){swapped} |",
+        f"| the same, plain particle-major layout (`interleave=1`) | — | in place {100 * plain['of_copy']:.1f}%; "
+        f"swapped {100 * plain['of_copy_swapped']:.1f}% |",
+        f"| posterior step (52 B/particle), of copy | — | {100 * post['of_copy']:.1f}% "
+        f"(plain layout {100 * post_plain['of_copy']:.1f}%) |",
         f"| float64 prior step, of copy | — | {100 * f64['of_copy']:.1f}% |",
         f"| float64 cost (per-step kernel, prior) | — | {f32['particle_steps_per_s'] / f64['particle_steps_per_s']:.2f}x float32 |",
         f"| strand-major layout on CUDA | — | {100 * sm['of_copy']:.1f}% of copy: particle-major is "
@@ -102,16 +108,23 @@ def main():
         "particles per strand) is not counted and lowers the ratio.",
         "",
         "Where the issue-6 targets stand (H200 runs of 2026-11-21 with the current kernels): the",
-        "float32 prior step moves 87.4-88.7% of the copy bandwidth in place (`advance`, one State) and",
-        "89.1-90.2% with two States swapped between steps (four runs of the command below; the",
-        "tables hold the latest): at the 90% line, not reliably",
-        "over it. Fused substeps at k = 8 pass 4x the per-step floor for strands of up to 24",
-        "particles; 32-particle strands reach 3.4-3.5x the floor (3.9x the measured per-step kernel):",
+        "float32 prior step moves 91.2% of the copy bandwidth in place (`advance`, one State) and",
+        "92.3% with two States swapped between steps (the table below; an earlier run the same day:",
+        "90.9% and 92.1%), in the default CUDA layout for scenes without features: particle-major",
+        "with positions, velocities and corrections *interleaved* per 32-strand chunk",
+        "(`dftl_warp/layout.py`), so that a warp streams one 1152-byte block per particle row instead",
+        "of three 384-byte blocks in three arrays. The kernels are the same; only the slots the layout",
+        "gives them differ. The plain particle-major layout moves 88.0% (88.9% swapped) in the same",
+        "run. The price is memory: 48 instead of 40 B per particle in float32 (the rest lengths live",
+        "in the same 3-slot space), and 3 slots per particle reach Warp's 2^31 elements per array",
+        "sooner, so grooms past 715 M particles fall back to the plain layout by themselves.",
+        "Fused substeps at k = 8 pass 4x the per-step floor for strands of up to 24",
+        "particles; 32-particle strands reach 3.5x the floor (3.8x the measured per-step kernel):",
         "their 224 on-chip values per thread (position, next prediction, rest length per particle) fill",
         "the register file, so fewer strands are in flight. Strands longer than 32 particles take the",
         "pipelined kernel (`kernels/pipelined.py`): one lane per substep, the substeps a wavefront along",
         "a stream of strands, handed on by warp shuffles, so no lane holds more than two particles",
-        "whatever the length: 2.3x the floor (2.6-2.8x the measured per-step kernel) at 64 and 128",
+        "whatever the length: 2.2x the floor (2.5-2.7x the measured per-step kernel) at 64 and 128",
         "particles, where the whole-strand kernels spill. The sweep's",
         "arithmetic is explicit fused multiply-adds and a reciprocal square root (`kernels/arith.py`), the",
         "same in the fused, pipelined and per-step kernels, so all stay bitwise equal (last table column;",
@@ -126,17 +139,23 @@ def main():
         fragment(h200 / "bench-cuda0.md"),
         "## H200: frames end to end (simulate = substeps + root update + device-to-host copy + USD writing)",
         "",
-        "`python scripts/bench_frames.py --device cuda:0 --strands 100000 --repeats 3 --out $OUT` on one",
+        "`python scripts/bench_frames.py --device cuda:0 --strands 100000 --repeats 5 --out $OUT` on one",
         "H200; `simulate` launches frame f + 1 before writing frame f (dftl_warp/simulate.py,",
         "`run_frames`), so the device works while the host writes, and it writes straight from the",
-        "pinned host buffers (no host copy; the next fetch comes after the write). Writing dominates,",
-        "and the host's writing speed varies from run to run (12-18 frames/s), so the ratio does too:",
-        "median 80% below (73-88%), against the issue's 80%; the same day, before writing from the",
-        "pinned buffers, 73% (70-96%). \"Writing alone\" writes the simulated frames themselves, each",
-        "different, as `simulate` does. A writer thread was measured too (same day, same script): 90%,",
-        "66% and 63% in three runs, simulate itself slower (10.0-10.5 frames/s) than with this",
-        "single-threaded overlap, as the writer and the frame loop contend for Python's",
-        "interpreter lock; it is not used.",
+        "pinned host buffers (no host copy; the next fetch comes after the write). Each frame's root",
+        "targets are transformed and put in device order once: the next frame starts from the last",
+        "frame's end targets (`Control.set_root_targets` reuses them). Before, every frame did both",
+        "twice, for 100,000 roots: in a cProfile of the frame loop on the H200's host (same day, code",
+        "before the change) they took 9 of the 11 ms `Simulation.advance` spent per frame, on the",
+        "thread that writes. Writing dominates, and the host's writing speed varies",
+        "from run to run (9.6-18.9 frames/s below), so the ratio does too: median 93% below (70-104%);",
+        "the same day, `--repeats 3`: 101%, 106% and 103% (median 103%); before the root-target reuse,",
+        "median 80% (73-88%). Above 100% means simulate wrote faster than writing alone did in that",
+        "repeat: the two are measured one after the other on a shared host. \"Writing alone\" writes the",
+        "simulated frames themselves, each different, as `simulate` does. A writer thread was measured",
+        "too (same day, earlier code): 90%, 66% and 63% in three runs, simulate itself slower",
+        "(10.0-10.5 frames/s) than with this single-threaded overlap, as the writer and the frame loop",
+        "contend for Python's interpreter lock; it is not used.",
         "",
         fragment(h200 / "frames-cuda0.md"),
         "## H200: cost of each scene feature",

@@ -272,3 +272,17 @@ def test_synthetic_groom_states_are_cloned_not_made_at_rest():
     solver.step(state, other, control, 0.01)  # swapped states over a synthetic groom
     solver.step(state, state, control, 0.01)
     assert np.array_equal(other.positions.numpy(), state.positions.numpy())
+
+
+def test_root_targets_reuse_the_last_end_in_device_order(rng):
+    pts, counts = random_groom(rng, [3, 5, 2, 4])
+    model = dw.Model.from_strands(pts, counts, layout="particle-major")
+    control = model.control()
+    a, b, c = (rng.normal(size=(4, 3)) for _ in range(3))
+    control.set_root_targets(a, b)
+    control.set_root_targets(b, c)  # b again, as the same array: its device copy is reused
+    assert np.array_equal(control.root_start.numpy(), model.roots_to_device(b))
+    assert np.array_equal(control.root_end.numpy(), model.roots_to_device(c))
+    control.set_root_targets(a)  # a held root: start and end the same
+    assert np.array_equal(control.root_start.numpy(), model.roots_to_device(a))
+    assert np.array_equal(control.root_end.numpy(), model.roots_to_device(a))
