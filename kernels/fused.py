@@ -9,7 +9,8 @@ particle on chip, in per-thread matrices addressed by unrolled constant indices 
 
 That is 6 values per particle instead of the 9 (x, v, correction) a step reads, plus its rest
 length up to ``REST_ON_CHIP_MAX`` vertices (longer strands re-read it every substep), which keeps
-strands of 32 vertices in registers. Velocities and corrections are written to global memory only
+strands of 32 vertices on chip: in registers, the rest lengths of float32 32-vertex strands in
+shared memory (``REST_IN_SHARED``). Velocities and corrections are written to global memory only
 by the last substep; positions once at the end. Global memory is read and written once per
 launch instead of once per substep.
 
@@ -42,6 +43,43 @@ FUSED_LAUNCH_BOUNDS = {(wp.float32, 8): (128, 5), (wp.float32, 16): (128, 3), (w
 #: chip made 24-vertex strands 1.5x and 32-vertex strands 1.35x faster)
 REST_ON_CHIP_MAX = 32
 
+#: (precision, capacity) whose on-chip rest lengths live in shared memory rather than registers:
+#: at 32 vertices the 224 register values per thread spilled; this frees 32 of them (H200 probe
+#: runs, 2026-11-21, k = 8: 3.4x -> 3.7-3.8x the per-step floor, bitwise the same results)
+REST_IN_SHARED = {(wp.float32, 32)}
+
+# A private row of scalars per thread in shared memory, laid out [slot][thread] so that a warp
+# touches 32 consecutive words. Volatile: the compiler must not hoist the loads out of the
+# substep loop back into registers. On the CPU, where Warp runs a launch's threads one after
+# another, one static row serves each thread in turn.
+_SHARED_ROW = """
+#if defined(__CUDA_ARCH__)
+    __shared__ {ctype} rows[{size}];
+    volatile {ctype}* at = rows + slot * {block_dim} + threadIdx.x;
+#else
+    static {ctype} rows[{slots}];
+    {ctype}* at = rows + slot;
+#endif
+    if (store) {{
+        *at = value;
+        return value;
+    }}
+    return *at;
+"""
+
+
+@functools.cache
+def shared_row_func(scalar, slots: int, block_dim: int):
+    """``row(slot, value, store)``: read (``store == 0``) or write (``store == 1``) scalar
+    ``slot`` of the calling thread's private shared-memory row; launch with ``block_dim``."""
+    ctype = {wp.float32: "float", wp.float64: "double"}[scalar]
+    snippet = _SHARED_ROW.format(ctype=ctype, size=slots * block_dim, block_dim=block_dim, slots=slots)
+
+    @wp.func_native(snippet)
+    def row(slot: wp.int32, value: scalar, store: wp.int32) -> scalar: ...
+
+    return row
+
 
 def fused_block_dim(scalar, capacity: int) -> int:
     """Threads per block to launch the fused kernel of ``scalar`` precision and ``capacity`` with."""
@@ -66,6 +104,9 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     options = {**STEP_MODULE_OPTIONS, "max_unroll": 4 * N + 16}
     # rest lengths stay on chip up to REST_ON_CHIP_MAX; longer strands re-read them to save registers
     rest_on_chip = N <= REST_ON_CHIP_MAX
+    rest_shared = (scalar, N) in REST_IN_SHARED
+    if rest_shared:
+        rest_row = shared_row_func(scalar, N, fused_block_dim(scalar, N))
 
     @wp.func
     def sweep_prior(leader: vec3, leader_old: vec3, x_old: vec3, p: vec3, rest: scalar, dt: scalar,
@@ -110,7 +151,9 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                 k = particle(base, stride, i)
                 x[i] = positions[k]
                 b[i] = madd(dt, velocities[k], x[i]) + gdt2
-                if wp.static(rest_on_chip):
+                if wp.static(rest_shared):
+                    rest_row(i, rest_lengths[k], 1)
+                elif wp.static(rest_on_chip):
                     rest[i] = rest_lengths[k]
                 if wp.static(prior):
                     if i > 0:
@@ -130,7 +173,9 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                 if i < n:
                     x_old = x[i]
                     p = b[i]
-                    if wp.static(rest_on_chip):
+                    if wp.static(rest_shared):
+                        rest_i = rest_row(i, scalar(0.0), 0)
+                    elif wp.static(rest_on_chip):
                         rest_i = rest[i]
                     else:
                         rest_i = rest_lengths[particle(base_j, stride, i)]
@@ -167,7 +212,9 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                 k = particle(base, stride, i)
                 x_old = x[i]
                 p = b[i]
-                if wp.static(rest_on_chip):
+                if wp.static(rest_shared):
+                    rest_i = rest_row(i, scalar(0.0), 0)
+                elif wp.static(rest_on_chip):
                     rest_i = rest[i]
                 else:
                     rest_i = rest_lengths[k]

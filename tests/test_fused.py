@@ -75,3 +75,20 @@ def test_fused_equals_unfused_past_the_on_chip_rest_lengths(rng):
                                  layout="strand-major", substeps=5, frames=6)
     assert [(first, size) for _, first, size in solver._fused_runs] == [(0, 1)] and not solver._pipelined_runs
     assert np.array_equal(x0, x1) and np.array_equal(v0, v1)
+
+
+@pytest.mark.parametrize("layout", ["strand-major", "interleaved"])
+def test_fused_with_rest_lengths_in_shared_rows_equals_unfused(layout, rng):
+    """float32 strands of 25-32 vertices take the capacity-32 kernel, whose rest lengths live in a
+    shared-memory row (kernels/fused.py, REST_IN_SHARED; on the CPU a static row per thread)."""
+    import warp as wp
+
+    from dftl_warp.kernels.fused import REST_IN_SHARED
+
+    assert (wp.float32, 32) in REST_IN_SHARED
+    pts, counts = random_groom(rng, [32, 25, 32, 30, 2, 32])
+    x0, v0, c0, _ = simulate(pts, counts, fused=False, precision="float32", layout=layout, substeps=4, frames=3)
+    x1, v1, c1, solver = simulate(pts, counts, fused=True, precision="float32", layout=layout, substeps=4, frames=3)
+    assert any(kernel.key.find("fused") >= 0 for kernel, _, _ in solver._fused_runs)
+    assert {fused_capacity(c) for c in counts} == {8, 32}
+    assert np.array_equal(x0, x1) and np.array_equal(v0, v1) and np.array_equal(c0, c1)
