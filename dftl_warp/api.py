@@ -8,7 +8,7 @@ import numpy as np
 import warp as wp
 
 from .model import Model
-from .solver import DEFAULT_GRAVITY, make_solver
+from .solver import DEFAULT_GRAVITY, carries_corrections, make_solver
 
 
 class Recording(NamedTuple):
@@ -61,7 +61,8 @@ def simulate_strands(
         points = points.copy()
         points[starts] = roots[0]
     with wp.ScopedDevice(device):
-        model = Model.from_strands(points, counts, device=device, precision=precision, layout=layout)
+        model = Model.from_strands(points, counts, device=device, precision=precision, layout=layout,
+                                   corrections=carries_corrections(solver, correction))
         sim = make_solver(model, solver, damping=damping, correction=correction, gravity=gravity)
         state = sim.state()
         control = model.control()

@@ -54,12 +54,14 @@ def default_layout(device: str) -> str:
 MAX_SLOTS = 2**31 - 1
 
 
-def default_interleave(layout: str, device: str, features: bool = False) -> int:
-    """State vectors to interleave: 3 (positions, velocities, corrections) for a particle-major
-    model on CUDA without features, else 1. Feature kernels that walk every slot (the hair
-    volume grid) need a slot space without holes. Builders fall back to 1 where the interleaved
-    slot space would pass :data:`MAX_SLOTS`."""
-    return 3 if layout == "particle-major" and str(device).startswith("cuda") and not features else 1
+def default_interleave(layout: str, device: str, features: bool = False, corrections: bool = True) -> int:
+    """State vectors to interleave for a particle-major model on CUDA without features: 3
+    (positions, velocities, corrections), or 2 when the solver carries no corrections; else 1.
+    Feature kernels that walk every slot (the hair volume grid) need a slot space without holes.
+    Builders fall back to 1 where the interleaved slot space would pass :data:`MAX_SLOTS`."""
+    if layout != "particle-major" or not str(device).startswith("cuda") or features:
+        return 1
+    return 3 if corrections else 2
 
 
 @dataclass(frozen=True)

@@ -102,6 +102,7 @@ class Model:
         features=None,
         origin=None,
         interleave: int | None = None,
+        corrections: bool = True,
     ) -> Model:
         """Model of strands given as concatenated ``points`` (N, 3) and vertex ``counts`` (S,).
 
@@ -111,7 +112,8 @@ class Model:
         diameter (m), one value or one per point, used as the contact distance of colliders.
         ``origin`` (3,) overrides the world origin (models sharing one give identical results).
         ``interleave``: state vectors per 32-strand chunk of a particle-major layout (default
-        :func:`~dftl_warp.layout.default_interleave`: 3 on CUDA without features).
+        :func:`~dftl_warp.layout.default_interleave`: on CUDA without features, 3, or 2 when
+        ``corrections`` is False: the solver carries none, :func:`~dftl_warp.solver.carries_corrections`).
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         counts = np.asarray(counts, dtype=np.int64).reshape(-1)
@@ -129,7 +131,7 @@ class Model:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")
         default = interleave is None
         if default:
-            interleave = default_interleave(layout_name, str(device), bool(features))
+            interleave = default_interleave(layout_name, str(device), bool(features), corrections)
         lay = make_layout(counts, layout_name, interleave)
         if default and interleave > 1 and lay.num_slots + 32 * (interleave - 1) > MAX_SLOTS:
             lay = make_layout(counts, layout_name, 1)

@@ -309,7 +309,7 @@ class SplitGroup:
         from .scene import transform_points
         from .scene_features import group_features
         from .simulate import _check_extent
-        from .solver import make_solver
+        from .solver import carries_corrections, make_solver
 
         self.settings = settings
         self.members = members
@@ -334,7 +334,8 @@ class SplitGroup:
                 try:
                     model = Model.from_strands(
                         points[p0:p1], counts[s0:s1], device=device, precision=options.precision, origin=origin,
-                        widths=None if widths is None else widths[p0:p1], features=part)
+                        widths=None if widths is None else widths[p0:p1], features=part,
+                        corrections=carries_corrections(settings.solver, settings.correction))
                     solver = make_solver(model, settings.solver, damping=settings.damping,
                                          correction=settings.correction, gravity=scene.gravity, **extra)
                 except ValueError as exc:

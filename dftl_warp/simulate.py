@@ -160,7 +160,7 @@ class _Group:
         import warp as wp
 
         from .model import Model
-        from .solver import make_solver
+        from .solver import carries_corrections, make_solver
 
         self.settings = settings
         self.members = members
@@ -176,7 +176,8 @@ class _Group:
         with wp.ScopedDevice(options.device):
             try:
                 self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision,
-                                                widths=widths, features=features)
+                                                widths=widths, features=features,
+                                                corrections=carries_corrections(settings.solver, settings.correction))
             except ValueError as exc:
                 raise UserError(f"{scene.source}: {exc}") from None
             try:

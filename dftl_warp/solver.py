@@ -311,6 +311,11 @@ def pipelined_runs(layout, longer_than: int) -> list[PipelinedRun]:
     return runs
 
 
+def carries_corrections(solver: str, correction: str) -> bool:
+    """Whether the solver named ``solver`` keeps the prior form's corrections in its States."""
+    return solver in ("dftl", "ftl") and correction == "prior"
+
+
 def make_solver(model, solver: str = "dftl", **options):
     """Solver by name: ``"dftl"``, ``"ftl"`` (DFTL with damping 0), ``"pbd"`` (option
     ``iterations``, :class:`~dftl_warp.pbd.PBDSolver`) or ``"reference"``

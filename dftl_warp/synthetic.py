@@ -28,7 +28,7 @@ def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="floa
     S = int(num_strands)
     strands = np.arange(S, dtype=np.int64)
     if interleave is None:
-        interleave = default_interleave(name, str(device))
+        interleave = default_interleave(name, str(device), corrections=with_corrections)
         padded = -(-S // 32) * 32
         if interleave > 1 and int(count) * interleave * padded + 32 * (interleave - 1) > MAX_SLOTS:
             interleave = 1  # past Warp's 32-bit array shapes: the plain layout holds 3x more

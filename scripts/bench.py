@@ -373,8 +373,9 @@ def to_markdown(res):
                   for k, v in res["memory"].items() if k != "largest"]
         if any(k.endswith("(plain)") for k in res["memory"]):
             lines += ["", "Without *(plain)*: the CUDA default layout, state vectors interleaved per 32-strand "
-                      "chunk (one buffer of 3 vectors per slot, and every per-particle model array spans the 3 slots: "
-                      "the rest lengths' unused slots cost 2 x 4 B per particle in float32). *(plain)*: "
+                      "chunk (one buffer of 3 vectors per slot, 2 in the posterior form, which carries no "
+                      "corrections; every per-particle model array spans the same slots: the rest lengths' unused "
+                      "slots cost 2 x 4 B per particle in float32, 1 x 4 B in the posterior form). *(plain)*: "
                       "`Model.from_strands(..., interleave=1)`, the layout of the largest grooms below."]
         for big in res["memory"].get("largest", []):
             lines += ["", f"Largest groom allocated and stepped ({big['precision']}, prior): **{big['strands']:,} strands x "

@@ -286,3 +286,21 @@ def test_root_targets_reuse_the_last_end_in_device_order(rng):
     control.set_root_targets(a)  # a held root: start and end the same
     assert np.array_equal(control.root_start.numpy(), model.roots_to_device(a))
     assert np.array_equal(control.root_end.numpy(), model.roots_to_device(a))
+
+
+def test_interleave_follows_what_the_solver_carries():
+    from dftl_warp.layout import default_interleave
+    from dftl_warp.solver import carries_corrections
+
+    assert default_interleave("particle-major", "cuda:0") == 3
+    assert default_interleave("particle-major", "cuda:0", corrections=False) == 2
+    assert default_interleave("particle-major", "cuda:0", features=True) == 1
+    assert default_interleave("particle-major", "cpu") == default_interleave("strand-major", "cuda:0") == 1
+    assert carries_corrections("dftl", "prior") and carries_corrections("ftl", "prior")
+    assert not carries_corrections("dftl", "posterior") and not carries_corrections("pbd", "prior")
+    # a posterior model interleaves two vectors; a prior State on it is refused with a clear message
+    pts = chain(6)
+    model = dw.Model.from_strands(pts, [6], layout="particle-major", interleave=2)
+    assert dw.DFTLSolver(model, correction="posterior").state().storage.shape[0] == model.num_slots + 32
+    with pytest.raises(ValueError, match="interleaves 2 state vectors"):
+        dw.DFTLSolver(model, correction="prior").state()
