@@ -66,11 +66,12 @@ def device_counts(n: int) -> list[int]:
 
 
 def strand_major(model, positions: np.ndarray) -> np.ndarray:
-    """Positions (S, V, 3) whatever the layout (uniform grooms: one vertex count)."""
-    S, V = model.num_strands, int(model.counts[0])
-    if model.layout.name == "strand-major":
-        return positions.reshape(S, V, 3)
-    return positions.reshape(V, S, 3).transpose(1, 0, 2)
+    """Positions (S, V, 3) whatever the layout (uniform grooms: one vertex count), gathered
+    through the layout's slots (an interleaved layout's arrays also hold the other fields)."""
+    V = int(model.counts[0])
+    lay = model.layout
+    slots = lay.strand_base[:, None] + np.arange(V)[None, :] * lay.strand_stride[:, None]
+    return positions[slots]
 
 
 def bench_compute(devices, strands, vertices, substeps, frames, repeats=3):
