@@ -100,11 +100,20 @@ class Layout:
         """Slot distance between neighbouring 32-strand chunks of one particle row."""
         return CHUNK_STRANDS * self.interleave
 
+    @property
+    def storage_length(self) -> int:
+        """Entries of a State's buffer: the slot space plus the last field's offset, so that every
+        field's view has ``num_slots`` entries (the slot space itself when not interleaved)."""
+        return self.num_slots + CHUNK_STRANDS * (self.interleave - 1)
 
-def interleaved_bases(size: int, interleave: int) -> tuple[np.ndarray, int]:
-    """First slots (relative to the group) of ``size`` strands interleaving ``interleave`` state
-    vectors, and the group's row stride (slots between a strand's consecutive particles)."""
+
+def group_slots(size: int, interleave: int) -> tuple[np.ndarray, int]:
+    """First slots (relative to the group) of a particle-major group of ``size`` strands, and the
+    group's row stride (slots between a strand's consecutive particles); ``interleave`` > 1
+    interleaves that many state vectors per 32-strand chunk."""
     a = np.arange(size, dtype=np.int64)
+    if interleave == 1:
+        return a, size
     padded = -(-size // CHUNK_STRANDS) * CHUNK_STRANDS
     return (a // CHUNK_STRANDS) * (CHUNK_STRANDS * interleave) + a % CHUNK_STRANDS, interleave * padded
 
@@ -143,10 +152,7 @@ def make_layout(counts: np.ndarray, name: str, interleave: int = 1) -> Layout:
     else:
         offset = 0
         for count, first, size in groups:
-            if interleave > 1:
-                rel, row = interleaved_bases(size, interleave)
-            else:
-                rel, row = np.arange(size), size
+            rel, row = group_slots(size, interleave)
             base[first : first + size] = offset + rel
             stride[first : first + size] = row
             offset += count * row

@@ -133,7 +133,7 @@ class Model:
         if default:
             interleave = default_interleave(layout_name, str(device), bool(features), corrections)
         lay = make_layout(counts, layout_name, interleave)
-        if default and interleave > 1 and lay.num_slots + 32 * (interleave - 1) > MAX_SLOTS:
+        if default and lay.storage_length > MAX_SLOTS:
             lay = make_layout(counts, layout_name, 1)
         origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         local = points - origin

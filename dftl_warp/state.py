@@ -6,7 +6,7 @@ in place with ``state_in is state_out``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import warp as wp
@@ -42,11 +42,9 @@ class State:
                              "copy an existing State with State.clone() instead")
         lay = model.layout
         if lay.interleave > 1:
-            host = np.zeros((interleaved_length(lay, with_corrections), 3), dtype=model.rest_positions.dtype)
+            # the rest positions are zero outside the position slots: the other fields start at zero
+            host = np.zeros((lay.storage_length, 3), dtype=model.rest_positions.dtype)
             host[:lay.num_slots] = model.rest_positions
-            # the holes of the positions row are the other fields' slots: zero them
-            for f in range(1, lay.interleave):
-                host[lay.slot_of_point + 32 * f] = 0.0
             return cls.interleaved(wp.array(host, dtype=model.vec3, device=model.device), lay, with_corrections)
 
         def zeros():
@@ -61,21 +59,22 @@ class State:
     @classmethod
     def interleaved(cls, storage: wp.array, layout, with_corrections: bool) -> State:
         """The State whose fields are views of ``storage`` in the interleaved ``layout``."""
-        n = layout.num_slots
         fields = 3 if with_corrections else 2
         if layout.interleave < fields:
             raise ValueError(f"the layout interleaves {layout.interleave} state vectors; this State needs {fields}")
-        views = [storage[32 * f: 32 * f + n] for f in range(fields)]
+        return cls._views(storage, layout.num_slots, with_corrections)
+
+    @classmethod
+    def _views(cls, storage: wp.array, n: int, with_corrections: bool) -> State:
+        """Fields as ``n``-slot views of ``storage``, 32 slots apart."""
+        views = [storage[32 * f: 32 * f + n] for f in range(3 if with_corrections else 2)]
         return cls(positions=views[0], velocities=views[1], corrections=views[2] if with_corrections else None,
                    storage=storage)
 
     def clone(self) -> State:
         """A copy of this state in new device arrays."""
         if self.storage is not None:
-            n = self.positions.shape[0]
-            views = [wp.clone(self.storage)]
-            return State(positions=views[0][0:n], velocities=views[0][32:32 + n],
-                         corrections=None if self.corrections is None else views[0][64:64 + n], storage=views[0])
+            return State._views(wp.clone(self.storage), self.positions.shape[0], self.corrections is not None)
         return State(positions=wp.clone(self.positions), velocities=wp.clone(self.velocities),
                      corrections=None if self.corrections is None else wp.clone(self.corrections))
 
@@ -136,12 +135,6 @@ class State:
         return int(sum(a.capacity for a in arrays) // n)
 
 
-def interleaved_length(layout, with_corrections: bool = True) -> int:
-    """Entries of the storage buffer of an interleaved State: the slot space plus the last
-    field's offset, so that every field's view has ``num_slots`` entries."""
-    return layout.num_slots + 32 * (layout.interleave - 1)
-
-
 @dataclass(eq=False)
 class Control:
     """Kinematic root targets per device strand, relative to ``model.origin`` (m).
@@ -156,6 +149,8 @@ class Control:
     #: per-frame data of the model's features (:class:`~dftl_warp.feature_data.FeatureControl`:
     #: collider poses, mesh points, wind, bound-root mesh points); None without features
     features: object = None
+    #: (the last ``end`` passed to :meth:`set_root_targets`, its device-order copy)
+    _last_end: tuple | None = field(default=None, init=False, repr=False)
 
     @classmethod
     def at_rest(cls, model) -> Control:
@@ -173,7 +168,7 @@ class Control:
         reuses its conversion to device order."""
         m = self.model
         end = start if end is None else end
-        last = getattr(self, "_last_end", None)
+        last = self._last_end
         device_start = last[1] if last is not None and last[0] is start else m.roots_to_device(start)
         device_end = device_start if end is start else m.roots_to_device(end)
         self.root_start.assign(device_start)

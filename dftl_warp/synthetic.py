@@ -11,10 +11,10 @@ import numpy as np
 import warp as wp
 
 from .kernels.synthetic import straight_strands_kernel
-from .layout import MAX_SLOTS, Layout, default_interleave, default_layout, interleaved_bases
+from .layout import MAX_SLOTS, Layout, default_interleave, default_layout, group_slots
 from .model import Model
 from .precision import scalar_type, vec3_type
-from .state import State, interleaved_length
+from .state import State
 
 
 def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="float32", layout=None,
@@ -25,34 +25,24 @@ def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="floa
     :func:`~dftl_warp.layout.default_interleave`)."""
     device = wp.get_device(device)
     name = layout or default_layout(str(device))
-    S = int(num_strands)
-    strands = np.arange(S, dtype=np.int64)
     if interleave is None:
-        interleave = default_interleave(name, str(device), corrections=with_corrections)
-        padded = -(-S // 32) * 32
-        if interleave > 1 and int(count) * interleave * padded + 32 * (interleave - 1) > MAX_SLOTS:
-            interleave = 1  # past Warp's 32-bit array shapes: the plain layout holds 3x more
-    interleave = int(interleave)
-    if interleave > 1 and name == "particle-major" and int(count) * interleave * -(-S // 32) * 32 + 32 * (interleave - 1) > MAX_SLOTS:
-        raise ValueError(f"{S} strands x {count} interleaving {interleave} state vectors pass 2^31 slots; use interleave=1")
-    slot_space = None
-    if name == "strand-major":
-        base, stride = strands * count, np.ones(S, dtype=np.int64)
-    elif interleave > 1:
-        base, row = interleaved_bases(S, interleave)
-        stride = np.full(S, row, dtype=np.int64)
-        slot_space = int(count) * row
+        lay = _uniform_layout(name, int(num_strands), int(count),
+                              default_interleave(name, str(device), corrections=with_corrections))
+        if lay.storage_length > MAX_SLOTS:  # past Warp's 32-bit array shapes: the plain layout holds more
+            lay = _uniform_layout(name, int(num_strands), int(count), 1)
     else:
-        base, stride = strands, np.full(S, S, dtype=np.int64)
-    lay = Layout(name=name, strand_order=strands, strand_base=base, strand_stride=stride,
-                 strand_count=np.full(S, count, dtype=np.int64), slot_of_point=None,
-                 groups=((int(count), 0, S),), interleave=interleave, slot_space=slot_space)
+        lay = _uniform_layout(name, int(num_strands), int(count), int(interleave))
+        if lay.storage_length > MAX_SLOTS:
+            raise ValueError(f"{num_strands} strands x {count} interleaving {interleave} state vectors pass 2^31 "
+                             "slots; use interleave=1")
+    S, interleave = int(num_strands), lay.interleave
+    base, stride = lay.strand_base, lay.strand_stride
     scalar, vec3 = scalar_type(precision), vec3_type(precision)
     i32 = lambda a: wp.array(a.astype(np.int32), dtype=wp.int32, device=device)  # noqa: E731
     n = lay.num_slots
     rest = wp.zeros(n, dtype=scalar, device=device) if interleave > 1 else wp.empty(n, dtype=scalar, device=device)
     if interleave > 1:
-        state = State.interleaved(wp.zeros(interleaved_length(lay), dtype=vec3, device=device), lay, with_corrections)
+        state = State.interleaved(wp.zeros(lay.storage_length, dtype=vec3, device=device), lay, with_corrections)
         positions = state.positions
     else:
         positions = wp.empty(n, dtype=vec3, device=device)
@@ -67,3 +57,18 @@ def uniform_groom(num_strands: int, count: int, *, device="cpu", precision="floa
         state = State(positions=positions, velocities=wp.zeros(n, dtype=vec3, device=device),
                       corrections=wp.zeros(n, dtype=vec3, device=device) if with_corrections else None)
     return model, state
+
+
+def _uniform_layout(name: str, S: int, count: int, interleave: int) -> Layout:
+    """The layout ``name`` of ``S`` strands of ``count`` vertices, built without per-point arrays."""
+    strands = np.arange(S, dtype=np.int64)
+    slot_space = None
+    if name == "strand-major":
+        base, stride = strands * count, np.ones(S, dtype=np.int64)
+    else:
+        base, row = group_slots(S, interleave)
+        stride = np.full(S, row, dtype=np.int64)
+        slot_space = count * row if interleave > 1 else None
+    return Layout(name=name, strand_order=strands, strand_base=base, strand_stride=stride,
+                  strand_count=np.full(S, count, dtype=np.int64), slot_of_point=None,
+                  groups=((count, 0, S),), interleave=interleave, slot_space=slot_space)
