@@ -235,14 +235,14 @@ class DFTLSolver:
 
 def fused_pays(longest: int, substeps: int, precision: str, correction: str = "prior") -> bool:
     """Whether fused substeps beat one launch per substep for strands of at most ``longest``
-    vertices, from the H200 measurements in docs/benchmarks.md (float32, x the per-step kernel):
-    strands of up to 16 vertices gain from 2 substeps per frame on (x3.5 at 4 for 16 vertices),
-    up to 32 vertices from 4 (x2.6 at 4, x3.9 at 8 for 32 vertices); float64 strands of up to 32
-    vertices from 4 (x1.1 at 4, x1.4 at 8). One substep gains little or loses (x0.64-1.22).
+    vertices, from the H200 measurements in docs/benchmarks.md (x the per-step kernel): float32
+    strands of up to 32 vertices gain from 2 substeps per frame on (32 vertices: x1.65 at 2, x2.9
+    at 4, x4.6 at 8; posterior x1.7 at 2); float64 strands of up to 32 vertices from 4 (x0.69 at
+    2, x1.07 at 4, x1.26 at 8). One substep gains little or loses (x0.64-0.99).
     Longer strands in the prior form take the pipelined kernel, which gains from 2 substeps on
-    (64 and 128 vertices: x1.4-1.5 at 2, x2.6-2.8 at 8; float64 at 64: x1.7 at 2, x2.7 at 8);
+    (64 and 128 vertices: x1.3-1.4 at 2, x2.6-2.8 at 8; float64 at 64: x1.7 at 2, x2.7 at 8);
     longer posterior-form strands spill registers and do not gain."""
-    if precision == "float32" and longest <= 16:
+    if precision == "float32" and longest <= 32:
         return substeps >= 2
     if longest <= 32:
         return substeps >= 4

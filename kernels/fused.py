@@ -45,7 +45,8 @@ REST_ON_CHIP_MAX = 32
 
 #: (precision, capacity) whose on-chip rest lengths live in shared memory rather than registers:
 #: at 32 vertices the 224 register values per thread spilled; this frees 32 of them (H200 probe
-#: runs, 2026-11-21, k = 8: 3.4x -> 3.7-3.8x the per-step floor, bitwise the same results)
+#: runs, 2026-11-21, k = 8: 3.4x -> 3.7-3.8x the per-step floor, bitwise the same results). The
+#: root targets join them (6 registers fewer through the substep loop).
 REST_IN_SHARED = {(wp.float32, 32)}
 
 # A private row of scalars per thread in shared memory, laid out [slot][thread] so that a warp
@@ -106,7 +107,17 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     rest_on_chip = N <= REST_ON_CHIP_MAX
     rest_shared = (scalar, N) in REST_IN_SHARED
     if rest_shared:
-        rest_row = shared_row_func(scalar, N, fused_block_dim(scalar, N))
+        # slots 0..N-1: rest lengths; N..N+2: the root's start target; N+3..N+5: its end target
+        rest_row = shared_row_func(scalar, N + 6, fused_block_dim(scalar, N))
+
+    @wp.func
+    def root_at(alpha: scalar, r0: vec3, r1: vec3):
+        """The root target at ``alpha`` in [0, 1], from the shared row when it holds them."""
+        if wp.static(rest_shared):
+            a = vec3(rest_row(N, scalar(0.0), 0), rest_row(N + 1, scalar(0.0), 0), rest_row(N + 2, scalar(0.0), 0))
+            e = vec3(rest_row(N + 3, scalar(0.0), 0), rest_row(N + 4, scalar(0.0), 0), rest_row(N + 5, scalar(0.0), 0))
+            return a + alpha * (e - a)
+        return r0 + alpha * (r1 - r0)
 
     @wp.func
     def sweep_prior(leader: vec3, leader_old: vec3, x_old: vec3, p: vec3, rest: scalar, dt: scalar,
@@ -160,12 +171,17 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                         b[i - 1] = madd(-damping, corrections[k], b[i - 1])
         r0 = root_start[s]
         r1 = root_end[s]
+        if wp.static(rest_shared):
+            # kept in shared memory with the rest lengths: 6 registers fewer through the loop
+            for c in range(3):
+                rest_row(N + c, r0[c], 1)
+                rest_row(N + 3 + c, r1[c], 1)
         # all substeps but the last: registers only, no global memory
         for j in range(substeps - 1):
             # opaque to the compiler (see the last substep), so rest-length addresses are not hoisted
             base_j = base + wp.int32(scalar(0.0) * x[0][0])
             alpha = scalar(j + 1) / scalar(substeps)
-            root = r0 + alpha * (r1 - r0)
+            root = root_at(alpha, r0, r1)
             leader_old = x[0]
             x[0] = root
             leader = root
@@ -199,7 +215,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         # math; int(NaN) is 0): otherwise it keeps every particle's addresses live through the
         # loop, three 64-bit pointers per particle, and runs out of registers.
         base = base + wp.int32(scalar(0.0) * x[0][0])
-        root = r0 + (scalar(substeps) / scalar(substeps)) * (r1 - r0)
+        root = root_at(scalar(substeps) / scalar(substeps), r0, r1)
         leader_old = x[0]
         positions[base] = root
         velocities[base] = (root - leader_old) * inv_dt

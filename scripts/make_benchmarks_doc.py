@@ -88,6 +88,11 @@ def main():
     h200 = BENCH / "h200"
     cpu = BENCH / "cpu"
     res = json.loads((h200 / "results-cuda0.json").read_text())
+    step = {(r["precision"], r["layout"], r["correction"]): r for r in res["step"]}
+    f32, plain = step[("float32", "interleaved", "prior")], step[("float32", "particle-major", "prior")]
+    post = step[("float32", "interleaved", "posterior")]
+    fused = {(r["precision"], r["correction"], r["particles_per_strand"], r["substeps_per_launch"]): r
+             for r in res["fused"]}
     parts = [
         "# Benchmarks",
         "",
@@ -107,25 +112,36 @@ def main():
         "kernels read besides (per-strand layout indices and root targets, ~1.5 B/particle at 32",
         "particles per strand) is not counted and lowers the ratio.",
         "",
-        "Where the issue-6 targets stand (H200 runs of 2026-11-21 with the current kernels): the",
-        "float32 prior step moves 91.4% of the copy bandwidth in place (`advance`, one State) and",
-        "92.2% with two States swapped between steps (the table below; three earlier runs the same",
-        "day: 90.9%/92.1%, 91.2%/92.3% and 92.2%/93.3%, the copy ceiling 4.18-4.22 TB/s), in the",
+        "Where the issue-6 targets stand (H200 runs with the current kernels; the device's clock read",
+        f"{res['date']}): the float32 prior step moves {100 * f32['of_copy']:.1f}% of the copy bandwidth in",
+        f"place (`advance`, one State) and {100 * f32['of_copy_swapped']:.1f}% with two States swapped",
+        "between steps (the table below; four runs with the previous float32 degenerate test:",
+        "90.9-92.2% in place, 92.1-93.3% swapped; one with the current one: 91.6%/92.9%; the copy",
+        "ceiling 4.17-4.24 TB/s), in the",
         "default CUDA layout for scenes without features: particle-major with positions, velocities",
         "and corrections *interleaved* per 32-strand chunk (`dftl_warp/layout.py`), so that a warp",
         "streams one 1152-byte block per particle row instead of three 384-byte blocks in three",
         "arrays. The kernels are the same; only the slots the layout gives them differ. The plain",
-        "particle-major layout moves 87.5% (88.5% swapped) in the same run. The price is memory: 48",
+        f"particle-major layout moves {100 * plain['of_copy']:.1f}% ({100 * plain['of_copy_swapped']:.1f}% swapped) "
+        "in the same run. The price is memory: 48",
         "instead of 40 B per particle in float32 (the rest lengths live in the same 3-slot space; the",
         "posterior form interleaves 2 vectors: 32 instead of 28 B), and 3 slots per particle reach",
         "Warp's 2^31 elements per array sooner, so grooms past 715 M particles fall back to the plain",
         "layout by themselves.",
-        "Fused substeps at k = 8 pass 4x the per-step floor for strands of up to 24 particles (4.45x",
-        "at 24); 32-particle strands reach 3.84x the floor in this run (3.97x in the run before),",
-        "4.2-4.3x the measured per-step kernel, short of the 4x line: their 192 register values per",
-        "thread (position and next prediction per particle) fill the register file, so few strands are",
-        "in flight; their rest lengths moved to shared memory this day (`REST_IN_SHARED` in",
-        "`kernels/fused.py`), which cut the kernel's spills and took it from 3.4-3.5x to 3.8-4.0x.",
+        f"Fused substeps at k = 8 pass 4x the per-step floor at every on-chip length: "
+        f"{fused[('float32', 'prior', 32, 8)]['of_floor']:.2f}x at 32 particles in this run",
+        "(4.24x in the full run before it and 4.17x in a fused-only run the same day; 3.84x and 3.97x",
+        "before this change). The 32-particle kernel is limited by its 192 register values per thread",
+        "(position and next prediction per particle), which leave few strands in flight: its rest",
+        "lengths and root targets live in a per-thread shared-memory row (`REST_IN_SHARED` in",
+        "`kernels/fused.py`), the float32 reciprocal square root is one instruction",
+        "(`rsqrt.approx.ftz.f32`, bitwise `rsqrtf` on the normal numbers it is given) and the",
+        "float32 degenerate-prediction test compares the scale factor `rest / |d|` after that root",
+        "instead of `|d|^2` with a threshold computed per particle (`kernels/ftl.py`). Together these",
+        "took it from 3.8-4.0x to 4.2x. The float32 posterior step shares that test: in place it",
+        f"moves {100 * post['of_copy']:.1f}% of the copy bandwidth in this run, against 89.3% before",
+        f"(swapped {100 * post['of_copy_swapped']:.1f}%, unchanged), while the fused posterior kernel gained",
+        "(3.16x -> 3.6-3.7x the floor at k = 8).",
         "Strands longer than 32 particles take the",
         "pipelined kernel (`kernels/pipelined.py`): one lane per substep, the substeps a wavefront along",
         "a stream of strands, handed on by warp shuffles, so no lane holds more than two particles",
@@ -152,9 +168,10 @@ def main():
         "frame's end targets (`Control.set_root_targets` reuses them); before, every frame did both",
         "twice, for 100,000 roots, on the thread that writes. Writing dominates, and the host's",
         "writing speed varies",
-        "from run to run (9.6-18.9 frames/s below), so the ratio does too: median 93% below (70-104%);",
-        "the same day, `--repeats 3`: 101%, 106% and 103% (median 103%); before the root-target reuse,",
-        "median 80% (73-88%). Above 100% means simulate wrote faster than writing alone did in that",
+        "from run to run (12.2-14.3 frames/s below, 9.6-18.9 in earlier runs), so the ratio does too:",
+        "median 105% below (87-117%); earlier runs with the same frame loop: median 93% (70-104%,",
+        "five runs) and 101%, 106%, 103% (`--repeats 3`); before the root-target reuse, median 80%",
+        "(73-88%). Above 100% means simulate wrote faster than writing alone did in that",
         "repeat: the two are measured one after the other on a shared host. \"Writing alone\" writes the",
         "simulated frames themselves, each different, as `simulate` does. A writer thread was measured",
         "too (same day, earlier code, same script): 90%, 66% and 63% in three runs, simulate itself slower",

@@ -107,6 +107,21 @@ def test_degenerate_predictions_stay_finite(precision, offset):
     assert np.abs(segment_lengths(rec.positions, [n]) / 0.05 - 1).max() < tol
 
 
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_degenerate_threshold_is_relative_to_the_rest_length(precision):
+    """A prediction within rest * 1e-6 (float32; 1e-12 float64) of its leader keeps the segment's
+    previous direction; one a little farther takes its own direction."""
+    rest, dt = 2.0**-4, 2.0**-4  # powers of two: the prediction lands where it is put, unrounded
+    pts = np.array([[0.0, 0.0, 0.0], [rest, 0.0, 0.0]])
+    tiny = 1e-8 if precision == "float32" else 1e-14
+    for distance, expected in ((rest * tiny, [rest, 0.0, 0.0]), (rest * 1e-3, [0.0, rest, 0.0])):
+        vel = np.zeros_like(pts)
+        vel[1] = (np.array([0.0, distance, 0.0]) - pts[1]) / dt  # predicted onto (or near) the root
+        rec = dw.simulate_strands(pts, [2], steps=1, dt=dt, gravity=(0, 0, 0), precision=precision,
+                                  velocities=vel)
+        np.testing.assert_allclose(rec.positions[-1][1], expected, atol=1e-7)
+
+
 def test_coincident_input_points_stay_finite():
     """Zero-length rest segments: the followers sit on their leader, without NaN."""
     pts = np.array([[0, 0, 0], [0, 0, 0], [0.1, 0, 0], [0.1, 0, 0]], dtype=float)
