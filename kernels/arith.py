@@ -7,16 +7,16 @@ kernel still rounds identically:
 
 - ``fma(a, b, c) = a * b + c`` with a single rounding (CUDA ``__fma_rn``; on the CPU the
   compiler's ``fma`` builtin, IEEE 754 fusedMultiplyAdd);
-- ``rsqrt(x) = 1 / sqrt(x)``: CUDA ``rsqrtf`` / ``rsqrt`` (at most 2 / 1 units in the last
-  place), on the CPU ``1 / sqrt(x)`` (two correctly rounded operations, within 1.5 units). It
+- ``rsqrt(x) = 1 / sqrt(x)``: CUDA ``rsqrt.approx.ftz.f32`` (float32) / ``rsqrt`` (float64)
+  (at most 2 / 1 units in the last place), on the CPU ``1 / sqrt(x)`` (two correctly rounded operations, within 1.5 units). It
   replaces a correctly rounded square root and division: on the H200 the fused kernels ran
   1.2x (8 particles per strand) to 1.9x (32) faster with it (a probe run on 2026-11-21, k = 8).
   The projected segment length is then exact to a
   few units in the last place instead of about one, 3e-7 relative in float32. Results differ
   between CPU and CUDA at that level; on one device every kernel agrees bitwise. The float32
-  CUDA form is ``rsqrt.approx.ftz.f32``: it equals ``rsqrtf`` bitwise on normal numbers and
-  skips ``rsqrtf``'s rescaling of subnormal inputs (three instructions per particle); a subnormal
-  ``|d|^2`` counts as zero, which the sweep treats as a degenerate prediction either way.
+  form equals ``rsqrtf`` bitwise on normal numbers and skips ``rsqrtf``'s rescaling of subnormal
+  inputs (three instructions per particle); a subnormal ``|d|^2`` counts as zero, which the
+  sweep treats as a degenerate prediction either way.
 """
 
 import warp as wp

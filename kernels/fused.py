@@ -9,8 +9,8 @@ particle on chip, in per-thread matrices addressed by unrolled constant indices 
 
 That is 6 values per particle instead of the 9 (x, v, correction) a step reads, plus its rest
 length up to ``REST_ON_CHIP_MAX`` vertices (longer strands re-read it every substep), which keeps
-strands of 32 vertices on chip: in registers, the rest lengths of float32 32-vertex strands in
-shared memory (``REST_IN_SHARED``). Velocities and corrections are written to global memory only
+strands of 32 vertices on chip: in registers, the rest lengths (and root targets) of float32
+32-vertex strands in shared memory (``REST_IN_SHARED``). Velocities and corrections are written to global memory only
 by the last substep; positions once at the end. Global memory is read and written once per
 launch instead of once per substep.
 
@@ -110,13 +110,18 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         # slots 0..N-1: rest lengths; N..N+2: the root's start target; N+3..N+5: its end target
         rest_row = shared_row_func(scalar, N + 6, fused_block_dim(scalar, N))
 
+        @wp.func
+        def row_vec(slot: wp.int32):
+            """The vector in shared slots ``slot .. slot + 2``."""
+            return vec3(rest_row(slot, scalar(0.0), 0), rest_row(slot + 1, scalar(0.0), 0),
+                        rest_row(slot + 2, scalar(0.0), 0))
+
     @wp.func
     def root_at(alpha: scalar, r0: vec3, r1: vec3):
         """The root target at ``alpha`` in [0, 1], from the shared row when it holds them."""
         if wp.static(rest_shared):
-            a = vec3(rest_row(N, scalar(0.0), 0), rest_row(N + 1, scalar(0.0), 0), rest_row(N + 2, scalar(0.0), 0))
-            e = vec3(rest_row(N + 3, scalar(0.0), 0), rest_row(N + 4, scalar(0.0), 0), rest_row(N + 5, scalar(0.0), 0))
-            return a + alpha * (e - a)
+            a = row_vec(N)
+            return a + alpha * (row_vec(N + 3) - a)
         return r0 + alpha * (r1 - r0)
 
     @wp.func

@@ -28,17 +28,24 @@ def fragment(path: Path, demote: int = 1) -> str:
     return "\n".join(out) + "\n"
 
 
+def indexed(res: dict) -> tuple[dict, dict]:
+    """The bench results' step rows by (precision, layout, correction) and fused rows by
+    (precision, correction, particles per strand, substeps per launch)."""
+    step = {(r["precision"], r["layout"], r["correction"]): r for r in res["step"]}
+    fused = {(r["precision"], r["correction"], r["particles_per_strand"], r["substeps_per_launch"]): r
+             for r in res["fused"]}
+    return step, fused
+
+
 def headline(res: dict) -> list[str]:
     copy = res["copy"]["bandwidth_Bps"]
-    step = {(r["precision"], r["layout"], r["correction"]): r for r in res["step"]}
+    step, fused = indexed(res)
     f32 = step[("float32", "interleaved", "prior")]
     plain = step[("float32", "particle-major", "prior")]
     f64 = step[("float64", "interleaved", "prior")]
     post = step[("float32", "interleaved", "posterior")]
     post_plain = step[("float32", "particle-major", "posterior")]
     sm = step[("float32", "strand-major", "prior")]
-    fused = {(r["precision"], r["correction"], r["particles_per_strand"], r["substeps_per_launch"]): r
-             for r in res["fused"]}
     floor = copy / 76  # float32 prior: the fastest any one-step-per-launch kernel could go
     swapped = f"; swapped states **{100 * f32['of_copy_swapped']:.1f}%**" if "of_copy_swapped" in f32 else ""
     lines = [
@@ -88,11 +95,9 @@ def main():
     h200 = BENCH / "h200"
     cpu = BENCH / "cpu"
     res = json.loads((h200 / "results-cuda0.json").read_text())
-    step = {(r["precision"], r["layout"], r["correction"]): r for r in res["step"]}
+    step, fused = indexed(res)
     f32, plain = step[("float32", "interleaved", "prior")], step[("float32", "particle-major", "prior")]
     post = step[("float32", "interleaved", "posterior")]
-    fused = {(r["precision"], r["correction"], r["particles_per_strand"], r["substeps_per_launch"]): r
-             for r in res["fused"]}
     parts = [
         "# Benchmarks",
         "",
