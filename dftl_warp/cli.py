@@ -13,8 +13,9 @@ import sys
 
 from .errors import UserError
 
-#: command modules, in the order ``--help`` lists them
-COMMANDS = ("simulate", "render", "batch", "study", "info", "devices")
+#: command modules (dftl_warp.commands.<module>), in the order ``--help`` lists them; each module's
+#: ``add_parser`` chooses its subcommand's name (``import_groom`` registers ``import``)
+COMMANDS = ("simulate", "render", "batch", "study", "info", "devices", "import_groom")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -39,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     """Entry point of the ``dftl-warp`` console script."""
-    from .warp_setup import init_warp
+    from .core.devices import init_warp
 
     init_warp()
     parser = build_parser()

@@ -37,13 +37,12 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import dftl_warp as dw  # noqa: E402
-from dftl_warp import baseline  # noqa: E402
-from dftl_warp.kernels.pipelined import CUDA_LANES  # noqa: E402
-from dftl_warp.kernels.synthetic import copy_kernel  # noqa: E402
-from dftl_warp.synthetic import uniform_groom  # noqa: E402
+from dftl_warp.solvers import numpy_baseline as baseline  # noqa: E402
+from dftl_warp.kernels.solvers.pipelined import CUDA_LANES  # noqa: E402
+from dftl_warp.kernels.core.synthetic import copy_kernel  # noqa: E402
+from dftl_warp.core.synthetic import uniform_groom  # noqa: E402
 
 G = (0.0, -9.81, 0.0)
 DT = 1.0 / 240.0

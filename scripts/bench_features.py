@@ -30,7 +30,6 @@ from pathlib import Path
 import numpy as np
 import warp as wp
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402

@@ -20,14 +20,13 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import warp as wp  # noqa: E402
 
-from dftl_warp.simulate import Simulation, SimulationOptions, simulate_usd  # noqa: E402
-from dftl_warp.usd_read import read_scene  # noqa: E402
-from dftl_warp.usd_write import UsdWriter  # noqa: E402
+from dftl_warp.simulation.simulate import Simulation, SimulationOptions, simulate_usd  # noqa: E402
+from dftl_warp.usd.read import read_scene  # noqa: E402
+from dftl_warp.output.usd import UsdWriter  # noqa: E402
 from make_scenes import make_default  # noqa: E402
 
 

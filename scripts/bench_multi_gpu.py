@@ -3,14 +3,14 @@
 
 Sections (``--sections``, comma separated; default both):
 
-- ``compute``  : device-built straight grooms (:func:`dftl_warp.synthetic.uniform_groom`) of each
+- ``compute``  : device-built straight grooms (:func:`dftl_warp.core.synthetic.uniform_groom`) of each
                  ``--strands`` size, the strands split evenly over the first k devices for k = 1, 2,
                  4, ... up to all of ``--devices``; a frame is ``--substeps`` substeps (fused kernels
                  on CUDA, CUDA graphs); every part is launched before any is waited for. Measured:
                  frames/s with one synchronisation at the end ("async") and with one per frame
                  ("per frame", as a writer needs), the speed-up over k = 1, and whether the split
                  result equals the single-device one bit for bit.
-- ``simulate`` : the frame loop of ``dftl-warp simulate`` (:class:`dftl_warp.simulate.Simulation`)
+- ``simulate`` : the frame loop of ``dftl-warp simulate`` (:class:`dftl_warp.simulation.simulate.Simulation`)
                  on a generated USD groom of ``--usd-strands`` strands under an animated transform:
                  ``advance()`` alone and ``advance()`` + ``samples()`` (gathering every point to the
                  host in local space), single device against all of ``--devices``; identical
@@ -45,11 +45,10 @@ import warp as wp
 #: precision of the simulate-loop sections (--precision)
 PRECISION = "float32"
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from dftl_warp.multi_device import parse_devices  # noqa: E402
-from dftl_warp.solver import make_solver  # noqa: E402
-from dftl_warp.synthetic import uniform_groom  # noqa: E402
+from dftl_warp.simulation.multi_device import parse_devices  # noqa: E402
+from dftl_warp.solvers import make_solver  # noqa: E402
+from dftl_warp.core.synthetic import uniform_groom  # noqa: E402
 
 GRAVITY = (0.0, -9.81, 0.0)
 #: uniform_groom places strand s at z = spacing * (s % 1024): parts of a multiple of 1024 strands
@@ -173,8 +172,8 @@ def groom_usd(path: Path, strands: int, vertices: int, frames: int, hair_hair: b
 
 
 def bench_simulate(devices, strands, vertices, substeps, frames, hair_hair=False):
-    from dftl_warp.simulate import Simulation, SimulationOptions
-    from dftl_warp.usd_read import read_scene
+    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
+    from dftl_warp.usd.read import read_scene
 
     with tempfile.TemporaryDirectory() as tmp:
         path = groom_usd(Path(tmp) / "groom.usdc", strands, vertices, frames + 2, hair_hair)

@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 HEADER = ("| device | strands | segments | resolution | spp | first frame (build) s | time per frame (refit) s "
           "| camera Mrays/s | CPU threads | load avg (1 min) |\n"
@@ -52,7 +51,7 @@ def cpu_name() -> str:
 
 def run(device: str, out_dir, strands: int = 100_000, vertices: int = 16, resolution=(1920, 1080),
         spp: int = 4, frames: int = 2, threads: int | None = None) -> str:
-    from dftl_warp.warp_setup import init_warp
+    from dftl_warp.core.devices import init_warp
 
     init_warp()
     import warp as wp

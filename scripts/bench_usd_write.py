@@ -1,7 +1,7 @@
 """Writing speed of the USD writer: points, velocities and extent authored and saved to .usdc.
 
 A 10k-strand groom (32 vertices each, 320k points) over 100 frames, written through
-:class:`dftl_warp.usd_write.UsdWriter` exactly as ``dftl-warp simulate`` writes: float64 local
+:class:`dftl_warp.output.usd.UsdWriter` exactly as ``dftl-warp simulate`` writes: float64 local
 arrays in, float32 time samples authored in Sdf change blocks, the crate file saved whenever
 ``flush_bytes`` of samples have accumulated, renamed into place at the end. Target: >= 10 M points
 per second on the CPU machine.
@@ -27,8 +27,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
 
 HEADER = [
     "| case (best of 3) | strands | points / frame | frames | seconds | M points / s | file MiB | RSS growth MiB |",
@@ -81,8 +79,8 @@ def measure(out_dir: Path, *, strands: int, vertices: int, frames: int, flush_by
 
 def _measure_once(out_dir: Path, *, strands: int, vertices: int, frames: int, flush_bytes: int | None):
     """(seconds, file MiB, RSS growth MiB) of one run."""
-    from dftl_warp.usd_read import read_scene
-    from dftl_warp.usd_write import DEFAULT_FLUSH_BYTES, UsdWriter
+    from dftl_warp.usd.read import read_scene
+    from dftl_warp.output.usd import DEFAULT_FLUSH_BYTES, UsdWriter
 
     out_dir.mkdir(parents=True, exist_ok=True)
     src = out_dir / f"bench_groom_{strands}x{vertices}.usdc"
@@ -132,8 +130,8 @@ def run(out_dir, *, strands: int = 10_000, vertices: int = 32, frames: int = 100
 
 def memory_trace(out_dir, *, strands: int = 10_000, vertices: int = 32, frames: int = 100) -> dict:
     """Resident memory (MiB) after each frame, streaming (default) vs. saving only at the end."""
-    from dftl_warp.usd_read import read_scene
-    from dftl_warp.usd_write import UsdWriter
+    from dftl_warp.usd.read import read_scene
+    from dftl_warp.output.usd import UsdWriter
 
     out_dir = Path(out_dir)
     src = out_dir / f"bench_groom_{strands}x{vertices}.usdc"

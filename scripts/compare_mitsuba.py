@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
 def make_groom_stage(path: Path, strands: int, width: float) -> None:
@@ -98,7 +97,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="out/compare_mitsuba")
     args = ap.parse_args(argv)
 
-    from dftl_warp.warp_setup import init_warp
+    from dftl_warp.core.devices import init_warp
 
     init_warp()
     from dftl_warp.render import Renderer, to_rgba8, usd_scene

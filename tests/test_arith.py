@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 
-from dftl_warp.kernels.arith import fma, rsqrt
+from dftl_warp.kernels.core.arith import fma, rsqrt
 
 
 def run(scalar):

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from batch_stages import groom_stage, hidden_files, layer_content, write_jobs
-from dftl_warp import resumable
+from dftl_warp.batch import checkpoint as resumable
 from dftl_warp.errors import UserError
-from dftl_warp.jobs import Job, load_jobs
-from dftl_warp.resumable import CheckpointPolicy, JobFiles, job_lock, run_job
+from dftl_warp.batch.jobs import Job, load_jobs
+from dftl_warp.batch.checkpoint import CheckpointPolicy, JobFiles, job_lock, run_job
 
 
 class Interrupt(Exception):
@@ -73,7 +73,7 @@ def test_interrupted_job_resumes_to_the_same_output(tmp_path, stage, reference):
 
 
 def test_output_equals_simulate(tmp_path, stage, reference):
-    from dftl_warp.simulate import simulate_usd
+    from dftl_warp.simulation.simulate import simulate_usd
 
     out = _same_place(tmp_path, "simulate")
     simulate_usd(str(stage), str(out), substeps=4)
@@ -94,7 +94,7 @@ def test_checkpoint_of_other_settings_is_not_used(tmp_path, stage, reference):
 
 
 def test_output_of_simulate_is_not_taken_for_complete(tmp_path, stage, reference):
-    from dftl_warp.simulate import simulate_usd
+    from dftl_warp.simulation.simulate import simulate_usd
 
     out = _same_place(tmp_path, "c")
     simulate_usd(str(stage), str(out), substeps=6)
@@ -203,8 +203,8 @@ def test_a_bad_job_file_is_refused(tmp_path, text, message):
 
 def test_state_roundtrip_is_exact(stage):
     """save_state/load_state through an .npz keep every bit (the basis of identical resumes)."""
-    from dftl_warp.simulate import Simulation, SimulationOptions
-    from dftl_warp.usd_read import read_scene
+    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
+    from dftl_warp.usd.read import read_scene
 
     scene = read_scene(str(stage))
     sim = Simulation(scene, SimulationOptions(substeps=3), 1)
@@ -237,7 +237,7 @@ def test_a_changed_dependency_reruns_the_job(tmp_path, stage):
 
 
 def test_jobs_take_the_least_busy_device():
-    from dftl_warp.batch import DevicePicker, default_workers
+    from dftl_warp.batch.scheduler import DevicePicker, default_workers
 
     picker = DevicePicker(["cuda:0", "cuda:1"])
     auto = lambda k: Job(index=k, name=str(k), input="i", output=f"o{k}.usdc")  # noqa: E731
@@ -252,7 +252,7 @@ def test_jobs_take_the_least_busy_device():
 
 
 def test_ray_task_devices():
-    from dftl_warp.batch_ray import task_device
+    from dftl_warp.batch.ray_cluster import task_device
 
     assert task_device("cpu") == ("cpu", 0)
     assert task_device("cuda:3") == ("cuda:0", 1)
@@ -262,7 +262,7 @@ def test_ray_task_devices():
 @pytest.mark.parametrize("address, message", [
     ("127.0.0.1:1", "--ray 127.0.0.1:1: cannot connect:"), ("nonsense", "--ray nonsense: expected 'auto', 'local', HOST:PORT")])
 def test_unreachable_ray_address_fails_fast(address, message):
-    from dftl_warp.batch_ray import connect
+    from dftl_warp.batch.ray_cluster import connect
 
     with pytest.raises(UserError, match=None) as info:
         connect(address)
@@ -287,9 +287,9 @@ def test_interleaved_state_roundtrip_and_samples_match_the_plain_layout(monkeypa
     here on the CPU: save_state/load_state keep every bit, and the frames equal the plain layout's."""
     from pathlib import Path
 
-    import dftl_warp.model as model_module
-    from dftl_warp.simulate import Simulation, SimulationOptions
-    from dftl_warp.usd_read import read_scene
+    import dftl_warp.core.model as model_module
+    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
+    from dftl_warp.usd.read import read_scene
 
     scene = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "chain.usda"))
     opts = SimulationOptions(substeps=3, correction=correction)

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 import dftl_warp as dw
-from dftl_warp import scenarios as sc
-from dftl_warp.monitor import EnergyGrowthWarning, EnergyMonitor
-from dftl_warp.reference import ReferenceSolver
+from dftl_warp.study import scenarios as sc
+from dftl_warp.simulation.monitor import EnergyGrowthWarning, EnergyMonitor
+from dftl_warp.solvers.reference import ReferenceSolver
 
 G = (0.0, -sc.GRAVITY, 0.0)
 LENGTH, PARTICLES, HORIZON, FRAMES = 1.0, 10, 0.5, 20

@@ -5,8 +5,8 @@ import pytest
 import warp as wp
 
 import dftl_warp as dw
-from dftl_warp import baseline
-from dftl_warp.layout import make_layout
+from dftl_warp.solvers import numpy_baseline as baseline
+from dftl_warp.core.layout import make_layout
 
 from conftest import chain, segment_lengths
 
@@ -274,7 +274,7 @@ def test_bad_arguments_are_refused():
 
 
 def test_synthetic_groom_states_are_cloned_not_made_at_rest():
-    from dftl_warp.synthetic import uniform_groom
+    from dftl_warp.core.synthetic import uniform_groom
 
     model, state = uniform_groom(5, 4, layout="particle-major")
     solver = dw.DFTLSolver(model, gravity=G)
@@ -304,8 +304,8 @@ def test_root_targets_reuse_the_last_end_in_device_order(rng):
 
 
 def test_interleave_follows_what_the_solver_carries():
-    from dftl_warp.layout import default_interleave
-    from dftl_warp.solver import carries_corrections
+    from dftl_warp.core.layout import default_interleave
+    from dftl_warp.solvers import carries_corrections
 
     assert default_interleave("particle-major", "cuda:0") == 3
     assert default_interleave("particle-major", "cuda:0", corrections=False) == 2

@@ -7,7 +7,8 @@ import warp as wp
 
 import dftl_warp as dw
 from dftl_warp import features as F
-from dftl_warp.kernels.ftl import bare_step_kernel, step_kernel
+from dftl_warp.kernels.solvers.ftl import bare_step_kernel
+from dftl_warp.kernels.solvers.step import step_kernel
 
 from conftest import segment_lengths
 
@@ -329,7 +330,7 @@ def test_all_features_together_keep_lengths(precision, correction):
 
 
 def test_dftl_attributes_map_to_features():
-    from dftl_warp.feature_attrs import features_from_attributes
+    from dftl_warp.features.attributes import features_from_attributes
 
     scene = {"dftl:drag": 1.5, "dftl:wind": [[0.0, 1.0, 0.0, 0.0], [2.0, 3.0, 0.0, 0.0]], "dftl:windNoise": 0.2,
              "dftl:hairHair": True, "dftl:hairHairRepulsion": 8.0}
@@ -350,7 +351,7 @@ def test_dftl_attributes_map_to_features():
 
 
 def test_memory_estimate_counts_the_features():
-    from dftl_warp.feature_data import memory_estimate
+    from dftl_warp.features.data import memory_estimate
 
     pts = np.stack([np.arange(10) * 0.01, np.zeros(10), np.zeros(10)], 1)
     bare = memory_estimate(dw.Model.from_strands(pts, [10]))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import dftl_warp as dw
-from dftl_warp.solver import fused_capacity, fused_runs
+from dftl_warp.solvers.fused_runs import fused_capacity, fused_runs
 from fused_frames import random_groom, simulate
 
 LENGTHS = [1, 2, 7, 8, 9, 13]  # not multiples of the capacity blocks (8), except one exact fit
@@ -48,7 +48,7 @@ def test_fused_refuses_long_strands_only_in_the_posterior_form():
 
 
 def test_fused_is_chosen_only_where_measured_faster():
-    from dftl_warp.solver import PIPELINED_PAYS, fused_pays
+    from dftl_warp.solvers.fused_runs import PIPELINED_PAYS, fused_pays
 
     assert not fused_pays(8, 1, "float32")  # one substep per frame never gains
     assert fused_pays(16, 2, "float32") and fused_pays(8, 8, "float64")
@@ -62,7 +62,7 @@ def test_fused_is_chosen_only_where_measured_faster():
 def test_fused_equals_unfused_past_the_on_chip_rest_lengths(rng):
     """Capacities above REST_ON_CHIP_MAX re-read rest lengths every substep: same results. Only
     the posterior form keeps such strands on chip (the prior form pipelines them)."""
-    from dftl_warp.kernels.fused import REST_ON_CHIP_MAX
+    from dftl_warp.kernels.solvers.fused import REST_ON_CHIP_MAX
 
     n = REST_ON_CHIP_MAX + 5  # capacity REST_ON_CHIP_MAX + 8, not filled
     steps = rng.normal(size=(n, 3))
@@ -83,7 +83,7 @@ def test_fused_with_rest_lengths_in_shared_rows_equals_unfused(layout, rng):
     shared-memory row (kernels/fused.py, REST_IN_SHARED; on the CPU a static row per thread)."""
     import warp as wp
 
-    from dftl_warp.kernels.fused import REST_IN_SHARED
+    from dftl_warp.kernels.solvers.fused import REST_IN_SHARED
 
     assert (wp.float32, 32) in REST_IN_SHARED
     pts, counts = random_groom(rng, [32, 25, 32, 30, 2, 32])

@@ -7,11 +7,11 @@ import pytest
 
 from batch_stages import groom_stage, layer_content
 from dftl_warp.cli import main
-from dftl_warp.jobs import Job
-from dftl_warp.multi_device import SplitGroup, split_strands
-from dftl_warp.resumable import CheckpointPolicy, run_job
-from dftl_warp.simulate import Simulation, SimulationOptions, simulate_usd
-from dftl_warp.usd_read import read_scene
+from dftl_warp.batch.jobs import Job
+from dftl_warp.simulation.multi_device import SplitGroup, split_strands
+from dftl_warp.batch.checkpoint import CheckpointPolicy, run_job
+from dftl_warp.simulation.simulate import Simulation, SimulationOptions, simulate_usd
+from dftl_warp.usd.read import read_scene
 from pxr import Sdf
 from usd_stages import add_curves, animated_xform, chain, new_stage
 
@@ -185,7 +185,7 @@ def test_split_with_hair_hair_equals_single_device(tmp_path, precision, toleranc
 def test_split_hair_hair_grid_equals_single_device_grid(tmp_path):
     """After a substep's bounds and splat phases, every part holds the single-device grid (float64:
     the sums differ only in order)."""
-    from dftl_warp.simulate import Simulation, SimulationOptions
+    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
 
     path = _featured_stage(tmp_path / "hairhair.usda", hair_hair=True)
     scene = read_scene(str(path))

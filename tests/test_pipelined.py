@@ -9,8 +9,8 @@ import pytest
 import warp as wp
 
 import dftl_warp as dw
-from dftl_warp.kernels.pipelined import pipelined_serial_kernel
-from dftl_warp.solver import ON_CHIP_PRIOR_VERTICES, pipelined_runs
+from dftl_warp.kernels.solvers.pipelined import pipelined_serial_kernel
+from dftl_warp.solvers.fused_runs import ON_CHIP_PRIOR_VERTICES, pipelined_runs
 from fused_frames import random_groom, simulate, swing_roots
 
 # longer than the on-chip limit (33, 37, 100), one run of several strands (40 x 3), mixed with

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import dftl_warp as dw
-from dftl_warp import scenarios as sc
-from dftl_warp.pbd import PBDSolver
-from dftl_warp.reference import ReferenceSolver
+from dftl_warp.study import scenarios as sc
+from dftl_warp.solvers.pbd import PBDSolver
+from dftl_warp.solvers.reference import ReferenceSolver
 
 from conftest import segment_lengths
 

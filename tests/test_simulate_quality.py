@@ -43,7 +43,7 @@ def test_quality_preset_sets_solver_substeps_and_precision(tmp_path, capsys):
     scene = hanging_stage(tmp_path / "hang.usda", particles=8, frames=3)
     out = tmp_path / "draft.usdc"
     assert main(["simulate", str(scene), "-o", str(out), "--quality", "draft", "--quiet"]) == 0
-    from dftl_warp.simulate import simulate_usd
+    from dftl_warp.simulation.simulate import simulate_usd
 
     reference = simulate_usd(str(scene), str(tmp_path / "explicit.usdc"), substeps=1, solver="dftl")
     assert reference.groups[0]["substeps"] == 1

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import dftl_warp as dw
-from dftl_warp import scenarios as sc
-from dftl_warp.monitor import EnergyGrowthWarning, EnergyMonitor
+from dftl_warp.study import scenarios as sc
+from dftl_warp.simulation.monitor import EnergyGrowthWarning, EnergyMonitor
 
 L = 0.2
 

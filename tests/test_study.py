@@ -5,7 +5,7 @@ import csv
 import pytest
 
 from dftl_warp.cli import main
-from dftl_warp.quality import QUALITY_PRESETS, quality_preset
+from dftl_warp.simulation.quality import QUALITY_PRESETS, quality_preset
 
 
 def read(path):

@@ -10,7 +10,7 @@ import pytest
 from usd_stages import add_curves, chain, new_stage
 
 from dftl_warp import cli
-from dftl_warp import usd_read
+from dftl_warp.usd import read as usd_read
 
 
 def run_cli(capsys, *argv):
@@ -168,7 +168,7 @@ def test_unknown_device(tmp_path, capsys):
 def test_failure_while_writing_leaves_no_output_and_keeps_an_old_one(tmp_path, capsys, monkeypatch):
     """A run that dies mid-way (here: interrupted at frame 4) removes its partial file and leaves a
     previous OUTPUT untouched; while running, OUTPUT itself is never written."""
-    from dftl_warp import usd_write
+    from dftl_warp.output import usd as usd_write
 
     f = curves_file(tmp_path, chain(3), [3])
     out = tmp_path / "out.usdc"

@@ -8,7 +8,7 @@ from pxr import Gf, Sdf, UsdGeom, UsdPhysics, Vt
 from usd_stages import add_curves, animated_xform, chain, composed_samples, new_stage, set_attr
 
 from dftl_warp import cli
-from dftl_warp.simulate import simulate_usd
+from dftl_warp.simulation.simulate import simulate_usd
 
 
 def sphere_collider(stage, path, radius, translate=(0.0, 0.0, 0.0)):

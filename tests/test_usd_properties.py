@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from pxr import Usd, UsdGeom, Vt
 
 from dftl_warp.errors import UserError
-from dftl_warp.simulate import Simulation, SimulationOptions
-from dftl_warp.usd_read import read_scene
+from dftl_warp.simulation.simulate import Simulation, SimulationOptions
+from dftl_warp.usd.read import read_scene
 
 FAULTS = ["none", "none", "none", "zero count", "negative count", "extra point", "missing point", "nan",
           "inf", "huge", "periodic", "bad type", "bad basis", "bad wrap", "no points", "no counts", "duplicate points"]

@@ -6,7 +6,7 @@ from pxr import Gf, Sdf, UsdGeom, UsdPhysics, UsdShade, UsdUtils, Vt
 from usd_stages import add_curves, chain, new_stage, set_attr
 
 from dftl_warp.errors import UserError
-from dftl_warp.usd_read import read_scene
+from dftl_warp.usd.read import read_scene
 
 
 def simple(tmp_path, name="in.usda", **stage_kw):

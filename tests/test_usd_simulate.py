@@ -7,8 +7,8 @@ from pxr import Gf, Usd, UsdGeom
 from usd_stages import add_curves, animated_xform, chain, composed_samples, local_to_world, new_stage, set_attr
 
 from dftl_warp import cli, simulate_strands
-from dftl_warp.scene import transform_points
-from dftl_warp.simulate import DEFAULT_SUBSTEPS, simulate_usd
+from dftl_warp.usd.scene import transform_points
+from dftl_warp.simulation.simulate import DEFAULT_SUBSTEPS, simulate_usd
 
 
 def tip_after_one_frame(tmp_path, name, up, meters_per_unit, length):
@@ -198,13 +198,13 @@ def test_command_shows_progress_on_stderr_and_a_summary(tmp_path, capsys):
 
 
 def test_solver_choices_come_from_the_solver_registry(monkeypatch):
-    import dftl_warp.solver as solver
+    from dftl_warp.solvers import SOLVERS, DFTLSolver
 
-    monkeypatch.setattr(solver, "SOLVERS", solver.SOLVERS + ("future",))
+    monkeypatch.setitem(SOLVERS, "future", DFTLSolver)
     parser = cli.build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
     choices = next(a for a in sub.choices["simulate"]._actions if a.dest == "solver").choices
-    assert tuple(choices) == solver.SOLVERS
+    assert tuple(choices) == tuple(SOLVERS) and "future" in choices
 
 
 def test_info_command_describes_the_default_scene(capsys):
@@ -226,8 +226,8 @@ def test_info_command_describes_the_default_scene(capsys):
 
 def test_samples_of_earlier_frames_stay_valid(tmp_path):
     """samples() returns arrays the caller owns: the next frame does not overwrite them."""
-    from dftl_warp.simulate import Simulation, SimulationOptions
-    from dftl_warp.usd_read import read_scene
+    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
+    from dftl_warp.usd.read import read_scene
 
     stage = new_stage(tmp_path / "s.usda", start=1, end=3)
     add_curves(stage, "/World/Hair", chain(5, spacing=0.1), [5])

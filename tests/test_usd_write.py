@@ -8,9 +8,9 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdValidation
 from usd_stages import add_curves, chain, composed_samples, new_stage
 
-from dftl_warp.simulate import Simulation, SimulationOptions, run_frames, simulate_usd
-from dftl_warp.usd_read import read_scene
-from dftl_warp.usd_write import UsdWriter, partial_path
+from dftl_warp.simulation.simulate import Simulation, SimulationOptions, run_frames, simulate_usd
+from dftl_warp.usd.read import read_scene
+from dftl_warp.output.usd import UsdWriter, partial_path
 
 ROOT = Path(__file__).resolve().parent.parent
 

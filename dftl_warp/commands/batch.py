@@ -60,13 +60,13 @@ def run(args) -> int:
 
     from rich.console import Console
 
-    from ..batch import Reporter, run_local, summary_table, totals
+    from ..batch.scheduler import Reporter, run_local, summary_table, totals
     from ..errors import UserError
-    from ..jobs import load_jobs
-    from ..resumable import CheckpointPolicy
+    from ..batch.jobs import load_jobs
+    from ..batch.checkpoint import CheckpointPolicy
 
     if args.ray is not None:
-        from ..batch_ray import require_ray
+        from ..batch.ray_cluster import require_ray
 
         require_ray()
     jobs = load_jobs(args.jobs)
@@ -77,7 +77,7 @@ def run(args) -> int:
     start = time.perf_counter()
     try:
         if args.ray is not None:
-            from ..batch_ray import run_ray
+            from ..batch.ray_cluster import run_ray
 
             results = run_ray(jobs, args.ray, policy=policy, reporter=reporter)
         else:

@@ -24,8 +24,8 @@ def device_bytes(scene, precision: str, correction: str = "prior") -> int:
     import numpy as np
     import warp as wp
 
-    from ..model import Model
-    from ..solver import make_solver
+    from ..core.model import Model
+    from ..solvers import make_solver
 
     points = np.concatenate([c.points for c in scene.curves])
     counts = np.concatenate([c.counts for c in scene.curves])
@@ -46,10 +46,10 @@ def feature_summary(scene, precision: str = "float32") -> dict:
     the simulation (by root-binding mesh)."""
     import numpy as np
 
-    from ..feature_data import memory_estimate
-    from ..model import Model
-    from ..scene import transform_points
-    from ..scene_features import feature_names, group_features
+    from ..features.data import memory_estimate
+    from ..core.model import Model
+    from ..usd.scene import transform_points
+    from ..features.from_scene import feature_names, group_features
 
     groups: dict = {}
     for c in scene.curves:
@@ -73,7 +73,7 @@ def feature_summary(scene, precision: str = "float32") -> dict:
 
 
 def describe(scene) -> dict:
-    """A JSON-able description of a :class:`~dftl_warp.scene.Scene`."""
+    """A JSON-able description of a :class:`~dftl_warp.usd.scene.Scene`."""
     import numpy as np
 
     info = scene.stage
@@ -135,7 +135,7 @@ def _bytes(n: float) -> str:
 
 
 def run(args) -> int:
-    from ..usd_read import read_scene
+    from ..usd.read import read_scene
 
     scene = read_scene(args.scene, prims=args.prim)
     d = describe(scene)

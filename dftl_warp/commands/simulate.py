@@ -6,10 +6,10 @@ import sys
 
 
 def add_parser(sub):
-    from ..precision import PRECISIONS
-    from ..simulate import DEFAULT_SUBSTEPS
-    from ..quality import QUALITY_PRESETS
-    from ..solver import SOLVERS
+    from ..core.precision import PRECISIONS
+    from ..simulation.simulate import DEFAULT_SUBSTEPS
+    from ..simulation.quality import QUALITY_PRESETS
+    from ..solvers import SOLVERS
 
     p = sub.add_parser(
         "simulate",
@@ -72,8 +72,8 @@ def _unit_float(text):
 
 
 def run(args) -> int:
-    from ..quality import quality_preset
-    from ..simulate import simulate_usd
+    from ..simulation.quality import quality_preset
+    from ..simulation.simulate import simulate_usd
 
     preset = quality_preset(args.quality) if args.quality else {}
     for name in ("solver", "substeps", "precision", "damping", "correction"):

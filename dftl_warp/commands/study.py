@@ -47,8 +47,8 @@ def _command_line() -> str:
 def run(args) -> int:
     import warp as wp
 
-    from ..study import StudyConfig, run_study
-    from ..study_report import write_results
+    from ..study.sweeps import StudyConfig, run_study
+    from ..study.report import write_results
 
     try:
         device = wp.get_device(args.device)

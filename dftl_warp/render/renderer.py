@@ -16,7 +16,7 @@ import numpy as np
 import warp as wp
 
 from ..errors import UserError
-from ..kernels import render as rk
+from ..kernels.render import tracer as rk
 from .camera import Camera, auto_frame
 from .scene import RenderScene
 

@@ -1,0 +1,438 @@
+"""One batch job, resumable: simulate a stage to its output with regular checkpoints.
+
+Files next to ``OUTPUT`` (``out/sh010.usdc``), all hidden and all gone once the job completes:
+
+- ``.sh010.usdc.dftl-partial.usdc``: the frames being written (:class:`~dftl_warp.output.usd.UsdWriter`);
+- ``.sh010.usdc.dftl-checkpoint.usdc``: a copy of the partial file at the last checkpoint;
+- ``.sh010.usdc.dftl-checkpoint.npz``: the solver state at that frame
+  (:meth:`~dftl_warp.simulation.simulate.Simulation.save_state`), the job's settings hash and state layout;
+- ``.sh010.usdc.dftl-lock``: held (``flock``) while a process works on the job.
+
+A checkpoint is taken every ``every_frames`` frames and/or ``every_seconds`` seconds: the partial
+file is saved, copied to a temporary file and renamed over the checkpoint copy, then the state is
+written to a temporary ``.npz`` and renamed. Every file is therefore whole at any moment, and the
+copy is never older than the state (frames past the state's frame are simply written again, to
+the same values). USD saves a crate file in place, so the live partial file is never trusted
+after an interruption: a resumed job starts from the checkpoint copy.
+
+A job is *complete* when ``OUTPUT`` exists and its ``customLayerData`` records the job's settings
+hash (contents of the input and of every file it depends on, frames and options; see
+:func:`settings_hash`). A checkpoint is used
+only when it records the same hash and state layout; otherwise it is discarded and the job starts
+over. Completed jobs are skipped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+
+#: version of the checkpoint and completion records (bump when their meaning changes)
+FORMAT = 1
+#: ``customLayerData`` key of the output layer holding the batch record
+LAYER_DATA_KEY = "dftl_warp_batch"
+#: how long a job waits for the lock of its output held by another (e.g. dying) process, s
+LOCK_WAIT_SECONDS = 30.0
+
+
+@dataclass
+class CheckpointPolicy:
+    """When to checkpoint: every ``every_frames`` frames and/or every ``every_seconds`` seconds of
+    wall time (0 turns either off). Checkpoints by time also wait long enough that taking them
+    costs at most ``max_overhead`` of the job's time (a checkpoint copies the frames written so
+    far, which grows with the output)."""
+
+    every_frames: int = 0
+    every_seconds: float = 30.0
+    max_overhead: float = 0.05
+
+
+@dataclass
+class JobResult:
+    """What happened to one job. ``status``: done, skipped (already complete) or failed."""
+
+    index: int
+    name: str
+    output: str
+    status: str
+    device: str | None = None
+    #: frames of the job's range, and frames simulated and written by this run
+    total_frames: int = 0
+    frames: int = 0
+    #: frame the run continued from (a checkpoint), or None
+    resumed_from: int | None = None
+    #: wall time of the job in this run, s
+    seconds: float = 0.0
+    error: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.status in ("done", "skipped")
+
+    @property
+    def frames_per_second(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else 0.0
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class JobFiles:
+    """The hidden files of a job next to its output."""
+
+    output: Path
+
+    def _sibling(self, suffix: str) -> Path:
+        return self.output.with_name(f".{self.output.name}.{suffix}")
+
+    @property
+    def partial(self) -> Path:
+        from ..output.usd import partial_path
+
+        return partial_path(self.output)
+
+    @property
+    def checkpoint_usd(self) -> Path:
+        return self._sibling("dftl-checkpoint.usdc")
+
+    @property
+    def checkpoint_state(self) -> Path:
+        return self._sibling("dftl-checkpoint.npz")
+
+    @property
+    def lock(self) -> Path:
+        return self._sibling("dftl-lock")
+
+    def temporary(self, path: Path) -> Path:
+        return path.with_name(path.name + ".tmp")
+
+    def checkpoint_files(self) -> list[Path]:
+        files = [self.checkpoint_usd, self.checkpoint_state]
+        return files + [self.temporary(p) for p in files]
+
+
+# -- settings ---------------------------------------------------------------------------------------
+
+
+def file_sha256(path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def input_fingerprint(input_path) -> dict:
+    """SHA-256 of the input file and of every file it depends on (sublayers, references,
+    payloads, other assets), by real path; missing dependencies are listed as such."""
+    from pxr import UsdUtils
+
+    files = {os.path.abspath(input_path): file_sha256(input_path)}
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # keep USD's warnings off the terminal
+    try:
+        layers, assets, unresolved = UsdUtils.ComputeAllDependencies(os.fspath(input_path))
+    except Exception:  # noqa: BLE001 - the input alone still identifies most changes
+        return files
+    finally:
+        del delegate
+    for path in [layer.realPath for layer in layers if layer.realPath] + list(assets):
+        if os.path.isfile(path):
+            files[os.path.abspath(path)] = file_sha256(path)
+    for path in unresolved:
+        files[str(path)] = "missing"
+    return files
+
+
+def settings_hash(input_path, output, options, first: int, last: int) -> str:
+    """Hash of everything the output depends on: the contents of the input and of every file it
+    depends on, the input and output paths, the frame range and the simulate options (except the
+    device: every device gives the same results). ``options`` is a
+    :class:`~dftl_warp.simulation.simulate.SimulationOptions`."""
+    from .. import __version__
+
+    opts = {k: v for k, v in asdict(options).items() if k not in ("device", "start", "end")}
+    record = {
+        "format": FORMAT,
+        "dftl_warp": __version__,
+        "input": os.path.abspath(input_path),
+        "files": input_fingerprint(input_path),
+        "output": os.path.abspath(output),
+        "frames": [int(first), int(last)],
+        "options": opts,
+    }
+    return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
+
+
+def state_signature(sim) -> str:
+    """What a saved state's layout depends on: device kinds and the arrays' shapes and types."""
+    kinds = ",".join("cuda" if d.startswith("cuda") else d for d in str(sim.options.device).split(","))
+    shapes = {k: [list(np.shape(v)), str(np.asarray(v).dtype)] for k, v in sim.save_state().items() if k != "frame"}
+    return json.dumps({"devices": kinds, "arrays": shapes}, sort_keys=True)
+
+
+def completed(output, key: str) -> bool:
+    """Whether ``output`` exists and was written by a job with settings hash ``key``."""
+    from pxr import Sdf, Tf
+
+    output = Path(output)
+    if not output.is_file():
+        return False
+    try:
+        layer = Sdf.Layer.OpenAsAnonymous(str(output), True)
+    except Tf.ErrorException:
+        return False
+    if layer is None:
+        return False
+    record = dict(layer.customLayerData).get(LAYER_DATA_KEY)
+    return isinstance(record, dict) and record.get("settings_hash") == key
+
+
+# -- files ------------------------------------------------------------------------------------------
+
+
+def _remove(path) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        os.remove(path)
+
+
+def _fsync_replace(tmp: Path, target: Path) -> None:
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, target)
+
+
+def _copy(source: Path, target: Path) -> None:
+    """Copy a file in the kernel (``copy_file_range``: a reflink clone on file systems that have
+    them), else through ``shutil``."""
+    if hasattr(os, "copy_file_range"):
+        try:
+            with open(source, "rb") as src, open(target, "wb") as dst:
+                size = os.fstat(src.fileno()).st_size
+                copied = 0
+                while copied < size:
+                    n = os.copy_file_range(src.fileno(), dst.fileno(), size - copied)
+                    if n == 0:
+                        break
+                    copied += n
+            if copied == size:
+                return
+        except OSError:
+            pass
+    shutil.copyfile(source, target)
+
+
+def atomic_copy(source: Path, target: Path, tmp: Path) -> None:
+    """Copy ``source`` to ``target`` through ``tmp`` (whole file or nothing at ``target``)."""
+    _copy(source, tmp)
+    _fsync_replace(tmp, target)
+
+
+def atomic_savez(target: Path, tmp: Path, arrays: dict) -> None:
+    with open(tmp, "wb") as f:
+        np.savez(f, **arrays)
+    _fsync_replace(tmp, target)
+
+
+def remove_job_files(files: JobFiles) -> None:
+    """Delete the partial and checkpoint files of a job, and the temporary files USD leaves
+    when killed while exporting a partial file (``.NAME.dftl-partial.XXXXXX``)."""
+    import glob
+
+    leftovers = files.output.parent.glob(glob.escape(f".{files.output.name}.dftl-partial") + "*")
+    for path in [files.partial, *files.checkpoint_files(), *leftovers]:
+        _remove(path)
+
+
+@contextlib.contextmanager
+def job_lock(path: Path, wait: float | None = None):
+    """Exclusive lock on ``path`` (created, removed on exit) so that two processes never work on
+    the same output; waits up to ``wait`` s for a holder (e.g. a process being killed)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no locking
+        yield
+        return
+    deadline = time.monotonic() + (LOCK_WAIT_SECONDS if wait is None else wait)
+    while True:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            if time.monotonic() > deadline:
+                raise UserError(f"{path}: another dftl-warp process is working on this output") from None
+            time.sleep(0.1)
+            continue
+        try:  # the file we locked may have been removed by its last holder: lock the new one
+            same = os.fstat(fd).st_ino == os.stat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        yield
+    finally:
+        _remove(path)
+        os.close(fd)
+
+
+# -- running ----------------------------------------------------------------------------------------
+
+
+def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=None) -> JobResult:
+    """Run :class:`~dftl_warp.batch.jobs.Job` ``job`` on ``device``, resuming from its checkpoint when
+    one matches. Never raises for the job's own problems: they come back as a failed result.
+
+    ``progress`` (optional) is called with event dicts: ``{"event": "start", "total", "first",
+    "last", "resumed_from"}``, ``{"event": "frames", "done"}``, ``{"event": "note", "text"}``.
+    """
+    policy = policy or CheckpointPolicy()
+    start = time.perf_counter()
+    result = JobResult(index=job.index, name=job.name, output=job.output, status="failed", device=device)
+    emit = progress or (lambda event: None)
+    if job.error is not None:
+        result.error = job.error
+        return result
+    try:
+        files = JobFiles(Path(job.output))
+        Path(job.output).parent.mkdir(parents=True, exist_ok=True)
+        with job_lock(files.lock):
+            _run(job, device, policy, files, result, emit)
+    except UserError as exc:
+        result.status, result.error = "failed", str(exc)
+    except Exception as exc:  # a bug or an environment problem: one line, details on request
+        if os.environ.get("DFTL_WARP_VERBOSE"):
+            import traceback
+
+            traceback.print_exc()
+        result.status, result.error = "failed", f"{job.output}: internal error: {type(exc).__name__}: {exc}"
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
+    from ..simulation.simulate import Simulation, SimulationOptions, resolve_frames, run_frames
+    from ..usd.read import read_scene
+    from ..output.usd import UsdWriter, check_output_path
+    from ..core.devices import init_warp
+
+    init_warp()
+    opts = SimulationOptions(**job.options, device=device)
+    check_output_path(job.output, job.input)
+    scene = read_scene(job.input, prims=opts.prims, time=opts.start)
+    first, last = resolve_frames(scene, opts.start, opts.end)
+    result.total_frames = last - first + 1
+    key = settings_hash(job.input, job.output, opts, first, last)
+    if completed(job.output, key):
+        remove_job_files(files)  # left over when a run was killed right after its commit
+        result.status = "skipped"
+        return
+    sim = Simulation(scene, opts, first)
+    signature = state_signature(sim)
+
+    def note(text):
+        result.notes.append(text)
+        emit({"event": "note", "text": text})
+
+    writer, resumed = _resume(files, key, signature, sim, scene, first, last, note)
+    if writer is None:
+        remove_job_files(files)
+        writer = UsdWriter.create(job.output, scene, frames=(first, last), keep_partial=True)
+        writer.layer.customLayerData = {LAYER_DATA_KEY: {"settings_hash": key, "format": FORMAT}}
+    result.resumed_from = resumed
+    emit({"event": "start", "total": result.total_frames, "first": first, "last": last, "resumed_from": resumed})
+    done = 0 if resumed is None else resumed - first + 1
+    # the frame loop may run a frame ahead of the writer (simulate.run_frames): a checkpoint
+    # saves the state at sim.frame, and a resumed run writes that frame again before going on
+    since = {"frames": 0, "time": time.monotonic(), "cost": 0.0}
+
+    def after_frame(_n):
+        nonlocal done
+        done += 1
+        result.frames += 1
+        emit({"event": "frames", "done": done})
+        since["frames"] += 1
+        if sim.frame >= last:
+            return
+        due_frames = policy.every_frames and since["frames"] >= policy.every_frames
+        wait = max(policy.every_seconds, since["cost"] / policy.max_overhead if policy.max_overhead > 0 else 0.0)
+        due_time = policy.every_seconds and time.monotonic() - since["time"] >= wait
+        if due_frames or due_time:
+            began = time.monotonic()
+            _checkpoint(files, writer, sim, key, signature)
+            since["frames"], since["time"], since["cost"] = 0, time.monotonic(), time.monotonic() - began
+
+    try:
+        run_frames(sim, writer, last, progress=after_frame, write_first=True)
+        writer.keep_partial = False
+        writer.commit()
+    except BaseException:
+        writer.keep_partial = False  # the checkpoint, not the partial file, is what resumes
+        if writer.layer is not None:
+            writer.abort()
+        raise
+    remove_job_files(files)
+    result.status = "done"
+
+
+def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
+    """Save the partial file, copy it, then save the state (see the module docstring)."""
+    writer.flush()
+    atomic_copy(files.partial, files.checkpoint_usd, files.temporary(files.checkpoint_usd))
+    state = dict(sim.save_state())
+    state["settings_hash"] = np.array(key)
+    state["signature"] = np.array(signature)
+    state["format"] = np.array(FORMAT)
+    atomic_savez(files.checkpoint_state, files.temporary(files.checkpoint_state), state)
+
+
+def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
+    """(writer, last frame kept) continuing from the job's checkpoint, or (None, None) to start
+    over. The simulation is left at the checkpoint's frame, which is written (again) next."""
+    from ..output.usd import UsdWriter
+
+    if not (files.checkpoint_state.exists() and files.checkpoint_usd.exists()):
+        return None, None
+    try:
+        with np.load(files.checkpoint_state, allow_pickle=False) as data:
+            state = {k: data[k] for k in data.files}
+    except Exception as exc:  # noqa: BLE001 - any unreadable checkpoint is just discarded
+        note(f"checkpoint unreadable ({type(exc).__name__}); starting over")
+        return None, None
+    if int(state.get("format", -1)) != FORMAT or str(state.get("settings_hash")) != key:
+        note("checkpoint is from other settings or input; starting over")
+        return None, None
+    if str(state.get("signature")) != signature:
+        note("checkpoint was taken on another kind of device; starting over")
+        return None, None
+    frame = int(state["frame"])  # the state's frame; the USD copy holds every frame before it
+    if not first < frame <= last:
+        note(f"checkpoint frame {frame} is outside {first}..{last}; starting over")
+        return None, None
+    atomic_copy(files.checkpoint_usd, files.partial, files.temporary(files.partial))
+    try:
+        writer = UsdWriter.reopen(files.output, scene, keep_partial=False)
+    except UserError as exc:
+        note(f"checkpoint output unusable ({exc}); starting over")
+        return None, None
+    record = dict(writer.layer.customLayerData).get(LAYER_DATA_KEY, {})
+    have = set(writer.written_time_codes)
+    if record.get("settings_hash") != key or not have.issuperset(range(first, frame)):
+        writer.abort()
+        note("checkpoint output does not match its state; starting over")
+        return None, None
+    sim.load_state({k: v for k, v in state.items() if k not in ("settings_hash", "signature", "format")})
+    return writer, frame - 1

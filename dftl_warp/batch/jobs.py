@@ -1,0 +1,224 @@
+"""The job list of ``dftl-warp batch``: a TOML file of ``[[job]]`` tables (``docs/batch.md``).
+
+Each job names an ``input`` stage and an ``output`` layer (paths relative to the TOML file's
+folder) and may set any ``dftl-warp simulate`` option by its long name (``start``, ``end``,
+``substeps``, ``damping``, ``correction``, ``solver``, ``iterations``, ``precision``, ``quality``,
+``device``, ``prim``), plus a display ``name``. An optional ``[defaults]`` table gives options shared by every job.
+
+A file that cannot be read or parsed is an error of the whole batch; a job with an unknown option
+or a bad value is refused alone (:attr:`Job.error`) so that the others still run.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UserError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+#: keys a job table may hold besides the simulate options
+JOB_KEYS = ("input", "output", "name")
+#: ``device`` values: cpu, cuda, cuda:N, or a comma-separated list of those (split across devices)
+DEVICE_PATTERN = re.compile(r"^(cpu|cuda(:\d+)?)(,(cpu|cuda(:\d+)?))*$")
+
+
+def _integer(value, name):
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    return value
+
+
+def _positive_integer(value, name):
+    if _integer(value, name) < 1:
+        raise ValueError(f"{name} must be >= 1, got {value}")
+    return value
+
+
+def _unit_float(value, name):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{name} must be a number in [0, 1], got {value!r}")
+    if math.isnan(value) or not 0.0 <= value <= 1.0:
+        raise ValueError(f"{name} must be in [0, 1], got {value}")
+    return float(value)
+
+
+def _choice(choices):
+    def check(value, name):
+        if value not in choices:
+            raise ValueError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
+        return value
+
+    return check
+
+
+def _device(value, name):
+    if not isinstance(value, str) or not DEVICE_PATTERN.match(value.replace(" ", "")):
+        raise ValueError(f"{name} must be cpu, cuda:N or a comma-separated list of them, got {value!r}")
+    return value.replace(" ", "")
+
+
+def _prims(value, name):
+    items = [value] if isinstance(value, str) else value
+    if not isinstance(items, list) or not items or not all(isinstance(p, str) and p.startswith("/") for p in items):
+        raise ValueError(f"{name} must be a prim path or a list of prim paths (starting with /), got {value!r}")
+    return list(items)
+
+
+def _simulate_options():
+    """Option name -> validator, matching the long options of ``dftl-warp simulate``."""
+    from ..core.precision import PRECISIONS
+    from ..simulation.quality import QUALITY_PRESETS
+    from ..solvers import SOLVERS
+
+    return {
+        "start": _integer,
+        "end": _integer,
+        "substeps": _positive_integer,
+        "damping": _unit_float,
+        "correction": _choice(("prior", "posterior")),
+        "solver": _choice(SOLVERS),
+        "precision": _choice(PRECISIONS),
+        "device": _device,
+        "prim": _prims,
+        "iterations": _positive_integer,
+        "quality": _choice(tuple(QUALITY_PRESETS)),
+    }
+
+
+@dataclass
+class Job:
+    """One simulation of a batch. ``options`` are :class:`~dftl_warp.simulation.simulate.SimulationOptions`
+    fields (``prim`` becomes ``prims``); ``device`` is None when the scheduler picks it."""
+
+    #: 1-based position in the file
+    index: int
+    name: str
+    input: str
+    output: str
+    options: dict = field(default_factory=dict)
+    device: str | None = None
+    #: why the job cannot run (bad option or value), or None
+    error: str | None = None
+
+    def as_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("index", "name", "input", "output", "options", "device", "error")}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Job:
+        return cls(**data)
+
+
+def _unknown(name: str, known) -> str:
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f"unknown option {name!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+
+
+def _check_options(table: dict, where: str, allowed_extra=()) -> dict:
+    """Validated simulate options of a TOML table; raises ValueError on the first problem."""
+    validators = _simulate_options()
+    options = {}
+    for key, value in table.items():
+        if key in allowed_extra:
+            continue
+        if key not in validators:
+            raise ValueError(_unknown(key, list(validators) + list(allowed_extra)))
+        options[key] = validators[key](value, key)
+    return options
+
+
+def load_jobs(path) -> list[Job]:
+    """Jobs of the TOML file ``path``. Problems with the file itself raise UserError; problems
+    with one job are recorded in its :attr:`Job.error`."""
+    path = Path(os.fspath(path))
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not valid TOML: {exc}") from None
+    for key in data:
+        if key not in ("job", "defaults"):
+            raise UserError(f"{path}: unknown top-level key {key!r}; expected [[job]] tables and an optional [defaults]")
+    tables = data.get("job", [])
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise UserError(f"{path}: 'job' must be an array of tables ([[job]])")
+    if not tables:
+        raise UserError(f"{path}: no [[job]] tables")
+    defaults = data.get("defaults", {})
+    if not isinstance(defaults, dict):
+        raise UserError(f"{path}: 'defaults' must be a table ([defaults])")
+    try:
+        defaults = _check_options(defaults, "defaults")
+    except ValueError as exc:
+        raise UserError(f"{path}: [defaults]: {exc}") from None
+
+    folder = path.parent
+    jobs, outputs = [], {}
+    for k, table in enumerate(tables, start=1):
+        job = _make_job(k, table, defaults, folder)
+        if job.error is None:
+            key = os.path.normcase(job.output)
+            if key in outputs:
+                job.error = f"output {table['output']} is also the output of job {outputs[key]}"
+            else:
+                outputs[key] = k
+        if job.error is not None:
+            job.error = f"{path}: {job.error}"
+        jobs.append(job)
+    return jobs
+
+
+def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
+    from ..output.usd import OUTPUT_EXTENSIONS
+
+    raw_name = table.get("name")
+    output = table.get("output")
+    name = raw_name if isinstance(raw_name, str) and raw_name else (
+        Path(output).stem if isinstance(output, str) and output else f"job{k}")
+    job = Job(index=k, name=name, input=str(table.get("input", "")), output=str(output or ""))
+    try:
+        for key in ("input", "output"):
+            value = table.get(key)
+            if value is None:
+                raise ValueError(f"missing {key!r}")
+            if not isinstance(value, str) or not value:
+                raise ValueError(f"{key} must be a non-empty path string, got {value!r}")
+        if raw_name is not None and not isinstance(raw_name, str):
+            raise ValueError(f"name must be a string, got {raw_name!r}")
+        options = {**defaults, **_check_options(table, f"job {k}", allowed_extra=JOB_KEYS)}
+        job.input = os.path.abspath(folder / table["input"])
+        job.output = os.path.abspath(folder / table["output"])
+        if Path(job.output).suffix.lower() not in OUTPUT_EXTENSIONS:
+            raise ValueError(f"output {table['output']} must end in {', '.join(OUTPUT_EXTENSIONS)}")
+        if os.path.normcase(job.output) == os.path.normcase(job.input):
+            raise ValueError("the output would overwrite the input")
+        start, end = options.get("start"), options.get("end")
+        if start is not None and end is not None and end < start:
+            raise ValueError(f"frame range {start}..{end} is empty (end before start)")
+        if "quality" in options:  # a preset fills the options the job and [defaults] leave unset
+            from ..simulation.quality import quality_preset
+
+            for key, value in quality_preset(options.pop("quality")).items():
+                options.setdefault(key, value)
+        job.device = options.pop("device", None)
+        if "prim" in options:
+            options["prims"] = options.pop("prim")
+        job.options = options
+    except ValueError as exc:
+        job.error = str(exc)
+    return job

@@ -1,0 +1,1 @@
+"""dftl_warp.core."""

@@ -1,0 +1,174 @@
+"""Particle layout: where particle ``i`` of strand ``s`` lives in the device arrays.
+
+Every per-particle device array (positions, velocities, corrections, rest lengths) uses the same
+layout, described per *device strand* by two integers::
+
+    slot(s, i) = strand_base[s] + i * strand_stride[s]
+
+which the kernels evaluate through one helper, :func:`dftl_warp.kernels.core.layout.particle`.
+
+Two layouts exist:
+
+``"strand-major"``
+    each strand's particles are contiguous (stride 1). Best for the serial CPU backend, where one
+    thread walks a strand through consecutive memory.
+``"particle-major"``
+    strands are grouped by vertex count; inside a group of ``S`` strands, particle ``i`` of every
+    strand is contiguous (stride ``S``), so neighbouring GPU threads touch neighbouring memory.
+    Best on CUDA (measured in ``scripts/bench.py``; see ``docs/benchmarks.md``).
+
+A particle-major layout may *interleave* ``F`` state vectors (``interleave=F``: positions,
+velocities and carried corrections, ``F = 3``): the strands of a group are padded to a multiple
+of 32 and every particle row is cut into chunks of 32 strands; a chunk holds ``32 F`` slots, the
+32 positions first, then the 32 velocities, then the 32 corrections. A particle's slot is its
+position's; its field ``f`` lives ``32 f`` slots further (:class:`~dftl_warp.core.state.State` keeps
+the fields in one buffer and hands out views offset by 32 and 64 slots). Still affine per strand,
+``slot(s, i) = strand_base[s] + i * strand_stride[s]`` with ``strand_stride = F * padded strands``,
+so every kernel is unchanged; a warp's state for one particle row is one contiguous 32 x 36 B
+block instead of three blocks in three arrays, which the H200 streams faster (docs/benchmarks.md).
+Slots past the chunk's 32 positions are holes in every other per-particle array (rest lengths):
+``num_slots`` is ``F x`` the padded point count, not the point count.
+
+Device strands are ordered so that strands of one group are consecutive. The host keeps the
+mapping back to the caller's order (:attr:`Layout.slot_of_point`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+LAYOUTS = ("strand-major", "particle-major")
+
+#: strands per interleaved chunk (one warp)
+CHUNK_STRANDS = 32
+
+
+def default_layout(device: str) -> str:
+    """The layout measured fastest on ``device`` (``"cpu"`` or ``"cuda:N"``)."""
+    return "particle-major" if str(device).startswith("cuda") else "strand-major"
+
+
+#: most elements of one Warp array (its shapes are 32-bit)
+MAX_SLOTS = 2**31 - 1
+
+
+def default_interleave(layout: str, device: str, features: bool = False, corrections: bool = True) -> int:
+    """State vectors to interleave for a particle-major model on CUDA without features: 3
+    (positions, velocities, corrections), or 2 when the solver carries no corrections; else 1.
+    Feature kernels that walk every slot (the hair volume grid) need a slot space without holes.
+    Builders fall back to 1 where the interleaved slot space would pass :data:`MAX_SLOTS`."""
+    if layout != "particle-major" or not str(device).startswith("cuda") or features:
+        return 1
+    return 3 if corrections else 2
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Host-side description of a particle layout (all arrays are numpy int64)."""
+
+    name: str
+    #: input strand index of each device strand (device order -> input order)
+    strand_order: np.ndarray
+    #: first slot of each device strand
+    strand_base: np.ndarray
+    #: slot distance between consecutive particles of each device strand
+    strand_stride: np.ndarray
+    #: vertex count of each device strand
+    strand_count: np.ndarray
+    #: device slot of every input point, in input order (None for device-built synthetic grooms)
+    slot_of_point: np.ndarray | None
+    #: (count, first device strand, number of strands) for each group of equal vertex count
+    groups: tuple[tuple[int, int, int], ...]
+    #: state vectors interleaved per 32-strand chunk (1: none; particle-major only)
+    interleave: int = 1
+    #: length of every per-particle device array (None: one slot per point)
+    slot_space: int | None = None
+
+    @property
+    def num_points(self) -> int:
+        return int(self.strand_count.sum())
+
+    @property
+    def num_slots(self) -> int:
+        """Length of every per-particle device array (the point count unless interleaved)."""
+        return self.num_points if self.slot_space is None else int(self.slot_space)
+
+    @property
+    def chunk_slots(self) -> int:
+        """Slot distance between neighbouring 32-strand chunks of one particle row."""
+        return CHUNK_STRANDS * self.interleave
+
+    @property
+    def storage_length(self) -> int:
+        """Entries of a State's buffer: the slot space plus the last field's offset, so that every
+        field's view has ``num_slots`` entries (the slot space itself when not interleaved)."""
+        return self.num_slots + CHUNK_STRANDS * (self.interleave - 1)
+
+
+def group_slots(size: int, interleave: int) -> tuple[np.ndarray, int]:
+    """First slots (relative to the group) of a particle-major group of ``size`` strands, and the
+    group's row stride (slots between a strand's consecutive particles); ``interleave`` > 1
+    interleaves that many state vectors per 32-strand chunk."""
+    a = np.arange(size, dtype=np.int64)
+    if interleave == 1:
+        return a, size
+    padded = -(-size // CHUNK_STRANDS) * CHUNK_STRANDS
+    return (a // CHUNK_STRANDS) * (CHUNK_STRANDS * interleave) + a % CHUNK_STRANDS, interleave * padded
+
+
+def make_layout(counts: np.ndarray, name: str, interleave: int = 1) -> Layout:
+    """Build the layout ``name`` for strands with vertex ``counts`` (input order), interleaving
+    ``interleave`` state vectors per 32-strand chunk (particle-major only)."""
+    if name not in LAYOUTS:
+        raise ValueError(f"unknown layout {name!r}; choose one of {', '.join(LAYOUTS)}")
+    interleave = int(interleave)
+    if interleave < 1 or (interleave > 1 and name != "particle-major"):
+        raise ValueError(f"layout {name!r} cannot interleave {interleave} state vectors")
+    counts = np.asarray(counts, dtype=np.int64)
+    num_strands = counts.shape[0]
+    point_start = np.zeros(num_strands + 1, dtype=np.int64)
+    np.cumsum(counts, out=point_start[1:])
+    num_points = int(point_start[-1])
+    local = np.arange(num_points, dtype=np.int64) - np.repeat(point_start[:-1], counts)
+
+    if name == "strand-major":
+        order = np.arange(num_strands, dtype=np.int64)
+    else:
+        order = np.argsort(counts, kind="stable").astype(np.int64)
+    sorted_counts = counts[order]
+    # groups of equal count, in device order
+    edges = np.flatnonzero(np.diff(sorted_counts)) + 1
+    starts = np.concatenate([[0], edges]).astype(np.int64)
+    sizes = np.diff(np.concatenate([starts, [num_strands]])).astype(np.int64)
+    groups = tuple((int(sorted_counts[a]), int(a), int(b)) for a, b in zip(starts, sizes) if b > 0)
+
+    base = np.empty(num_strands, dtype=np.int64)
+    stride = np.empty(num_strands, dtype=np.int64)
+    if name == "strand-major":
+        base[:] = point_start[:-1]
+        stride[:] = 1
+    else:
+        offset = 0
+        for count, first, size in groups:
+            rel, row = group_slots(size, interleave)
+            base[first : first + size] = offset + rel
+            stride[first : first + size] = row
+            offset += count * row
+    # device strand of every input strand
+    device_strand = np.empty(num_strands, dtype=np.int64)
+    device_strand[order] = np.arange(num_strands)
+    strand_of_point = np.repeat(device_strand, counts)
+    slot_of_point = base[strand_of_point] + local * stride[strand_of_point]
+    return Layout(
+        name=name,
+        strand_order=order,
+        strand_base=base,
+        strand_stride=stride,
+        strand_count=sorted_counts,
+        slot_of_point=slot_of_point,
+        groups=groups,
+        interleave=interleave,
+        slot_space=(offset if interleave > 1 else None) if name == "particle-major" else None,
+    )

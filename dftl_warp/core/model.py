@@ -1,0 +1,214 @@
+"""The Model: an immutable description of the strands to simulate.
+
+A Model holds what does not change during a simulation: strand topology (vertex counts), rest
+lengths, the particle layout, the roots' rest positions and the world origin the device arrays are
+relative to. Everything lives on one Warp device in one precision. Build it with
+:meth:`Model.from_strands`; make :class:`~dftl_warp.core.state.State` and
+:class:`~dftl_warp.core.state.Control` objects from it.
+
+Units: positions in metres (or stage units, consistently), lengths likewise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout
+from .precision import numpy_type, scalar_type, vec3_type
+
+
+def _world_origin(points: np.ndarray) -> np.ndarray:
+    """Origin subtracted on upload so that float32 keeps its precision far from (0, 0, 0).
+
+    Zero for scenes near the origin (so coordinates round-trip exactly); the centre of the
+    bounds, rounded to float32, for scenes far away relative to their size.
+    """
+    if points.shape[0] == 0:
+        return np.zeros(3)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    extent = float(np.max(hi - lo))
+    if np.linalg.norm(centre) <= 16.0 * max(extent, 1.0e-30) or np.linalg.norm(centre) < 1.0:
+        return np.zeros(3)
+    return centre.astype(np.float32).astype(np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Immutable strand model on a device. Construct with :meth:`from_strands`."""
+
+    device: wp.Device
+    precision: str
+    layout: Layout
+    #: vertex count of each strand, input order
+    counts: np.ndarray
+    #: world position (float64, metres) that device coordinates are relative to
+    origin: np.ndarray
+    strand_base: wp.array
+    strand_stride: wp.array
+    strand_count: wp.array
+    #: rest length of the segment ending at each particle (0 at roots), layout order, metres
+    rest_lengths: wp.array
+    #: initial positions (host numpy), layout order, relative to ``origin``
+    rest_positions: np.ndarray
+    #: initial root positions per device strand, relative to ``origin``
+    root_rest: wp.array
+    #: the optional features (:mod:`dftl_warp.features.objects`) given at build time
+    features: tuple = ()
+    #: their device data (:class:`~dftl_warp.features.data.ModelFeatures`), None without features
+    feature_data: object = None
+
+    @property
+    def num_strands(self) -> int:
+        return int(self.counts.shape[0])
+
+    @property
+    def num_points(self) -> int:
+        """Particles (vertices) of the groom."""
+        return self.layout.num_points
+
+    @property
+    def num_slots(self) -> int:
+        """Length of every per-particle device array (more than ``num_points`` when the layout
+        interleaves state vectors: :mod:`dftl_warp.core.layout`)."""
+        return int(self.rest_lengths.shape[0])
+
+    @property
+    def scalar(self):
+        return scalar_type(self.precision)
+
+    @property
+    def vec3(self):
+        return vec3_type(self.precision)
+
+    @property
+    def feature_flags(self) -> frozenset:
+        """Kernel flags of the model's features; empty for a gravity-only scene."""
+        return self.feature_data.flags if self.feature_data is not None else frozenset()
+
+    @classmethod
+    def from_strands(
+        cls,
+        points,
+        counts,
+        *,
+        device="cpu",
+        precision: str = "float32",
+        layout: str | None = None,
+        widths=None,
+        features=None,
+        origin=None,
+        interleave: int | None = None,
+        corrections: bool = True,
+    ) -> Model:
+        """Model of strands given as concatenated ``points`` (N, 3) and vertex ``counts`` (S,).
+
+        Vertex 0 of each strand is its root. Rest lengths are the input's segment lengths.
+        ``layout`` defaults to the fastest for ``device`` (:func:`~dftl_warp.core.layout.default_layout`).
+        ``features``: optional feature objects (:mod:`dftl_warp.features.objects`); ``widths``: hair
+        diameter (m), one value or one per point, used as the contact distance of colliders.
+        ``origin`` (3,) overrides the world origin (models sharing one give identical results).
+        ``interleave``: state vectors per 32-strand chunk of a particle-major layout (default
+        :func:`~dftl_warp.core.layout.default_interleave`: on CUDA without features, 3, or 2 when
+        ``corrections`` is False: the solver carries none, :func:`~dftl_warp.solvers.dftl.carries_corrections`).
+        """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        if np.any(counts < 1):
+            i = int(np.flatnonzero(counts < 1)[0])
+            raise ValueError(f"strand {i} has {counts[i]} vertices; every strand needs at least 1")
+        if int(counts.sum()) != points.shape[0]:
+            raise ValueError(f"vertex counts sum to {int(counts.sum())} but there are {points.shape[0]} points")
+        bad = ~np.isfinite(points).all(axis=1)
+        if bad.any():
+            raise ValueError(f"point {int(np.flatnonzero(bad)[0])} is not finite")
+        device = wp.get_device(device)
+        layout_name = layout or default_layout(str(device))
+        if layout_name not in LAYOUTS:
+            raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")
+        default = interleave is None
+        if default:
+            interleave = default_interleave(layout_name, str(device), bool(features), corrections)
+        lay = make_layout(counts, layout_name, interleave)
+        if default and lay.storage_length > MAX_SLOTS:
+            lay = make_layout(counts, layout_name, 1)
+        origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
+        local = points - origin
+
+        starts = np.zeros(counts.shape[0], dtype=np.int64)
+        np.cumsum(counts[:-1], out=starts[1:])
+        seg = np.zeros(points.shape[0])
+        seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        seg[starts] = 0.0  # roots have no incoming segment
+
+        ftype = numpy_type(precision)
+        rest = np.zeros(lay.num_slots, dtype=ftype)
+        rest[lay.slot_of_point] = seg
+        pos = np.zeros((lay.num_slots, 3), dtype=ftype)
+        pos[lay.slot_of_point] = local
+        roots = local[starts[lay.strand_order]].astype(ftype) if counts.size else np.zeros((0, 3), ftype)
+
+        vec3 = vec3_type(precision)
+        feature_data = None
+        if features:
+            from ..features.data import build
+
+            feature_data = build(
+                dict(device=device, precision=precision, layout=lay, scalar=scalar_type(precision), vec3=vec3,
+                     counts=counts, points=points, origin=origin),
+                features, widths=widths)
+        i32 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=device)  # noqa: E731
+        return cls(
+            device=device,
+            precision=precision,
+            layout=lay,
+            counts=counts,
+            origin=origin,
+            strand_base=i32(lay.strand_base),
+            strand_stride=i32(lay.strand_stride),
+            strand_count=i32(lay.strand_count),
+            rest_lengths=wp.array(rest, dtype=scalar_type(precision), device=device),
+            rest_positions=pos,
+            root_rest=wp.array(roots, dtype=vec3, device=device),
+            features=tuple(features or ()),
+            feature_data=feature_data,
+        )
+
+    # -- conversions between the caller's order/world space and the device layout ---------------
+
+    def points_to_device(self, points, *, relative: bool = True) -> np.ndarray:
+        """(N, 3) world points in input order -> layout-ordered numpy array in model precision.
+
+        ``relative=False`` is for vectors (velocities), which the origin does not shift."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        out = np.zeros((self.num_slots, 3), dtype=numpy_type(self.precision))
+        out[self.layout.slot_of_point] = points - self.origin if relative else points
+        return out
+
+    def points_from_device(self, array, *, relative: bool = True) -> np.ndarray:
+        """Layout-ordered device array -> (N, 3) float64 numpy in input order (world space)."""
+        host = array.numpy() if isinstance(array, wp.array) else np.asarray(array)
+        out = host[self.layout.slot_of_point].astype(np.float64)
+        return out + self.origin if relative else out
+
+    def roots_to_device(self, roots) -> np.ndarray:
+        """(S, 3) world root targets in input strand order -> device strand order, model precision."""
+        roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
+        return (roots[self.layout.strand_order] - self.origin).astype(numpy_type(self.precision))
+
+    # -- factories ---------------------------------------------------------------------------------
+
+    def state(self, *, with_corrections: bool = True):
+        """A State at rest: input positions, zero velocities (and zero carried corrections)."""
+        from .state import State
+
+        return State.at_rest(self, with_corrections=with_corrections)
+
+    def control(self):
+        """A Control whose root targets hold the roots at their rest positions."""
+        from .state import Control
+
+        return Control.at_rest(self)

@@ -1,0 +1,90 @@
+"""Cem Yuksel's HAIR format (``.hair``), as defined by ``cyHairFile.h``
+(http://www.cemyuksel.com/research/hairmodels/).
+
+Layout, little endian::
+
+    offset  0  char[4]   "HAIR"
+            4  uint32    hair_count (strands)
+            8  uint32    point_count (all strands)
+           12  uint32    arrays: bit 0 segments, 1 points, 2 thickness, 3 transparency, 4 colors
+           16  uint32    d_segments (segments per strand when there is no segments array)
+           20  float32   d_thickness
+           24  float32   d_transparency
+           28  float32   d_color[3]
+           40  char[88]  file information
+          128  uint16    segments[hair_count]            (if bit 0)
+               float32   points[point_count][3]          (if bit 1)
+               float32   thickness[point_count]          (if bit 2)
+               float32   transparency[point_count]       (if bit 3)
+               float32   color[point_count][3]           (if bit 4)
+
+A strand of s segments has s + 1 points. Thickness is the strand's diameter, in the units of the
+points; it becomes the USD ``widths`` (per vertex with the thickness array, else constant
+``d_thickness``). Transparency and colors are not imported. The format has no unit; its models
+are Z-up.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import Groom, Reader
+from ._binary import Buffer
+
+SEGMENTS_BIT, POINTS_BIT, THICKNESS_BIT, TRANSPARENCY_BIT, COLORS_BIT = 1, 2, 4, 8, 16
+HEADER_SIZE = 128
+
+
+def read(data: bytes, path: str) -> Groom:
+    buf = Buffer(data, path)
+    buf.need(0, HEADER_SIZE, "the 128-byte HAIR header")
+    if data[:4] != b"HAIR":
+        raise buf.error(0, f"signature {data[:4]!r} is not b'HAIR': not a HAIR file")
+    hair_count, point_count, arrays, d_segments = buf.unpack("<4I", 4, "header")
+    d_thickness, = buf.unpack("<f", 20, "header")
+    warnings = []
+    if arrays & ~0x1F:
+        warnings.append(f"{path}: unknown array bits 0x{arrays & ~0x1F:x} in the header; ignored")
+    if not arrays & POINTS_BIT:
+        raise buf.error(12, f"arrays = 0x{arrays:x} has no points array (bit 1)")
+    offset = HEADER_SIZE
+    if arrays & SEGMENTS_BIT:
+        segments = buf.array("<u2", hair_count, offset, f"segments array of {hair_count} strands").astype(np.int64)
+        seg_offset = offset
+        offset += 2 * hair_count
+    else:
+        segments = np.full(hair_count, d_segments, dtype=np.int64)
+        seg_offset = 16
+    counts = segments + 1
+    total = int(counts.sum())
+    if total != point_count:
+        where = "segments array" if arrays & SEGMENTS_BIT else "d_segments"
+        raise buf.error(seg_offset, f"{where} gives {total} points for {hair_count} strands "
+                                    f"but the header says point_count = {point_count}")
+    points = buf.array("<f4", 3 * point_count, offset, f"points array of {point_count} points")
+    points = points.reshape(-1, 3).astype(np.float64)
+    offset += 12 * point_count
+    widths = None
+    constant = None
+    if arrays & THICKNESS_BIT:
+        widths = buf.array("<f4", point_count, offset, f"thickness array of {point_count} points").astype(np.float64)
+        bad = ~np.isfinite(widths) | (widths < 0)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise buf.error(offset + 4 * i, f"thickness[{i}] = {widths[i]:g}: expected a finite number >= 0")
+        offset += 4 * point_count
+    elif np.isfinite(d_thickness) and d_thickness > 0:
+        constant = float(d_thickness)
+    if arrays & TRANSPARENCY_BIT:
+        buf.need(offset, 4 * point_count, f"transparency array of {point_count} points")
+        offset += 4 * point_count
+    if arrays & COLORS_BIT:
+        buf.need(offset, 12 * point_count, f"colors array of {point_count} points")
+        offset += 12 * point_count
+    if offset < buf.size:
+        warnings.append(f"{path}: {buf.size - offset} bytes after the last array (offset {offset}); ignored")
+    return Groom(points, counts, widths=widths, constant_width=constant, warnings=warnings)
+
+
+READER = Reader("hair", (".hair",), read, meters_per_unit=0.01, up_axis="Z",
+                description="Cem Yuksel's HAIR format (cyHairFile.h)")

@@ -1,0 +1,325 @@
+"""PLY, for strand files and head meshes: ``ascii 1.0``, ``binary_little_endian 1.0`` and
+``binary_big_endian 1.0``, scalar and list properties (http://paulbourke.net/dataformats/ply/).
+
+Hand-written with numpy rather than the ``plyfile`` package so that every malformed file gives a
+one-line error with its byte offset (binary) or line (ASCII), and so that element counts are
+checked against the file size before anything is allocated.
+
+Strand PLY files (the convention of kenshi84/hairutil, used to convert CT2Hair and USC-HairSalon
+strands, written with hapPLY) hold a ``vertex`` element (``x y z``, optional ``thickness``,
+``width`` or ``radius``) and delimit strands with, in order of preference:
+
+1. an element ``strand`` (or ``curve``) with a ``nsegs`` property (segments per strand) or a
+   ``vertex_count`` / ``nverts`` / ``num_vertices`` property (vertices per strand);
+2. a vertex property ``strand_id`` / ``strand_index`` / ``strand`` / ``curve_id``: runs of
+   consecutive vertices with the same value are strands;
+3. an element ``edge`` with ``vertex1 vertex2``: edges (i, i + 1) join consecutive vertices,
+   strands break where there is no such edge.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ..errors import UserError
+from . import Groom, Reader
+from ._binary import Buffer
+
+TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+MAX_HEADER = 1 << 20
+
+
+class Element:
+    def __init__(self, name: str, count: int):
+        self.name = name
+        self.count = count
+        #: (name, dtype) for scalars, (name, count dtype, item dtype) for lists
+        self.properties: list[tuple] = []
+        self.data: dict[str, object] = {}
+
+    def has(self, name: str) -> bool:
+        return name in self.data
+
+
+def _parse_header(buf: Buffer):
+    data = buf.data
+    if not data.startswith(b"ply\n") and not data.startswith(b"ply\r\n"):
+        raise buf.error(0, f"signature {data[:4]!r} is not b'ply\\n': not a PLY file")
+    end = data.find(b"end_header", 0, MAX_HEADER)
+    if end < 0:
+        raise buf.error(0, "no end_header line in the first MiB: truncated or not a PLY file")
+    nl = data.find(b"\n", end)
+    if nl < 0:
+        raise buf.error(end, "truncated after end_header")
+    body = nl + 1
+    try:
+        lines = data[:end].decode("ascii").splitlines()
+    except UnicodeDecodeError as exc:
+        raise buf.error(exc.start, "non-ASCII byte in the PLY header") from None
+    fmt = None
+    elements: list[Element] = []
+    for i, raw in enumerate(lines[1:], start=2):
+        words = raw.split()
+        where = f"{buf.path}: line {i}"
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "format":
+            if len(words) != 3 or words[1] not in FORMATS or words[2] != "1.0":
+                raise UserError(f"{where}: unsupported format line {raw.strip()!r}")
+            fmt = words[1]
+        elif words[0] == "element":
+            if len(words) != 3 or not re.fullmatch(r"\d+", words[2]):
+                raise UserError(f"{where}: bad element line {raw.strip()!r}")
+            elements.append(Element(words[1], int(words[2])))
+        elif words[0] == "property":
+            if not elements:
+                raise UserError(f"{where}: property before any element")
+            if len(words) == 3 and words[1] in TYPES:
+                elements[-1].properties.append((words[2], np.dtype(TYPES[words[1]])))
+            elif len(words) == 5 and words[1] == "list" and words[2] in TYPES and words[3] in TYPES \
+                    and TYPES[words[2]][0] in "iu":
+                elements[-1].properties.append((words[4], np.dtype(TYPES[words[2]]), np.dtype(TYPES[words[3]])))
+            else:
+                raise UserError(f"{where}: bad property line {raw.strip()!r}")
+        else:
+            raise UserError(f"{where}: unknown header keyword {words[0]!r}")
+    if fmt is None:
+        raise buf.error(0, "no format line in the PLY header")
+    return fmt, elements, body, len(lines) + 1
+
+
+def _read_binary(buf: Buffer, elements, offset: int, order: str) -> int:
+    for el in elements:
+        scalar = all(len(p) == 2 for p in el.properties)
+        if scalar:
+            dtype = np.dtype([(f"p{j}", p[1].newbyteorder(order)) for j, p in enumerate(el.properties)])
+            if offset + el.count * dtype.itemsize > buf.size:
+                raise buf.error(offset, f"truncated: element {el.name!r} ({el.count} rows of {dtype.itemsize} bytes) "
+                                        f"needs {el.count * dtype.itemsize} bytes, the file has "
+                                        f"{buf.size - offset} left")
+            rows = np.frombuffer(buf.data, dtype=dtype, count=el.count, offset=offset)
+            for j, p in enumerate(el.properties):
+                el.data[p[0]] = rows[f"p{j}"].astype(p[1].newbyteorder("="))
+            offset += el.count * dtype.itemsize
+            continue
+        # rows with lists: the minimal row size bounds the count before the row loop
+        minimal = sum(p[1].itemsize for p in el.properties)
+        if offset + el.count * minimal > buf.size:
+            raise buf.error(offset, f"truncated: element {el.name!r} has {el.count} rows, they cannot fit in "
+                                    f"the {buf.size - offset} bytes left")
+        columns = {p[0]: [] for p in el.properties}
+        for r in range(el.count):
+            for p in el.properties:
+                if len(p) == 2:
+                    dt = p[1].newbyteorder(order)
+                    v = buf.array(dt, 1, offset, f"element {el.name!r} row {r} property {p[0]!r}")
+                    columns[p[0]].append(v[0])
+                    offset += dt.itemsize
+                else:
+                    ct, it = p[1].newbyteorder(order), p[2].newbyteorder(order)
+                    n = int(buf.array(ct, 1, offset, f"element {el.name!r} row {r} list {p[0]!r} length")[0])
+                    if n < 0:
+                        raise buf.error(offset, f"element {el.name!r} row {r}: list {p[0]!r} length {n} is negative")
+                    offset += ct.itemsize
+                    columns[p[0]].append(buf.array(it, n, offset, f"element {el.name!r} row {r} list {p[0]!r}")
+                                         .astype(p[2]))
+                    offset += n * it.itemsize
+        for p in el.properties:
+            el.data[p[0]] = np.array(columns[p[0]], dtype=p[1]) if len(p) == 2 else columns[p[0]]
+    return offset
+
+
+def _read_ascii(buf: Buffer, elements, offset: int, first_line: int) -> None:
+    try:
+        text = buf.data[offset:].decode("ascii")
+    except UnicodeDecodeError as exc:
+        raise buf.error(offset + exc.start, "non-ASCII byte in an ASCII PLY body") from None
+    lines = text.splitlines()
+    i = 0
+    for el in elements:
+        scalar = all(len(p) == 2 for p in el.properties)
+        if i + el.count > len(lines):
+            raise UserError(f"{buf.path}: line {first_line + len(lines)}: truncated: element {el.name!r} needs "
+                            f"{el.count} lines, {len(lines) - i} left")
+        if scalar:
+            chunk = lines[i:i + el.count]
+            nprop = len(el.properties)
+            try:
+                values = np.array(" ".join(chunk).split(), dtype=np.float64)
+            except ValueError:
+                values = None
+            if values is None or values.size != el.count * nprop:
+                for r, line in enumerate(chunk):  # find the bad line
+                    words = line.split()
+                    try:
+                        [float(w) for w in words]
+                    except ValueError:
+                        words = None
+                    if words is None or len(words) != nprop:
+                        raise UserError(f"{buf.path}: line {first_line + i + r}: element {el.name!r} row {r}: "
+                                        f"expected {nprop} numbers, got {line.strip()[:60]!r}")
+            values = values.reshape(el.count, nprop)
+            for j, p in enumerate(el.properties):
+                el.data[p[0]] = values[:, j].astype(p[1]) if p[1].kind == "f" else \
+                    _ascii_int(values[:, j], p[1], buf.path, first_line + i, el.name, p[0])
+        else:
+            columns = {p[0]: [] for p in el.properties}
+            for r in range(el.count):
+                line_no = first_line + i + r
+                words = lines[i + r].split()
+                k = 0
+                try:
+                    for p in el.properties:
+                        if len(p) == 2:
+                            columns[p[0]].append(float(words[k]))
+                            k += 1
+                        else:
+                            n = int(words[k])
+                            if n < 0 or k + 1 + n > len(words):
+                                raise ValueError
+                            columns[p[0]].append(np.array(words[k + 1:k + 1 + n], dtype=np.float64))
+                            k += 1 + n
+                except (ValueError, IndexError):
+                    raise UserError(f"{buf.path}: line {line_no}: element {el.name!r} row {r}: cannot parse "
+                                    f"{lines[i + r].strip()[:60]!r}") from None
+            for p in el.properties:
+                if len(p) == 2:
+                    el.data[p[0]] = np.array(columns[p[0]], dtype=np.float64).astype(p[1])
+                else:
+                    el.data[p[0]] = [_ascii_int(v, p[2], buf.path, first_line + i, el.name, p[0]) if p[2].kind != "f"
+                                     else v.astype(p[2]) for v in columns[p[0]]]
+        i += el.count
+
+
+def _ascii_int(values, dtype, path, line, element, prop):
+    info = np.iinfo(dtype)
+    bad = ~np.isfinite(values) | (values != np.round(values)) | (values < info.min) | (values > info.max)
+    if np.any(bad):
+        r = int(np.flatnonzero(bad)[0])
+        raise UserError(f"{path}: line {line + r}: element {element!r} property {prop!r}: {values[r]:g} is not "
+                        f"a {dtype} integer")
+    return values.astype(dtype)
+
+
+def read_ply(data: bytes, path: str) -> dict[str, Element]:
+    """Parse a PLY file into its elements (name -> Element with ``data[property]``)."""
+    buf = Buffer(data, path)
+    fmt, elements, body, first_line = _parse_header(buf)
+    names = [e.name for e in elements]
+    dupes = {n for n in names if names.count(n) > 1}
+    if dupes:
+        raise buf.error(0, f"element {sorted(dupes)[0]!r} is declared twice")
+    if fmt == "ascii":
+        _read_ascii(buf, elements, body, first_line)
+    else:
+        _read_binary(buf, elements, body, FORMATS[fmt])
+    return {e.name: e for e in elements}
+
+
+def vertex_positions(elements: dict, path: str) -> np.ndarray:
+    v = elements.get("vertex")
+    if v is None:
+        raise UserError(f"{path}: no 'vertex' element")
+    for c in "xyz":
+        if not v.has(c) or isinstance(v.data[c], list):
+            raise UserError(f"{path}: element 'vertex' has no scalar property {c!r}")
+    return np.stack([v.data[c].astype(np.float64) for c in "xyz"], axis=1).reshape(-1, 3)
+
+
+STRAND_ELEMENTS = ("strand", "curve", "strands", "curves")
+SEGMENT_PROPS = ("nsegs", "num_segments", "segments")
+VERTEX_COUNT_PROPS = ("vertex_count", "nverts", "num_vertices", "num_verts", "count")
+ID_PROPS = ("strand_id", "strand_index", "strand", "curve_id", "curve_index")
+
+
+def _scalar(el, name):
+    value = el.data.get(name)
+    return None if value is None or isinstance(value, list) else value
+
+
+def read(data: bytes, path: str) -> Groom:
+    elements = read_ply(data, path)
+    points = vertex_positions(elements, path)
+    n = points.shape[0]
+    vertex = elements["vertex"]
+    counts = None
+    how = ""
+    for name in STRAND_ELEMENTS:
+        el = elements.get(name)
+        if el is None:
+            continue
+        for prop in SEGMENT_PROPS + VERTEX_COUNT_PROPS:
+            col = _scalar(el, prop)
+            if col is not None:
+                counts = col.astype(np.int64) + (1 if prop in SEGMENT_PROPS else 0)
+                how = f"element {name!r} property {prop!r}"
+                break
+        if counts is not None:
+            break
+    if counts is None:
+        for prop in ID_PROPS:
+            col = _scalar(vertex, prop)
+            if col is not None:
+                if n == 0:
+                    counts = np.zeros(0, dtype=np.int64)
+                else:
+                    breaks = np.flatnonzero(col[1:] != col[:-1]) + 1
+                    counts = np.diff(np.concatenate([[0], breaks, [n]])).astype(np.int64)
+                how = f"vertex property {prop!r}"
+                break
+    if counts is None and "edge" in elements:
+        e = elements["edge"]
+        a, b = _scalar(e, "vertex1"), _scalar(e, "vertex2")
+        if a is None or b is None:
+            raise UserError(f"{path}: element 'edge' has no scalar vertex1/vertex2 properties")
+        a, b = a.astype(np.int64), b.astype(np.int64)
+        bad = (b != a + 1) | (a < 0) | (b >= n)
+        if bad.any():
+            r = int(np.flatnonzero(bad)[0])
+            raise UserError(f"{path}: edge {r} = ({a[r]}, {b[r]}): strand edges must join consecutive vertices "
+                            f"(i, i + 1) within the {n} vertices")
+        linked = np.zeros(max(n - 1, 0), dtype=bool)
+        linked[a] = True
+        breaks = np.flatnonzero(~linked) + 1
+        counts = np.diff(np.concatenate([[0], breaks, [n]])).astype(np.int64) if n else np.zeros(0, np.int64)
+        how = "element 'edge'"
+    if counts is None:
+        raise UserError(f"{path}: cannot tell where strands start: expected an element 'strand' with 'nsegs' "
+                        f"(or 'vertex_count'), a vertex property 'strand_id', or an element 'edge'")
+    if np.any(counts < 0):
+        k = int(np.flatnonzero(counts < 0)[0])
+        raise UserError(f"{path}: strand {k}: negative vertex count {counts[k]} ({how})")
+    if int(counts.sum()) != n:
+        raise UserError(f"{path}: {how} gives {int(counts.sum())} vertices for {counts.size} strands but the "
+                        f"'vertex' element has {n}")
+    widths = None
+    for prop, scale in (("thickness", 1.0), ("width", 1.0), ("radius", 2.0)):
+        col = _scalar(vertex, prop)
+        if col is not None:
+            widths = col.astype(np.float64) * scale
+            bad = ~np.isfinite(widths) | (widths < 0)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise UserError(f"{path}: vertex {i}: {prop} = {col[i]:g}: expected a finite number >= 0")
+            break
+    warnings = []
+    keep = counts >= 2
+    if not keep.all():
+        dropped = int((~keep).sum())
+        warnings.append(f"{path}: dropped {dropped} of {counts.size} strands with fewer than 2 vertices")
+        mask = np.repeat(keep, counts)
+        points, counts = points[mask], counts[keep]
+        widths = None if widths is None else widths[mask]
+    return Groom(points, counts, widths=widths, warnings=warnings)
+
+
+READER = Reader("ply", (".ply",), read, meters_per_unit=0.001, up_axis="Y",
+                description="strand PLY (vertex + strand/nsegs, strand_id or edge), ascii or binary")

@@ -1,0 +1,345 @@
+"""The one module that writes USD: simulated frames -> a layer that sublayers the input.
+
+The output layer holds
+
+- the input's stage metadata (defaultPrim, upAxis, metersPerUnit, timeCodesPerSecond,
+  framesPerSecond, start/end time codes; effective values where the input leaves them unauthored),
+- a sublayer reference to the input (relative to the output's folder where possible),
+- an ``over`` spec per simulated BasisCurves prim with time-sampled ``points`` (stage units),
+  ``velocities`` (stage units / s) and ``extent`` at every frame, all in the prim's local space.
+
+Frames stream in through :meth:`UsdWriter.write_frame`, authored with the Sdf API inside change
+blocks into a crate (``.usdc``) *partial* file next to the output. Whenever ``flush_bytes`` of new
+samples have accumulated, the layer is saved: crate appends the new samples to the file and reads
+them back lazily from disk, so memory stays flat however many frames are written.
+:meth:`UsdWriter.commit` saves the last frames and renames the partial file onto the output (for
+``.usda`` outputs it exports text first); :meth:`UsdWriter.abort` deletes it. An interrupted run
+therefore never leaves a half-written output. :meth:`UsdWriter.reopen` continues a partial file
+(the batch / resume feature).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+
+OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
+#: save (and so release) the in-memory samples once this many new bytes have accumulated
+DEFAULT_FLUSH_BYTES = 4 << 20
+
+
+def partial_path(output) -> Path:
+    """The crate file frames are streamed into before it becomes ``output``."""
+    output = Path(output)
+    return output.with_name(f".{output.name}.dftl-partial.usdc")
+
+
+def check_output_path(output, input_path=None) -> Path:
+    """Refuse outputs that cannot be written, before any work is done."""
+    output = Path(os.fspath(output))
+    if output.suffix.lower() not in OUTPUT_EXTENSIONS:
+        raise UserError(f"{output}: output must end in {', '.join(OUTPUT_EXTENSIONS)} (.usdc is the default)")
+    if output.is_dir():
+        raise UserError(f"{output}: cannot write: is a directory")
+    folder = output.parent if str(output.parent) else Path(".")
+    if not folder.is_dir():
+        raise UserError(f"{output}: cannot write: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UserError(f"{output}: cannot write: folder {folder} is not writable")
+    if output.exists() and not os.access(output, os.W_OK):
+        raise UserError(f"{output}: cannot write: file is read-only")
+    if input_path is not None and output.exists() and Path(input_path).exists():
+        if os.path.samefile(output, input_path):
+            raise UserError(f"{output}: the output would overwrite the input")
+    return output
+
+
+def sublayer_path(input_path: str, output: Path) -> str:
+    """Asset path of ``input_path`` as seen from ``output``: relative ("./x.usda", "../x.usda")
+    where possible, absolute otherwise."""
+    if "://" in input_path or input_path.startswith("anon:"):
+        return input_path
+    try:
+        rel = os.path.relpath(os.path.abspath(input_path), os.path.abspath(output.parent or "."))
+    except ValueError:  # other drive
+        return os.path.abspath(input_path).replace(os.sep, "/")
+    rel = rel.replace(os.sep, "/")
+    return rel if rel.startswith("../") else "./" + rel
+
+
+def _tf_error(exc) -> str:
+    from ..usd.read import _tf_message
+
+    return _tf_message(exc)
+
+
+@dataclass
+class _Target:
+    """Attribute spec paths of one simulated prim."""
+
+    prim: str
+    points: object
+    velocities: object
+    extent: object
+    #: widths (local stage units) used to pad the extent, or None
+    widths: object
+
+
+class UsdWriter:
+    """Streams frames of a simulation into a layer that sublayers the input.
+
+    Create with :meth:`create` (new output) or :meth:`reopen` (continue a partial file); write
+    frames in increasing time code order with :meth:`write_frame`; finish with :meth:`commit` or
+    :meth:`abort`. As a context manager it aborts on any exception.
+    """
+
+    def __init__(self, layer, output: Path, targets: list[_Target], *, flush_bytes: int, keep_partial: bool = False):
+        self.layer = layer
+        self.output = output
+        self.partial = Path(layer.realPath)
+        self.targets = targets
+        self.flush_bytes = int(flush_bytes)
+        #: leave the partial file on abort (for resumable batch runs)
+        self.keep_partial = keep_partial
+        self._unsaved = 0
+        self.frames_written = 0
+        self.seconds_saving = 0.0
+
+    # -- construction ------------------------------------------------------------------------
+
+    @classmethod
+    def create(cls, output, scene, *, frames: tuple[int, int] | None = None,
+               flush_bytes: int = DEFAULT_FLUSH_BYTES, keep_partial: bool = False) -> UsdWriter:
+        """A new partial file for ``output``: metadata, sublayer and ``over`` specs, saved once
+        (so that an unwritable location fails now, not after the simulation).
+
+        ``frames`` (first, last) is authored as start/end time codes when the input has none.
+        """
+        from pxr import Sdf, Tf
+
+        output = check_output_path(output, scene.source)
+        partial = partial_path(output)
+        _remove(partial)
+        try:
+            layer = Sdf.Layer.CreateNew(str(partial))
+        except Tf.ErrorException as exc:
+            raise UserError(f"{output}: cannot write: {_tf_error(exc)}") from None
+        if layer is None:
+            raise UserError(f"{output}: cannot write {partial}")
+        try:
+            targets = _author_structure(layer, scene, output, frames)
+            layer.Save()
+        except Tf.ErrorException as exc:
+            _remove(partial)
+            raise UserError(f"{output}: cannot write: {_tf_error(exc)}") from None
+        except BaseException:
+            _remove(partial)
+            raise
+        return cls(layer, output, targets, flush_bytes=flush_bytes, keep_partial=keep_partial)
+
+    @classmethod
+    def reopen(cls, output, scene, *, flush_bytes: int = DEFAULT_FLUSH_BYTES, keep_partial: bool = True) -> UsdWriter:
+        """Continue the partial file of ``output`` left by an earlier run of the same scene."""
+        from pxr import Sdf, Tf
+
+        output = Path(os.fspath(output))
+        partial = partial_path(output)
+        if not partial.exists():
+            raise UserError(f"{output}: no partial output {partial} to continue")
+        try:
+            layer = Sdf.Layer.FindOrOpen(str(partial))
+        except Tf.ErrorException as exc:
+            raise UserError(f"{partial}: cannot reopen: {_tf_error(exc)}") from None
+        targets = []
+        for c in scene.curves:
+            t = _target(Sdf.Path(c.path), c)
+            for attr in (t.points, t.velocities, t.extent):
+                if not layer.GetAttributeAtPath(attr):
+                    raise UserError(f"{partial}: {c.path}: no {attr.name} spec; not a partial output of this scene")
+            targets.append(t)
+        return cls(layer, output, targets, flush_bytes=flush_bytes, keep_partial=keep_partial)
+
+    # -- writing ----------------------------------------------------------------------------
+
+    @property
+    def written_time_codes(self) -> list[float]:
+        """Time codes every simulated prim has a complete sample at (points, velocities, extent)."""
+        common = None
+        for t in self.targets:
+            for attr in (t.points, t.velocities, t.extent):
+                times = set(self.layer.ListTimeSamplesForPath(attr))
+                common = times if common is None else common & times
+        return sorted(common or ())
+
+    @property
+    def last_time_code(self) -> float | None:
+        times = self.written_time_codes
+        return times[-1] if times else None
+
+    def write_frame(self, time_code: float, samples) -> None:
+        """Author one frame.
+
+        Args:
+            time_code: the frame's time code.
+            samples: one ``(points, velocities)`` pair per simulated prim, in the order of
+                ``scene.curves``: (N, 3) arrays in the prim's local space, stage units and stage
+                units per second.
+        """
+        from pxr import Sdf, UsdGeom, Vt
+
+        if len(samples) != len(self.targets):
+            raise ValueError(f"expected {len(self.targets)} prims' samples, got {len(samples)}")
+        values = []
+        for t, (points, velocities) in zip(self.targets, samples):
+            # FromBuffer converts float64 to float32 while copying (no separate astype pass)
+            p = Vt.Vec3fArray.FromBuffer(_rows(points))
+            v = Vt.Vec3fArray.FromBuffer(_rows(velocities))
+            if t.widths is not None:
+                e = UsdGeom.Curves.ComputeExtent(p, t.widths)
+            else:
+                e = UsdGeom.PointBased.ComputeExtent(p)
+            values.append((t, p, v, e))
+            self._unsaved += 24 * len(p)
+        time = float(time_code)
+        with Sdf.ChangeBlock():
+            for t, p, v, e in values:
+                self.layer.SetTimeSample(t.points, time, p)
+                self.layer.SetTimeSample(t.velocities, time, v)
+                self.layer.SetTimeSample(t.extent, time, e)
+        self.frames_written += 1
+        if self._unsaved >= self.flush_bytes:
+            self.flush()
+
+    def flush(self) -> None:
+        """Save the samples written so far: they move from memory to the partial file."""
+        import time
+
+        from pxr import Tf
+
+        start = time.perf_counter()
+        try:
+            if not self.layer.Save():
+                raise UserError(f"{self.output}: cannot write {self.partial}")
+        except Tf.ErrorException as exc:
+            raise UserError(f"{self.output}: cannot write: {_tf_error(exc)}") from None
+        self._unsaved = 0
+        self.seconds_saving += time.perf_counter() - start
+
+    # -- finishing --------------------------------------------------------------------------
+
+    def commit(self) -> Path:
+        """Save everything and move the result onto the output path; returns it."""
+        from pxr import Tf
+
+        self.flush()
+        try:
+            if self.output.suffix.lower() == ".usda":
+                text = self.output.with_name(f".{self.output.name}.dftl-partial.usda")
+                try:
+                    if not self.layer.Export(str(text)):
+                        raise UserError(f"{self.output}: cannot write {text}")
+                except Tf.ErrorException as exc:
+                    raise UserError(f"{self.output}: cannot write: {_tf_error(exc)}") from None
+                os.replace(text, self.output)
+                self._close()
+                _remove(self.partial)
+            else:
+                self._close()
+                os.replace(self.partial, self.output)
+        except OSError as exc:
+            self.abort()
+            raise UserError(f"{self.output}: cannot write: {exc.strerror or exc}") from None
+        except BaseException:
+            self.abort()
+            raise
+        return self.output
+
+    def abort(self) -> None:
+        """Drop the partial file (unless ``keep_partial``)."""
+        self._close()
+        if not self.keep_partial:
+            _remove(self.partial)
+        _remove(self.output.with_name(f".{self.output.name}.dftl-partial.usda"))
+
+    def _close(self) -> None:
+        self.layer = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None and self.layer is not None:
+            self.abort()
+        return False
+
+
+def _rows(array) -> np.ndarray:
+    """(N, 3) C-contiguous float32 or float64 view (a copy only when needed)."""
+    a = np.asarray(array)
+    if a.dtype not in (np.float32, np.float64):
+        a = a.astype(np.float64)
+    return np.ascontiguousarray(a).reshape(-1, 3)
+
+
+def _remove(path) -> None:
+    try:
+        os.remove(path)
+    except FileNotFoundError:
+        pass
+
+
+def _target(prim_path, curves) -> _Target:
+    from pxr import Vt
+
+    widths = None
+    if curves.widths is not None and curves.widths.size:
+        widths = Vt.FloatArray.FromNumpy(np.ascontiguousarray(curves.widths, dtype=np.float32))
+    return _Target(
+        prim=str(prim_path),
+        points=prim_path.AppendProperty("points"),
+        velocities=prim_path.AppendProperty("velocities"),
+        extent=prim_path.AppendProperty("extent"),
+        widths=widths,
+    )
+
+
+def _author_structure(layer, scene, output: Path, frames) -> list[_Target]:
+    """Metadata, sublayer, and the ``over`` prim and attribute specs (no samples yet)."""
+    from pxr import Sdf
+
+    info = scene.stage
+    targets = []
+    with Sdf.ChangeBlock():
+        root = layer.pseudoRoot
+        root.SetInfo("upAxis", info.up_axis)
+        root.SetInfo("metersPerUnit", float(info.meters_per_unit))
+        layer.timeCodesPerSecond = float(info.time_codes_per_second)
+        if info.frames_per_second is not None:
+            layer.framesPerSecond = float(info.frames_per_second)
+        if info.start_time_code is not None:
+            layer.startTimeCode = float(info.start_time_code)
+            layer.endTimeCode = float(info.end_time_code)
+        elif frames is not None:
+            layer.startTimeCode = float(frames[0])
+            layer.endTimeCode = float(frames[1])
+        if info.default_prim:
+            layer.defaultPrim = info.default_prim
+        layer.comment = "Simulated by dftl-warp (Dynamic Follow-The-Leader): time-sampled points, velocities, extent"
+        layer.subLayerPaths.append(sublayer_path(scene.source, output))
+        for c in scene.curves:
+            path = Sdf.Path(c.path)
+            prim = Sdf.CreatePrimInLayer(layer, path)
+            prim.specifier = Sdf.SpecifierOver
+            for name, type_name in (
+                ("points", Sdf.ValueTypeNames.Point3fArray),
+                ("velocities", Sdf.ValueTypeNames.Vector3fArray),
+                ("extent", Sdf.ValueTypeNames.Float3Array),
+            ):
+                Sdf.AttributeSpec(prim, name, type_name)
+            targets.append(_target(path, c))
+    return targets

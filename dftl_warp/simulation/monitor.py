@@ -1,0 +1,168 @@
+"""Energy-growth monitor: warn once, naming the setting, when a run creates energy.
+
+Usage (one monitor per run, checked once per frame or as often as you like)::
+
+    monitor = EnergyMonitor(solver, "dftl s=0.5 dt=1e-05 s", state)
+    for frame in range(frames):
+        solver.advance(state, control, dt, substeps)
+        monitor.check(state, frame)
+    if monitor.warned: ...   # monitor.message says what happened
+
+``check`` issues one :class:`EnergyGrowthWarning` (a ``RuntimeWarning``, through :mod:`warnings`)
+the first time a strand's *available energy* (:mod:`dftl_warp.kernels.simulation.energy`: kinetic plus
+potential energy above each strand's hanging rest state, per unit particle mass, J/kg) exceeds
+its *budget*, or a position or velocity is not finite. Later checks stay silent.
+
+Each strand is judged on its own (one unstable strand is not hidden in a large groom), against
+the smaller of two budgets, each with a safety ``factor`` (default 2)::
+
+    gross:  factor * ( E_start  +  floor  +  2 n u_max^2 )
+    held:   factor * ( E_moved  +  floor )
+
+with ``n`` the strand's free particles, ``E_start`` its available energy in the initial state,
+``u_max`` the fastest root speed seen so far (a root moving at ``u`` can at most throw its strand
+at ``2 u``), ``E_moved`` its energy at the last check where its root had moved since the previous
+check (``E_start`` if it never moved), and ``floor = floor_fraction * n * max(|g| L, (L/1 s)^2/2)``
+(the energy scale of the strand, of length ``L``, falling its own length; 1e-4 of it by default).
+
+A physical strand never gains energy while its root is held, and DFTL with ``s = 1`` dissipates
+(the stability map in docs/accuracy.md records its largest energy / budget ratio); a strand above
+its budget has *created* energy -- at least doubled it since its root last moved, or grown from
+rest to more than ``floor``. That is the signature of ``s < 1`` at small steps: the unbalanced
+velocity corrections pump energy into the strand faster than follow-the-leader dissipates it,
+and a strand hanging at rest starts to move by itself.
+
+Pass the initial state to the constructor (or check it before the first frame): otherwise the
+first check's state is taken as the start.
+
+After a run, ``monitor.unstable`` (per device strand) and ``monitor.worst_ratio`` (largest
+energy / budget seen) tell which strands blew up and by how much.
+
+Cost: one small kernel launch and three per-strand arrays copied to the host per check.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import warp as wp
+
+from ..kernels.simulation.energy import available_energy_kernel
+
+
+class EnergyGrowthWarning(RuntimeWarning):
+    """A run created energy beyond what it started with and its roots can supply: the setting is unstable."""
+
+
+class EnergyMonitor:
+    """Watches one run for energy growth; see the module docstring.
+
+    Args:
+        solver: any solver (``model`` and ``gravity`` attributes).
+        setting: how the run was configured, named in the warning (e.g. ``"dftl s=0.5 dt=1e-5"``).
+        state: the initial state (recommended), measured as the start of the run.
+        factor: safety factor on the physical budget (default 2).
+        floor_fraction: share of the strands' weight scale below which energy is never
+            flagged (default 1e-4).
+    """
+
+    def __init__(self, solver, setting: str, state=None, *, factor: float = 2.0, floor_fraction: float = 1.0e-4):
+        self.solver = solver
+        self.model = model = solver.model
+        self.setting = setting
+        self.factor = float(factor)
+        self.warned = False
+        self.message: str | None = None
+        #: (frame, total available energy J/kg, total budget J/kg) of every check
+        self.history: list[tuple[int | None, float, float]] = []
+        gravity = np.array(solver.gravity, dtype=np.float64).reshape(3)
+        self._gravity = wp.vec3d(*gravity)
+        rest = model.rest_lengths.numpy().astype(np.float64)
+        # per device strand: free particles and length
+        base, stride, count = model.layout.strand_base, model.layout.strand_stride, model.layout.strand_count
+        self._free = np.maximum(count - 1, 0).astype(np.float64)
+        strand = np.repeat(np.arange(model.num_strands), count)
+        first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+        local = np.arange(strand.shape[0]) - np.repeat(first, count)
+        lengths = np.bincount(strand, weights=rest[base[strand] + stride[strand] * local], minlength=model.num_strands)
+        scale = np.maximum(np.linalg.norm(gravity) * lengths, 0.5 * lengths**2)
+        self._floor = float(floor_fraction) * self._free * scale  # per device strand, J/kg
+        self._start: np.ndarray | None = None
+        self._root_speed = np.zeros(model.num_strands)
+        self._moved_energy: np.ndarray | None = None
+        self._root_position: np.ndarray | None = None
+        #: per device strand: True once its energy has exceeded its budget
+        self.unstable = np.zeros(model.num_strands, dtype=bool)
+        #: per device strand: largest ratio of available energy to budget seen so far
+        self.worst_ratio = np.zeros(model.num_strands)
+        n, dev = model.num_strands, model.device
+        self._energy = wp.zeros(n, dtype=wp.float64, device=dev)
+        self._speed = wp.zeros(n, dtype=wp.float64, device=dev)
+        self._root = wp.zeros(n, dtype=wp.vec3d, device=dev)
+        self._bad = wp.zeros(n, dtype=wp.int32, device=dev)
+        if state is not None:
+            self.measure(state)
+
+    def measure(self, state):
+        """Per device strand: (available energy J/kg, budget J/kg, not finite) of ``state``.
+        Updates the root-speed record and the per-strand verdicts; does not warn."""
+        m = self.model
+        if m.num_strands == 0:
+            z = np.zeros(0)
+            return z, z, np.zeros(0, dtype=bool)
+        wp.launch(
+            available_energy_kernel(m.scalar),
+            dim=m.num_strands,
+            inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self._gravity,
+                    state.positions, state.velocities],
+            outputs=[self._energy, self._speed, self._root, self._bad],
+            device=m.device,
+        )
+        energy = self._energy.numpy().copy()
+        speed = self._speed.numpy()
+        bad = self._bad.numpy().astype(bool) | ~np.isfinite(energy)
+        root = self._root.numpy()
+        np.maximum(self._root_speed, np.where(bad, 0.0, speed), out=self._root_speed)
+        if self._start is None:
+            self._start = np.where(bad, 0.0, energy)
+            self._moved_energy = self._start.copy()
+            self._root_position = root.copy()
+        moved = (speed > 0.0) | np.any(root != self._root_position, axis=1)
+        self._moved_energy = np.where(moved & ~bad, energy, self._moved_energy)
+        self._root_position = root.copy()
+        gross = self._start + self._floor + 2.0 * self._free * self._root_speed**2
+        budget = self.factor * np.minimum(gross, self._moved_energy + self._floor)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(bad, np.inf, energy / np.maximum(budget, 1e-300))
+        np.maximum(self.worst_ratio, ratio, out=self.worst_ratio)
+        self.unstable |= bad | (energy > budget)
+        return energy, budget, bad
+
+    def check(self, state, frame: int | None = None) -> bool:
+        """Measure ``state`` (at ``frame``); warn once if any strand's energy exceeds its budget
+        or is not finite. Returns True when this run has been found unstable (now or earlier)."""
+        energy, budget, bad = self.measure(state)
+        self.history.append((frame, float(np.sum(energy[~bad])), float(np.sum(budget))))
+        if self.warned:
+            return True
+        over = bad | (energy > budget)
+        if not over.any():
+            return False
+        at = f" at frame {frame}" if frame is not None else ""
+        strand = int(self.model.layout.strand_order[int(np.argmax(np.where(bad, np.inf, energy / budget)))])
+        count = int(over.sum())
+        which = f"strand {strand}" + (f" (and {count - 1} more)" if count > 1 else "")
+        if bad.any():
+            self.message = (f"{self.setting}: {which}: non-finite positions or velocities{at}; "
+                            "this setting is unstable")
+        else:
+            k = int(np.argmax(energy / budget))
+            self.message = (
+                f"{self.setting}: {which}: energy grew to {energy[k]:.3g} J/kg{at}, more than "
+                f"{budget[k]:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
+                "this setting is unstable (DFTL with damping s < 1 at small steps pumps energy in: use s = 1)"
+            )
+        self.warned = True
+        warnings.warn(self.message, EnergyGrowthWarning, stacklevel=2)
+        return True

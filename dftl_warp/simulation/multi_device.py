@@ -1,0 +1,383 @@
+"""One groom on several devices: ``dftl-warp simulate --device cuda:0,cuda:1,...``.
+
+Strands of DFTL are independent of each other, so a simulation group's strands are cut into
+contiguous runs of about equal particle count, one per device, each with its own
+:class:`~dftl_warp.core.model.Model`, solver, :class:`~dftl_warp.core.state.State` and
+:class:`~dftl_warp.core.state.Control`. Every part shares the world origin of the whole group, so each
+strand is computed exactly as on one device: results are bitwise those of a single-device run on
+the same kind of device. A frame launches every part before waiting for any (CUDA launches and
+graph replays are asynchronous), so the devices work at the same time; the host gathers the parts
+when the frame is written.
+
+:class:`SplitGroup` stands in for ``simulate._Group`` (same attributes), with composite
+``model``/``solver``/``state``/``control`` objects that present the single-device interface the
+frame loop uses. A device may appear twice (``cpu,cpu``: two Models on one device, for tests).
+
+Features (:mod:`dftl_warp.features.objects`): colliders and wind are shared by every part; per-strand
+values (drag rate, shape-retention stiffness, root-binding triangles) are sliced with the strands.
+Hair-hair interaction (:class:`~dftl_warp.features.objects.HairHair`) couples strands through a grid:
+every part gets the grid shape of the whole groom, and :class:`SplitSolver` then steps the parts
+in lockstep, exchanging the grid each substep (:class:`GridExchange`): the lower corner is the
+minimum of the parts' bounds and density and momentum are the sum of the parts' splats, both
+combined on the first part's device and copied back to every part before it sweeps. The grid is
+then the single-device one up to the order of the splat's sums (float rounding), and the results
+agree with a single-device run to rounding, not bitwise. That path launches substep by substep
+(no CUDA graph).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UserError
+from .settings import check_extent, describe_setting
+
+
+def parse_devices(text: str) -> list[str]:
+    """``"cuda:0,cuda:1"`` -> ``["cuda:0", "cuda:1"]`` (names as given, blanks removed)."""
+    devices = [d.strip() for d in str(text).split(",")]
+    if not all(devices):
+        raise UserError(f"--device {text}: empty device name in the list")
+    return devices
+
+
+def split_strands(counts, parts: int) -> list[tuple[int, int]]:
+    """Contiguous strand ranges ``[(s0, s1), ...]``, at most ``parts`` of them, none empty, with
+    about equal numbers of particles (``counts`` are vertex counts per strand)."""
+    counts = np.asarray(counts, dtype=np.int64)
+    n = counts.shape[0]
+    if n == 0:
+        return [(0, 0)]
+    ends = np.cumsum(counts)
+    targets = ends[-1] * np.arange(1, parts) / parts
+    cuts = np.searchsorted(ends, targets, side="left") + 1  # first strand of the next part
+    bounds = sorted({0, n, *(int(c) for c in cuts if 0 < c < n)})
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+class SplitArray:
+    """A per-particle array held as one Warp array per part (concatenated in part order)."""
+
+    def __init__(self, parts):
+        self.parts = list(parts)
+
+    def numpy(self) -> np.ndarray:
+        return np.concatenate([p.numpy() for p in self.parts])
+
+    def assign(self, values) -> None:
+        import warp as wp
+
+        host = values.numpy() if isinstance(values, wp.array) else np.asarray(values)
+        start = 0
+        for p in self.parts:
+            p.assign(host[start:start + p.shape[0]])
+            start += p.shape[0]
+        if start != host.shape[0]:
+            raise ValueError(f"expected {start} values, got {host.shape[0]}")
+
+    @property
+    def shape(self):
+        return (sum(p.shape[0] for p in self.parts),)
+
+
+class SplitState:
+    def __init__(self, states):
+        self.parts = list(states)
+        self.positions = SplitArray(s.positions for s in states)
+        self.velocities = SplitArray(s.velocities for s in states)
+        has = [s.corrections is not None for s in states]
+        self.corrections = SplitArray(s.corrections for s in states) if all(has) else None
+
+
+class SplitModel:
+    """The parts' Models seen as one, in input strand and point order."""
+
+    def __init__(self, models, strand_ranges):
+        self.parts = list(models)
+        self.strand_ranges = list(strand_ranges)
+        first = self.parts[0]
+        self.device = first.device
+        self.precision = first.precision
+        self.vec3 = first.vec3
+        self.scalar = first.scalar
+        self.origin = first.origin
+        self.counts = np.concatenate([m.counts for m in self.parts])
+        self.feature_flags = first.feature_flags
+
+    @property
+    def num_strands(self) -> int:
+        return sum(m.num_strands for m in self.parts)
+
+    @property
+    def num_points(self) -> int:
+        return sum(m.num_points for m in self.parts)
+
+    def points_from_device(self, array: SplitArray, *, relative: bool = True) -> np.ndarray:
+        return np.concatenate([m.points_from_device(a, relative=relative) for m, a in zip(self.parts, array.parts)])
+
+
+class _Broadcast:
+    """The parts' feature controls seen as one: calls go to every part (their arguments are
+    per-scene data: collider poses, mesh points, times); attributes are read from the first."""
+
+    def __init__(self, parts):
+        self._parts = list(parts)
+
+    def __getattr__(self, name):
+        values = [getattr(p, name) for p in self._parts]
+        if callable(values[0]):
+            return lambda *args, **kwargs: [v(*args, **kwargs) for v in values][0]
+        return values[0]
+
+
+class SplitControl:
+    def __init__(self, controls, strand_ranges):
+        self.parts = list(controls)
+        self.strand_ranges = list(strand_ranges)
+        has = [c.features is not None for c in self.parts]
+        self.features = _Broadcast(c.features for c in self.parts) if all(has) else None
+
+    def set_root_targets(self, start, end=None) -> None:
+        start = np.asarray(start)
+        end = start if end is None else np.asarray(end)
+        for c, (s0, s1) in zip(self.parts, self.strand_ranges):
+            c.set_root_targets(start[s0:s1], end[s0:s1])
+
+
+def _copy(dest, src) -> None:
+    """``wp.copy`` that first orders the copy after the work queued on ``src``'s device (Warp
+    orders a peer copy after the destination's work and the source's later work after it)."""
+    import warp as wp
+
+    if dest.device != src.device and dest.device.is_cuda and src.device.is_cuda:
+        dest.device.stream.wait_stream(src.device.stream)
+    wp.copy(dest, src)
+
+
+class GridExchange:
+    """Makes the hair-hair grids of the parts' :class:`~dftl_warp.features.data.FeatureStep` objects
+    the grid of the whole groom: each part's grid is combined into the first part's (through a
+    scratch grid on its device), and the result copied back to every part."""
+
+    def __init__(self, steps):
+        import warp as wp
+
+        from ..kernels.features.grid import grid_add_kernel, grid_min_kernel
+
+        self.steps = list(steps)
+        first = self.steps[0]
+        shapes = {tuple(s.model.feature_data.grid_shape) for s in self.steps}
+        if len(shapes) != 1:
+            raise ValueError(f"the parts' hair-hair grids differ in shape: {sorted(shapes)}")
+        self.scratch = {name: wp.empty_like(a) for name, a in first.grid.items()}
+        self._min = grid_min_kernel(first.model.scalar)
+        self._add = grid_add_kernel(first.model.scalar)
+
+    def _combine(self, names, launch) -> None:
+        first = self.steps[0]
+        for step in self.steps[1:]:
+            for name in names:
+                _copy(self.scratch[name], step.grid[name])
+            launch()
+        for step in self.steps[1:]:
+            for name in names:
+                _copy(step.grid[name], first.grid[name])
+
+    def combine_bounds(self) -> None:
+        """Every part's ``lower`` <- the minimum over the parts (m)."""
+        import warp as wp
+
+        g, device = self.steps[0].grid, self.steps[0].model.device
+        self._combine(("lower",), lambda: wp.launch(self._min, dim=3, device=device,
+                                                    inputs=[self.scratch["lower"]], outputs=[g["lower"]]))
+
+    def combine_splats(self) -> None:
+        """Every part's density and momentum <- the sum over the parts."""
+        import warp as wp
+
+        g, device = self.steps[0].grid, self.steps[0].model.device
+        self._combine(("density", "momentum"), lambda: wp.launch(
+            self._add, dim=g["density"].shape, device=device,
+            inputs=[self.scratch["density"], self.scratch["momentum"]], outputs=[g["density"], g["momentum"]]))
+
+
+class SplitSolver:
+    """Advances every part on its own device; all parts are launched before any is waited for.
+    With hair-hair interaction the parts step in lockstep, exchanging their grid every substep."""
+
+    def __init__(self, solvers):
+        self.parts = list(solvers)
+        self.gravity = self.parts[0].gravity
+        steps = [getattr(s, "_features", None) for s in self.parts]
+        self.exchange = None
+        if all(step is not None and step.grid is not None for step in steps):
+            self.exchange = GridExchange(steps)
+
+    @property
+    def carries_corrections(self) -> bool:
+        return self.parts[0].carries_corrections
+
+    def advance(self, state: SplitState, control: SplitControl, dt: float, substeps: int) -> None:
+        import warp as wp
+
+        if self.exchange is not None:
+            self._advance_exchanging(state, control, dt, substeps)
+            return
+        for solver, s, c in zip(self.parts, state.parts, control.parts):
+            with wp.ScopedDevice(solver.model.device):
+                solver.advance(s, c, dt, substeps)
+
+    def _advance_exchanging(self, state: SplitState, control: SplitControl, dt: float, substeps: int) -> None:
+        """As ``DFTLSolver.advance`` substep by substep, every part's grid made the whole groom's
+        (:class:`GridExchange`) between the bounds, splat and sweep phases."""
+        if sum(s.model.num_strands for s in self.parts) == 0:
+            return
+        parts = [(solver, solver._features, s, c) for solver, s, c in zip(self.parts, state.parts, control.parts)]
+        real = np.dtype(self.parts[0].model.precision).type  # alpha rounded as on one device
+        for k in range(substeps):
+            alpha = float(real(k + 1) / real(substeps))
+            for _, step, s, c in parts:
+                step.pose_and_bounds(s, c, alpha)
+            self.exchange.combine_bounds()
+            for _, step, s, _ in parts:
+                step.splat(s)
+            self.exchange.combine_splats()
+            for solver, step, s, c in parts:
+                step.sweep(s, s, c, solver.feature_head(c, dt, alpha))
+
+
+class SplitMonitor:
+    """One energy monitor per part (dftl_warp.simulation.monitor); warns once, for the first part that does."""
+
+    def __init__(self, monitors):
+        self.parts = list(monitors)
+        self.warned = False
+        self.message = None
+
+    def check(self, state: SplitState, frame=None) -> bool:
+        if self.warned:
+            return False
+        for monitor, s in zip(self.parts, state.parts):
+            if monitor.check(s, frame):
+                self.warned, self.message = True, monitor.message
+                return True
+        return False
+
+
+def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid_extent=None) -> list:
+    """The features of strands ``s0:s1`` of a group: per-strand values sliced, scene-wide ones
+    (colliders, wind) shared; hair-hair interaction gets ``grid_extent`` (3,), m, the whole
+    group's grid size (:func:`~dftl_warp.features.data.hair_hair_extent`), so that every part's
+    grid has the whole group's shape."""
+    from dataclasses import replace
+
+    from ..features.objects import Drag, HairHair, RootBinding, ShapeRetention
+
+    def per_strand(values, what):
+        v = np.asarray(values)
+        if v.ndim == 0:
+            return values
+        if v.shape[0] != num_strands:
+            raise UserError(f"{where}: {what} has {v.shape[0]} values for {num_strands} strands; cannot split it")
+        return v[s0:s1]
+
+    out = []
+    for f in features:
+        if isinstance(f, HairHair):
+            if grid_extent is None:
+                raise ValueError("part_features: a split hair-hair grid needs the whole group's grid_extent")
+            f = replace(f, extent=np.asarray(grid_extent, dtype=np.float64).reshape(3))
+        elif isinstance(f, RootBinding) and f.triangles is not None:
+            f = replace(f, triangles=per_strand(f.triangles, "dftl:rootMesh triangles"),
+                        weights=per_strand(f.weights, "dftl:rootMesh weights"))
+        elif isinstance(f, Drag):
+            f = replace(f, rate=per_strand(f.rate, "drag rate"))
+        elif isinstance(f, ShapeRetention):
+            f = replace(f, stiffness=per_strand(f.stiffness, "shape retention stiffness"))
+        out.append(f)
+    return out
+
+
+class SplitGroup:
+    """``simulate._Group`` with its strands split across ``options.device`` (a comma list)."""
+
+    def __init__(self, settings, members: list[int], scene, frame: int, options):
+        import warp as wp
+
+        from ..features.data import hair_hair_extent
+        from ..features.objects import HairHair, find
+        from ..core.model import Model, _world_origin
+        from ..usd.scene import transform_points
+        from ..features.from_scene import group_features
+        from ..solvers import carries_corrections, make_solver
+
+        self.settings = settings
+        self.members = members
+        self.curves = curves = [scene.curves[i] for i in members]
+        self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
+        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
+        counts = np.concatenate([c.counts for c in curves])
+        check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        features, widths = group_features(scene, curves, frame)
+        hair_hair = find(features, HairHair)
+        grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
+        origin = _world_origin(points)
+        devices = parse_devices(options.device)
+        ranges = split_strands(counts, len(devices))
+        starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
+        models, solvers, states, controls = [], [], [], []
+        extra = {} if options.iterations is None else {"iterations": options.iterations}
+        for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
+            part = part_features(features, s0, s1, len(counts), scene.source, grid_extent)
+            with wp.ScopedDevice(device):
+                try:
+                    model = Model.from_strands(
+                        points[p0:p1], counts[s0:s1], device=device, precision=options.precision, origin=origin,
+                        widths=None if widths is None else widths[p0:p1], features=part,
+                        corrections=carries_corrections(settings.solver, settings.correction))
+                    solver = make_solver(model, settings.solver, damping=settings.damping,
+                                         correction=settings.correction, gravity=scene.gravity, **extra)
+                except ValueError as exc:
+                    raise UserError(f"{scene.source}: {exc}") from None
+                models.append(model)
+                solvers.append(solver)
+                states.append(solver.state())
+                controls.append(model.control())
+        self.devices = [str(m.device) for m in models]
+        self.model = SplitModel(models, ranges)
+        self.solver = SplitSolver(solvers)
+        self.state = SplitState(states)
+        self.control = SplitControl(controls, ranges)
+        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        self.monitor = None
+        if options.monitor:
+            from .monitor import EnergyMonitor
+
+
+            setting = describe_setting(scene, members, settings, options)
+            self.monitor = SplitMonitor(EnergyMonitor(s, setting, st) for s, st in zip(solvers, states))
+        self._sample_buffers = None
+
+    @property
+    def num_strands(self) -> int:
+        return self.model.num_strands
+
+    @property
+    def num_points(self) -> int:
+        return int(self.point_offsets[-1])
+
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """As ``simulate._Group.local_samples``: every part gathers and transforms its points on
+        its device (all launched first), then the host concatenates them in input order (new
+        arrays, so the result is the caller's whatever ``owned`` says)."""
+        from ..output.samples import LocalSamples
+
+        if self._sample_buffers is None:
+            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
+            self._sample_buffers = [LocalSamples(model, member[p0:p1])
+                                    for model, (p0, p1) in zip(self.model.parts, self.point_ranges)]
+        for model, state, buffers in zip(self.model.parts, self.state.parts, self._sample_buffers):
+            buffers.launch(model, state, to_local, rate)
+        gathered = [buffers.fetch(owned=False) for buffers in self._sample_buffers]
+        return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])

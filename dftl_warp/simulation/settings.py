@@ -1,0 +1,111 @@
+"""The settings of a simulation run and of each group of prims simulated together.
+
+:class:`SimulationOptions` are a run's settings (command line or API); :func:`group_settings`
+resolves each prim's solver settings (command line, else the prim's ``dftl:`` attributes, else the
+defaults); :func:`resolve_frames` the frame range.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import UserError
+from ..usd.scene import Scene
+
+#: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise
+DEFAULT_SOLVER = "dftl"
+DEFAULT_DAMPING = 1.0
+DEFAULT_CORRECTION = "prior"
+DEFAULT_SUBSTEPS = 8
+
+
+@dataclass
+class SimulationOptions:
+    """Settings of a run. ``None`` defers to the prims' ``dftl:`` attributes, then the defaults.
+
+    Command-line values override ``dftl:`` attributes.
+    """
+
+    start: int | None = None
+    end: int | None = None
+    substeps: int | None = None
+    damping: float | None = None
+    correction: str | None = None
+    solver: str | None = None
+    precision: str = "float32"
+    device: str = "cpu"
+    prims: list[str] | None = None
+    #: Gauss-Seidel iterations per step of the pbd solver
+    iterations: int | None = None
+    #: watch each group's energy and warn once when it grows without bound (dftl_warp.simulation.monitor)
+    monitor: bool = True
+
+
+@dataclass(frozen=True)
+class GroupSettings:
+    """The solver settings shared by every prim of one simulation group."""
+
+    solver: str
+    damping: float
+    correction: str
+    substeps: int
+
+
+def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
+    """First and last integer frame: the flags, else the stage's start/end time codes."""
+    info = scene.stage
+    if start is None and info.start_time_code is None:
+        raise UserError(f"{scene.source}: the stage has no startTimeCode/endTimeCode; give --start and --end")
+    if end is None and info.end_time_code is None:
+        raise UserError(f"{scene.source}: the stage has no endTimeCode; give --end")
+    first = int(start) if start is not None else math.ceil(info.start_time_code - 1e-9)
+    last = int(end) if end is not None else math.floor(info.end_time_code + 1e-9)
+    if last < first:
+        raise UserError(f"{scene.source}: frame range {first}..{last} is empty (end before start)")
+    return first, last
+
+
+def group_settings(scene: Scene, options: SimulationOptions, index: int) -> GroupSettings:
+    """Settings of ``scene.curves[index]``: command line, else ``dftl:`` attributes, else defaults."""
+    s = scene.curves[index].settings
+
+    def pick(flag, attr, default):
+        return flag if flag is not None else attr if attr is not None else default
+
+    return GroupSettings(
+        solver=pick(options.solver, s.solver, DEFAULT_SOLVER),
+        damping=float(pick(options.damping, s.damping, DEFAULT_DAMPING)),
+        correction=pick(options.correction, s.correction, DEFAULT_CORRECTION),
+        substeps=int(pick(options.substeps, s.substeps, DEFAULT_SUBSTEPS)),
+    )
+
+
+def describe_setting(scene: Scene, members: list[int], settings: GroupSettings, options) -> str:
+    """How a group is simulated, as the energy monitor's warning names it."""
+    prims = ", ".join(scene.curves[i].path for i in members)
+    dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+    return (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
+            f"{settings.substeps} substeps/frame (dt={dt:.3g} s), {options.precision}")
+
+
+#: largest world extent (stage units) a precision simulates without overflowing squared lengths
+MAX_EXTENT = {"float32": 1.0e15, "float64": 1.0e150}
+
+
+def check_extent(points, offsets, curves, source, precision) -> None:
+    """Refuse scenes too large for the precision (squared lengths would overflow)."""
+    if points.shape[0] == 0:
+        return
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    distance = np.abs(points - centre).max(axis=1)
+    limit = 0.5 * MAX_EXTENT[precision]
+    if distance.max() > limit:
+        i = int(np.argmax(distance))
+        k = int(np.searchsorted(offsets, i, side="right") - 1)
+        raise UserError(
+            f"{source}: {curves[k].path}: points[{i - offsets[k]}] is {distance[i]:.3g} units from the centre "
+            f"of the hair: too far apart to simulate in {precision}"
+        )

@@ -1,0 +1,427 @@
+"""Host orchestration: Scene -> Model/Solver/Control per settings group -> frame loop -> writer.
+
+- :func:`simulate_usd` is the one-call API behind ``dftl-warp simulate``.
+- :class:`Simulation` steps a scene frame by frame and can export / import its complete state
+  (:meth:`Simulation.save_state`, :meth:`Simulation.load_state`), so that a batch or resume
+  feature can start at any frame and continue a partial output with
+  :meth:`~dftl_warp.output.usd.UsdWriter.reopen`.
+
+Simulation happens in world space, in stage units. Each frame is ``substeps`` solver steps of
+``dt = 1 / (timeCodesPerSecond * substeps)`` seconds; roots move linearly from where the prim's
+(possibly animated) local-to-world transform puts them at the frame's start to where it puts them
+at its end. Results go back to each prim's local space: points through the inverse transform;
+velocities are the motion *relative to the prim's frame* expressed in local space,
+``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity an animated
+transform gave a point fixed in the prim over the last frame. That is what USD's ``velocities``
+mean (the derivative of the local ``points``): renderers add the transform's own motion blur on
+top. For a static transform it is just the linear part's inverse. The first frame is the input at
+rest: zero velocities.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+import warnings
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from ..errors import UserError
+from .monitor import EnergyGrowthWarning
+from ..usd.scene import Scene, transform_points
+from .multi_device import SplitGroup
+from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
+    DEFAULT_CORRECTION,
+    DEFAULT_DAMPING,
+    DEFAULT_SOLVER,
+    DEFAULT_SUBSTEPS,
+    MAX_EXTENT,
+    GroupSettings,
+    SimulationOptions,
+    check_extent,
+    describe_setting,
+    group_settings,
+    resolve_frames,
+)
+
+@dataclass
+class Summary:
+    """What :func:`simulate_usd` did. Times in seconds."""
+
+    output: str
+    prims: int
+    strands: int
+    particles: int
+    frames: int
+    first_frame: int
+    last_frame: int
+    colliders: int
+    seconds_loading: float
+    seconds_simulating: float
+    seconds_writing: float
+    groups: list[dict] = field(default_factory=list)
+    #: about the input (printed by the command after the run)
+    warnings: list[str] = field(default_factory=list)
+    #: raised while simulating, e.g. energy growth (printed as they happen when progress is shown)
+    run_warnings: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class _Group:
+    """Prims simulated together: one Model, Solver, State and Control."""
+
+    def __init__(self, settings: GroupSettings, members: list[int], scene: Scene, frame: int, options):
+        import warp as wp
+
+        from ..core.model import Model
+        from ..solvers import carries_corrections, make_solver
+
+        self.settings = settings
+        self.members = members
+        curves = [scene.curves[i] for i in members]
+        self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
+        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
+        counts = np.concatenate([c.counts for c in curves])
+        check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        from ..features.from_scene import group_features
+
+        self.curves = curves
+        features, widths = group_features(scene, curves, frame)
+        with wp.ScopedDevice(options.device):
+            try:
+                self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision,
+                                                widths=widths, features=features,
+                                                corrections=carries_corrections(settings.solver, settings.correction))
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
+            try:
+                extra = {} if options.iterations is None else {"iterations": options.iterations}
+                self.solver = make_solver(
+                    self.model, settings.solver, damping=settings.damping,
+                    correction=settings.correction, gravity=scene.gravity, **extra,
+                )
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
+            self.state = self.solver.state()
+            self.control = self.model.control()
+        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        self.monitor = None
+        if options.monitor:
+            from .monitor import EnergyMonitor
+
+            self.monitor = EnergyMonitor(self.solver, describe_setting(scene, members, settings, options), self.state)
+        #: device buffers of local_samples, made on first use
+        self._sample_buffers = None
+
+    @property
+    def num_strands(self) -> int:
+        return self.model.num_strands
+
+    @property
+    def num_points(self) -> int:
+        return int(self.point_offsets[-1])
+
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Points and velocities (N, 3, float32) in input order and local space, from
+        column-vector world-to-local matrices and frame rates per member prim
+        (:class:`~dftl_warp.output.samples.LocalSamples`; ``owned=False``: views valid until the next call)."""
+        from ..output.samples import LocalSamples
+
+        if self._sample_buffers is None:
+            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
+            self._sample_buffers = LocalSamples(self.model, member)
+        self._sample_buffers.launch(self.model, self.state, to_local, rate)
+        return self._sample_buffers.fetch(owned)
+
+
+class Simulation:
+    """A scene being simulated, one frame at a time, starting at ``frame``.
+
+    ``samples()`` gives the current frame's points and velocities per prim in local space;
+    ``advance()`` steps to the next frame.
+    """
+
+    def __init__(self, scene: Scene, options: SimulationOptions, frame: int):
+        import warp as wp
+
+        self.scene = scene
+        self.options = options
+        self.frame = int(frame)
+        devices = []
+        for name in str(options.device).split(","):  # a list splits the strands (multi_device)
+            try:
+                devices.append(wp.get_device(name.strip()))
+            except (ValueError, RuntimeError, KeyError) as exc:
+                available = ", ".join(d.alias for d in wp.get_devices())
+                raise UserError(f"--device {name.strip()}: not available here ({available}): {exc}") from None
+        self.device = devices[0]
+        options = replace(options, device=",".join(str(d) for d in devices))
+        self.options = options
+        # prims are grouped by solver settings and by the mesh their roots are bound to, if any
+        by_settings: dict[tuple, list[int]] = {}
+        for i, c in enumerate(scene.curves):
+            key = (group_settings(scene, options, i), c.root_mesh.path if c.root_mesh is not None else None)
+            by_settings.setdefault(key, []).append(i)
+        group = _Group
+        if len(devices) > 1:
+            group = SplitGroup
+        self.groups = [group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
+        self._roots_local = [c.points[c.root_indices] for c in scene.curves]
+        #: group index -> (frame, world root targets at that frame): the last advance's end targets
+        self._end_roots: dict = {}
+        self._matrices = {}
+        #: True until the first advance: the state is the input at rest (zero velocities)
+        self._at_rest = True
+        #: one-line warnings raised while stepping (energy growth), in order
+        self.warnings: list[str] = []
+        #: called with each new warning as it happens (e.g. to print it above a progress bar)
+        self.on_warning = None
+        #: the last frame whose energy was checked
+        self._checked = None
+
+    # -- geometry helpers ---------------------------------------------------------------------
+
+    def _matrix(self, index: int, frame: int) -> np.ndarray:
+        key = (index, frame)
+        m = self._matrices.get(key)
+        if m is None:
+            m = self._matrices[key] = self.scene.curves[index].transform(frame)
+        return m
+
+    def _forget_before(self, frame: int) -> None:
+        self._matrices = {k: v for k, v in self._matrices.items() if k[1] >= frame}
+
+    def _roots_world(self, group: _Group, frame: int) -> np.ndarray:
+        return np.concatenate([
+            transform_points(self._matrix(i, frame), self._roots_local[i]) for i in group.members
+        ])
+
+    # -- stepping -----------------------------------------------------------------------------
+
+    @property
+    def num_strands(self) -> int:
+        return sum(g.num_strands for g in self.groups)
+
+    @property
+    def num_points(self) -> int:
+        return sum(g.num_points for g in self.groups)
+
+    def check_energy(self) -> None:
+        """Run each group's energy monitor on the current frame (once per frame); a new warning
+        goes to :attr:`warnings` and :attr:`on_warning`. It reads results back, so it waits for
+        the device: :meth:`samples` calls it, after the frame's results are needed anyway."""
+        if self._checked == self.frame or self._at_rest:
+            return
+        self._checked = self.frame
+        for g in self.groups:
+            if g.monitor is None or g.monitor.warned:
+                continue
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", EnergyGrowthWarning)
+                if g.monitor.check(g.state, self.frame):
+                    self.warnings.append(g.monitor.message)
+                    if self.on_warning is not None:
+                        self.on_warning(g.monitor.message)
+
+    def samples(self, owned: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
+        prim's local space (stage units, stage units per second), float32 as USD stores them.
+
+        The gather into input order and the transforms run on the simulation device
+        (:mod:`dftl_warp.kernels.output.samples`); the host receives one copy per group. With
+        ``owned=False`` the arrays are views of the host buffers, valid until the next call
+        (no host copy: :func:`run_frames` writes them before it fetches again)."""
+        self.check_energy()
+        out: list = [None] * len(self.scene.curves)
+        for g in self.groups:
+            to_local = np.empty((len(g.members), 4, 4))
+            rate = np.zeros((len(g.members), 4, 4))
+            for k, i in enumerate(g.members):
+                to_local[k] = np.linalg.inv(self._matrix(i, self.frame)).T
+                if self.scene.curves[i].animated and not self._at_rest:
+                    rate[k] = self._matrix_rate(i, self.frame).T
+            points, velocities = g.local_samples(to_local, rate, owned)
+            for k, i in enumerate(g.members):
+                a, b = g.point_offsets[k], g.point_offsets[k + 1]
+                out[i] = (points[a:b], velocities[a:b])
+        return out
+
+    def _matrix_rate(self, index: int, frame: int) -> np.ndarray:
+        """How fast the prim's local-to-world matrix moved over the last frame, per second.
+
+        Roots move linearly in world space from frame to frame, so this backward difference is
+        exactly the velocity the simulation gave them: their local velocity comes out zero.
+        """
+        m1, m0 = self._matrix(index, frame), self._matrix(index, frame - 1)
+        return (m1 - m0) * self.scene.stage.time_codes_per_second
+
+    def advance(self) -> None:
+        """Simulate from the current frame to the next one. On a GPU this only launches the work
+        (it returns before the device is done); :meth:`samples` waits for it."""
+        import warp as wp
+
+        self.check_energy()  # the frame being left, if nobody looked at it
+
+        from ..features.from_scene import update_frame
+
+        nxt = self.frame + 1
+        with wp.ScopedDevice(self.device):
+            for k, g in enumerate(self.groups):
+                if any(self.scene.curves[i].animated for i in g.members):
+                    # this frame's roots are the last frame's end targets: computed once, passed as
+                    # the same array, so the Control reuses their device-order copy too
+                    frame, start = self._end_roots.get(k, (None, None))
+                    if frame != self.frame:
+                        start = self._roots_world(g, self.frame)
+                    end = self._roots_world(g, nxt)
+                    self._end_roots[k] = (nxt, end)
+                    g.control.set_root_targets(start, end)
+                update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
+                g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
+        self.frame = nxt
+        self._at_rest = False
+        self._forget_before(nxt - 1)
+
+    # -- state for batch / resume ----------------------------------------------------------------
+
+    def save_state(self) -> dict:
+        """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
+        state = {"frame": np.array(self.frame)}
+        for k, g in enumerate(self.groups):
+            if getattr(g.state, "storage", None) is not None:  # interleaved: the fields share one buffer
+                state[f"group{k}.storage"] = g.state.storage.numpy()
+                continue
+            state[f"group{k}.positions"] = g.state.positions.numpy()
+            state[f"group{k}.velocities"] = g.state.velocities.numpy()
+            if g.state.corrections is not None:
+                state[f"group{k}.corrections"] = g.state.corrections.numpy()
+        return state
+
+    def load_state(self, state: dict) -> None:
+        """Continue from a :meth:`save_state` of the same scene and options."""
+        import warp as wp
+
+        for k, g in enumerate(self.groups):
+            storage = getattr(g.state, "storage", None)
+            if storage is not None:
+                key = f"group{k}.storage"
+                if key not in state or np.asarray(state[key]).shape[0] != storage.shape[0]:
+                    raise ValueError(f"saved state has no {key} of {storage.shape[0]} slots")
+                storage.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
+                continue
+            for name in ("positions", "velocities", "corrections"):
+                target = getattr(g.state, name)
+                key = f"group{k}.{name}"
+                if target is None:
+                    continue
+                if key not in state:
+                    raise ValueError(f"saved state has no {key}")
+                target.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
+        self.frame = int(state["frame"])
+        self._matrices = {}
+        self._at_rest = False
+        for g in self.groups:
+            if g.control.features is not None:
+                g.control.features.resync()  # colliders start the next frame where it says
+
+
+def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:
+    """Write the current frame (if ``write_first``), then advance and write up to ``last_frame``.
+
+    Simulating and writing overlap: the next frame's substeps are launched before the current
+    frame is authored, so on a GPU (where launches return at once) the device simulates frame
+    ``f + 1`` while the host writes frame ``f``; :meth:`Simulation.samples` then waits for it.
+    On the CPU device the two simply alternate.
+
+    ``progress`` (optional) is called with the number of frames done after each one. Returns
+    seconds spent simulating (launching and waiting for results) and writing.
+    """
+    t_sim = t_write = 0.0
+    pending = None  # (time code, samples) fetched but not yet written
+
+    def write(frame_and_samples):
+        nonlocal t_write
+        a = time.perf_counter()
+        writer.write_frame(*frame_and_samples)
+        t_write += time.perf_counter() - a
+        if progress is not None:
+            progress(1)
+
+    def fetch():
+        nonlocal t_sim
+        a = time.perf_counter()
+        samples = sim.samples(owned=False)  # written before the next fetch reuses the buffers
+        t_sim += time.perf_counter() - a
+        return sim.frame, samples
+
+    if write_first:
+        pending = fetch()
+    while sim.frame < last_frame:
+        a = time.perf_counter()
+        sim.advance()
+        t_sim += time.perf_counter() - a
+        if pending is not None:
+            write(pending)
+        pending = fetch()
+    if pending is not None:
+        write(pending)
+    return {"simulating": t_sim, "writing": t_write}
+
+
+def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary:
+    """Simulate the hair of the USD stage ``input`` and write ``output``.
+
+    Keyword options are the fields of :class:`SimulationOptions` (start, end, substeps, damping,
+    correction, solver, precision, device, prims). ``progress=True`` shows a tqdm bar on stderr.
+    Bad input raises :class:`~dftl_warp.errors.UserError`; no output file is left behind on any
+    failure.
+    """
+    from ..usd.read import read_scene
+    from ..output.usd import UsdWriter, check_output_path
+    from ..core.devices import init_warp
+
+    opts = SimulationOptions(**options)
+    init_warp()
+    t0 = time.perf_counter()
+    check_output_path(output, input)
+    scene = read_scene(input, prims=opts.prims, time=opts.start)
+    first, last = resolve_frames(scene, opts.start, opts.end)
+    sim = Simulation(scene, opts, first)
+    t_load = time.perf_counter() - t0
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=True, dynamic_ncols=True)
+        sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
+    try:
+        with UsdWriter.create(output, scene, frames=(first, last)) as writer:
+            times = run_frames(sim, writer, last, progress=bar.update if bar else None)
+            a = time.perf_counter()
+            writer.commit()
+            times["writing"] += time.perf_counter() - a
+    finally:
+        if bar is not None:
+            bar.close()
+    return Summary(
+        output=str(output),
+        prims=len(scene.curves),
+        strands=sim.num_strands,
+        particles=sim.num_points,
+        frames=last - first + 1,
+        first_frame=first,
+        last_frame=last,
+        colliders=len(scene.colliders),
+        seconds_loading=t_load,
+        seconds_simulating=times["simulating"],
+        seconds_writing=times["writing"],
+        groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
+                 "features": sorted(g.model.feature_flags)} for g in sim.groups],
+        warnings=list(scene.warnings),
+        run_warnings=list(sim.warnings),
+    )

@@ -1,0 +1,10 @@
+"""Solvers: advance a State by substeps (:mod:`.base`: the interface and the registry).
+
+Each solver module registers itself on import; this list is the registry's one line per solver.
+"""
+
+from . import dftl, pbd, reference  # noqa: F401  (registers dftl, ftl, pbd, reference)
+from .base import DEFAULT_GRAVITY, SOLVERS, Solver, carries_corrections, make_solver, register, solver_class  # noqa: F401
+from .dftl import DFTLSolver, FTLSolver  # noqa: F401
+from .pbd import PBDSolver  # noqa: F401
+from .reference import ReferenceSolver  # noqa: F401

@@ -1,0 +1,156 @@
+"""The small base every solver implements, and the registry that names them.
+
+A solver advances a :class:`~dftl_warp.core.state.State` by substeps of ``dt`` seconds:
+
+- ``state()``: a rest State with exactly the arrays the solver needs;
+- ``step(state_in, state_out, control, dt, root_alpha=1.0)``: one substep (``state_out`` may be
+  ``state_in``), roots at ``control``'s targets interpolated by ``root_alpha`` in [0, 1];
+- ``advance(state, control, dt, substeps)``: a frame's substeps in place, roots moving linearly
+  across them (on CUDA captured once in a CUDA graph and replayed);
+- ``diagnostics(state)``: energy per unit particle mass (J/kg), max relative stretch, max speed (m/s).
+
+A new solver subclasses :class:`Solver`, decorates itself with :func:`register`, and is imported
+by ``dftl_warp/solvers/__init__.py`` (one line). :func:`make_solver` builds one by name, passing
+the options the class lists in ``options``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..kernels.solvers.diagnostics import strand_diagnostics_kernel
+
+#: standard gravity, m/s^2, along -Y (the default up axis)
+DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
+
+#: solver classes by name, in registration order (:func:`register`)
+SOLVERS: dict[str, type] = {}
+
+
+def register(cls):
+    """Class decorator: make ``cls`` available to :func:`make_solver` under ``cls.name``."""
+    if not cls.name or cls.name in SOLVERS:
+        raise ValueError(f"solver name {cls.name!r} is empty or taken")
+    SOLVERS[cls.name] = cls
+    return cls
+
+
+class Solver:
+    """Base of the solvers: the shared ``state``, ``advance`` and ``diagnostics``.
+
+    Subclasses set :attr:`name` and :attr:`options` and implement :meth:`step`; they may
+    override :meth:`advance` (fused substeps) and :meth:`kernels` (what a CUDA graph captures).
+    """
+
+    #: registry name
+    name = ""
+    #: keyword options :func:`make_solver` passes on (besides ``gravity``); others are dropped
+    options: tuple[str, ...] = ()
+
+    def __init__(self, model, *, gravity=DEFAULT_GRAVITY):
+        self.model = model
+        self.gravity = model.vec3(*np.asarray(gravity, dtype=np.float64).reshape(3))
+        self._graphs: dict = {}
+
+    @staticmethod
+    def carries(correction: str) -> bool:
+        """Whether the solver keeps the prior form's corrections in its States."""
+        return False
+
+    @property
+    def carries_corrections(self) -> bool:
+        return False
+
+    def state(self):
+        """A rest State with exactly the arrays this solver needs."""
+        return self.model.state(with_corrections=self.carries_corrections)
+
+    def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
+        raise NotImplementedError
+
+    def kernels(self) -> list:
+        """The kernels :meth:`advance` launches (compiled before a CUDA graph captures them)."""
+        return []
+
+    def substeps(self, state, control, dt: float, substeps: int) -> None:
+        """The frame's substeps as launches (what :meth:`advance` captures on CUDA)."""
+        real = np.dtype(self.model.precision).type  # alpha rounded as the fused kernels compute it
+        for k in range(substeps):
+            self.step(state, state, control, dt, float(real(k + 1) / real(substeps)))
+
+    def advance(self, state, control, dt: float, substeps: int) -> None:
+        """``substeps`` steps of ``dt`` in place, roots moving linearly across them.
+
+        On CUDA the substeps are captured once per (state, control, dt, substeps) in a CUDA graph
+        and replayed afterwards.
+        """
+        m = self.model
+        if m.num_strands == 0:
+            return
+        self.launch_frame(state, control, dt, substeps, lambda: self.substeps(state, control, dt, substeps),
+                          self.kernels)
+
+    def launch_frame(self, state, control, dt: float, substeps: int, run, kernels) -> None:
+        """``run()`` directly on the CPU; on CUDA through a graph cached per (state, control, dt,
+        substeps), the kernels that ``kernels()`` lists compiled before the capture."""
+        m = self.model
+        if not m.device.is_cuda:
+            run()
+            return
+        key = (id(state), id(control), float(dt), int(substeps))
+        graph = self._graphs.get(key)
+        if graph is None:
+            for kernel in kernels():
+                kernel.module.load(m.device)
+            with wp.ScopedCapture(device=m.device) as capture:
+                run()
+            graph = self._graphs[key] = capture.graph
+        wp.capture_launch(graph)
+
+    def diagnostics(self, state) -> dict:
+        """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s)."""
+        m = self.model
+        n = m.num_strands
+        if n == 0:
+            return {"energy": 0.0, "max_stretch": 0.0, "max_speed": 0.0}
+        out = [wp.zeros(n, dtype=wp.float64, device=m.device) for _ in range(3)]
+        wp.launch(
+            strand_diagnostics_kernel(m.scalar),
+            dim=n,
+            inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self.gravity,
+                    state.positions, state.velocities],
+            outputs=out,
+            device=m.device,
+        )
+        energy, stretch, speed = (a.numpy() for a in out)
+        # potential energy is measured from the device origin; shift it back to world space
+        g = np.array(self.gravity, dtype=np.float64)
+        free = float(np.sum(np.maximum(m.counts - 1, 0)))
+        return {
+            "energy": float(energy.sum() - free * g @ m.origin),
+            "max_stretch": float(stretch.max()),
+            "max_speed": float(speed.max()),
+        }
+
+
+def solver_class(solver: str):
+    """The class registered as ``solver``; ValueError naming the choices otherwise."""
+    try:
+        return SOLVERS[solver]
+    except KeyError:
+        raise ValueError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}") from None
+
+
+def carries_corrections(solver: str, correction: str) -> bool:
+    """Whether the solver named ``solver`` keeps the prior form's corrections in its States."""
+    return solver_class(solver).carries(correction)
+
+
+def make_solver(model, solver: str = "dftl", **options):
+    """A solver by registry name (:data:`SOLVERS`), given the options its class lists
+    (``gravity`` always); options that do not apply to it (``damping`` and ``correction`` for pbd
+    and reference, ``iterations`` for all but pbd) are dropped."""
+    cls = solver_class(solver)
+    kept = {k: v for k, v in options.items() if k == "gravity" or k in cls.options}
+    return cls(model, **kept)

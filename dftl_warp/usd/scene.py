@@ -1,0 +1,189 @@
+"""What was read from a USD stage: plain data, no USD objects except inside transform samplers.
+
+:func:`dftl_warp.usd.read.read_scene` builds a :class:`Scene`; the simulation
+(:mod:`dftl_warp.simulation.simulate`) and the writer (:mod:`dftl_warp.output.usd`) consume it. Every length is
+in *stage units* (``metersPerUnit`` metres each); times are in *time codes*
+(``timeCodesPerSecond`` per second).
+
+Matrices follow USD's row-vector convention: a local point ``p`` (row) maps to the world as
+``[p, 1] @ M``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+#: 4x4 local-to-world matrix (row-vector convention) at a time code
+TransformSampler = Callable[[float], np.ndarray]
+
+
+def constant_transform(matrix=None) -> TransformSampler:
+    """A sampler that returns ``matrix`` (identity by default) at every time code."""
+    m = np.eye(4) if matrix is None else np.asarray(matrix, dtype=np.float64).reshape(4, 4)
+    m.setflags(write=False)
+    return lambda time: m
+
+
+def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Points (N, 3) through a 4x4 row-vector matrix (affine)."""
+    return points @ matrix[:3, :3] + matrix[3, :3]
+
+
+@dataclass
+class StageInfo:
+    """Stage metadata, effective values (USD fallbacks applied) plus what was authored."""
+
+    #: "Y" or "Z"
+    up_axis: str = "Y"
+    #: metres per stage unit (0.01 when unauthored, as USD specifies)
+    meters_per_unit: float = 0.01
+    #: time codes per second (the frame rate of the simulation)
+    time_codes_per_second: float = 24.0
+    #: ``framesPerSecond`` if authored
+    frames_per_second: float | None = None
+    #: authored ``startTimeCode`` / ``endTimeCode`` (None when the stage has no time code range)
+    start_time_code: float | None = None
+    end_time_code: float | None = None
+    #: authored ``defaultPrim`` ("" when none)
+    default_prim: str = ""
+    #: names of the metadata fields the root layer authors (``upAxis``, ``metersPerUnit`` ...)
+    authored: tuple[str, ...] = ()
+
+
+@dataclass
+class CurveSettings:
+    """Per-prim ``dftl:`` settings (None: not authored; the command line or defaults decide)."""
+
+    simulate: bool = True
+    solver: str | None = None
+    damping: float | None = None
+    correction: str | None = None
+    substeps: int | None = None
+
+
+@dataclass
+class MeshSource:
+    """A UsdGeom.Mesh the roots of a curves prim are bound to (``dftl:rootMesh``)."""
+
+    path: str
+    #: (T, 3) int64 triangles (fan-triangulated faces)
+    triangles: np.ndarray
+    #: local points (V, 3) at a time code
+    points: Callable[[float], np.ndarray]
+    transform: TransformSampler = field(default_factory=constant_transform)
+    #: whether points or transform may change over time
+    animated: bool = False
+
+    def world_points(self, time) -> np.ndarray:
+        return transform_points(self.transform(time), self.points(time))
+
+
+@dataclass
+class CurvesPrim:
+    """One UsdGeom.BasisCurves prim: its strands in local space (stage units)."""
+
+    path: str
+    #: (N, 3) float64 control points in the prim's local space, read at the read time code
+    points: np.ndarray
+    #: (S,) int64 vertex count of each curve; vertex 0 of each curve is its root
+    counts: np.ndarray
+    #: "linear" or "cubic"
+    type: str = "linear"
+    #: "bezier", "bspline", "catmullRom" (meaningful for cubic curves)
+    basis: str = "bezier"
+    #: "nonperiodic" or "pinned" (periodic curves are refused by the reader)
+    wrap: str = "nonperiodic"
+    #: widths (stage units) as authored, and their interpolation ("" when none)
+    widths: np.ndarray | None = None
+    widths_interpolation: str = ""
+    #: displayColor as authored (K, 3) and its interpolation, if any
+    display_color: np.ndarray | None = None
+    display_color_interpolation: str = ""
+    #: local-to-world matrix at a time code
+    transform: TransformSampler = field(default_factory=constant_transform)
+    #: whether the local-to-world transform may change over time
+    animated: bool = False
+    settings: CurveSettings = field(default_factory=CurveSettings)
+    #: authored per-curve feature values (``dftl:drag``, ``dftl:shapeStiffness``; see docs/features.md)
+    features: dict = field(default_factory=dict)
+    #: the mesh the roots are bound to (``dftl:rootMesh``), if any
+    root_mesh: MeshSource | None = None
+
+    @property
+    def num_strands(self) -> int:
+        return int(self.counts.shape[0])
+
+    @property
+    def num_points(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def root_indices(self) -> np.ndarray:
+        """Index of each curve's root (vertex 0) in :attr:`points`."""
+        starts = np.zeros(self.counts.shape[0], dtype=np.int64)
+        np.cumsum(self.counts[:-1], out=starts[1:])
+        return starts
+
+
+@dataclass
+class ColliderPrim:
+    """A prim with UsdPhysics.CollisionAPI, in its local space (stage units).
+
+    ``kind`` is "sphere" (``radius``), "capsule" (``radius``, ``height`` of the cylinder part,
+    ``axis``), "box" (``half_extents``) or "mesh" (``mesh_points``, ``triangles``).
+    """
+
+    path: str
+    kind: str
+    radius: float = 0.0
+    height: float = 0.0
+    axis: str = "Z"
+    #: (3,) half sizes of a box
+    half_extents: np.ndarray | None = None
+    #: (V, 3) float64 mesh vertices and (T, 3) int64 triangle indices (fan-triangulated faces)
+    mesh_points: np.ndarray | None = None
+    triangles: np.ndarray | None = None
+    #: Coulomb friction coefficient: ``dftl:friction`` if authored, else the bound physics
+    #: material's dynamicFriction, else None
+    friction: float | None = None
+    transform: TransformSampler = field(default_factory=constant_transform)
+    animated: bool = False
+    #: local mesh points at a time code, for a mesh whose points are time-sampled (else None)
+    points_sampler: Callable[[float], np.ndarray] | None = None
+
+
+@dataclass
+class Scene:
+    """Everything the simulator needs from one stage."""
+
+    #: the file that was read (as given)
+    source: str
+    stage: StageInfo
+    #: (3,) gravity, stage units / s^2
+    gravity: np.ndarray
+    curves: list[CurvesPrim] = field(default_factory=list)
+    colliders: list[ColliderPrim] = field(default_factory=list)
+    #: the time code the points were read at (None: the default time)
+    read_time: float | None = None
+    #: one-line diagnostics USD reported while opening the stage (missing sublayers ...)
+    warnings: list[str] = field(default_factory=list)
+    #: authored scene-wide feature values (``dftl:wind``, ``dftl:hairHair`` ...; docs/features.md),
+    #: from the UsdPhysics.Scene prim, else the default prim; ``dftl:wind`` as keyframes (K, 4)
+    #: of (seconds, vx, vy, vz) when time-sampled
+    features: dict = field(default_factory=dict)
+
+    @property
+    def num_strands(self) -> int:
+        return sum(c.num_strands for c in self.curves)
+
+    @property
+    def num_points(self) -> int:
+        return sum(c.num_points for c in self.curves)
+
+    @property
+    def gravity_si(self) -> np.ndarray:
+        """Gravity in m/s^2."""
+        return self.gravity * self.stage.meters_per_unit

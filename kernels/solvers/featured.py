@@ -1,0 +1,288 @@
+"""The DFTL step specialized to a scene's feature set.
+
+:func:`featured_step_kernel` builds, per precision, correction form and feature set, one kernel
+whose code holds exactly the features asked for: each feature's code sits under
+``if wp.static(FLAG):`` and is dropped at code generation when the flag is off, and its
+parameters travel in a Warp struct (:func:`feature_struct`) that has fields for the present
+features only. The empty feature set is never built here: :func:`dftl_warp.kernels.solvers.ftl.step_kernel`
+returns the bare kernel for it.
+
+Flags (:data:`FLAGS`) and where they act in the sweep of particle ``i`` (root excluded):
+
+- ``hair_hair``: velocity pulled toward the grid velocity, pushed down the density gradient
+  (``kernels/grid.py``), from the particle's previous position;
+- ``drag`` (1/s, per strand) toward the air velocity: ``v = w + (v - w) exp(-drag dt)``, with
+  ``w`` zero, or the frame's ``wind`` velocity (interpolated across the frame), plus
+  ``wind_noise`` (curl noise in space and time, sampled every :data:`NOISE_STRIDE` particles
+  along a strand and held in between: the noise is the costliest term of the step);
+- prediction ``p = x + dt v + dt^2 g`` (and the prior form's carried correction);
+- ``shape``: ``p += stiffness (target - p)``, ``target`` the rest direction of the segment in the
+  frame of the segment before it (``kernels/shape.py``);
+- follow-the-leader projection to the rest length;
+- colliders (``spheres``, ``capsules``, ``boxes``, ``meshes``): ``iterations`` rounds of
+  collide-then-project-to-rest-length (``kernels/collide.py``), the first with a continuous test.
+  The rest length is restored last, so collisions never stretch a segment.
+"""
+
+
+import functools
+
+import warp as wp
+
+from ..core.arith import madd
+from ..features.collide import collide_funcs, transform_type
+from .ftl import STEP_MODULE_OPTIONS, follow_func
+from ..features.grid import grid_sample_func
+from ..core.layout import particle
+from ..features.shape import shape_funcs
+
+COLLIDER_FLAGS = ("spheres", "capsules", "boxes", "meshes")
+#: the wind's curl noise is sampled at every NOISE_STRIDE-th particle of a strand and held between
+NOISE_STRIDE = 8
+FLAGS = COLLIDER_FLAGS + ("drag", "wind", "wind_noise", "hair_hair", "shape")
+
+
+def check_flags(flags) -> frozenset:
+    flags = frozenset(flags)
+    unknown = flags - set(FLAGS)
+    if unknown:
+        raise ValueError(f"unknown feature flags {sorted(unknown)}; known: {', '.join(FLAGS)}")
+    if ("wind" in flags or "wind_noise" in flags) and "drag" not in flags:
+        raise ValueError("wind acts through air drag: the 'wind' flags need 'drag'")
+    if "wind_noise" in flags and "wind" not in flags:
+        raise ValueError("'wind_noise' needs 'wind'")
+    return flags
+
+
+@functools.cache
+def feature_struct(scalar, flags: frozenset):
+    """The Warp struct carrying the parameters of the features in ``flags`` (and nothing else)."""
+    flags = check_flags(flags)
+    vec3 = wp.types.vector(3, scalar)
+    fields = {}
+    if flags & set(COLLIDER_FLAGS):
+        fields.update(
+            particle_radius=wp.array(dtype=scalar),
+            collider_pose=wp.array(dtype=transform_type(scalar)),
+            collider_inv_pose=wp.array(dtype=transform_type(scalar)),
+            collider_inv_pose_prev=wp.array(dtype=transform_type(scalar)),
+            collider_size=wp.array(dtype=vec3),
+            collider_axis=wp.array(dtype=vec3),
+            collider_friction=wp.array(dtype=scalar),
+            collider_iterations=int,
+        )
+        for kind in COLLIDER_FLAGS:
+            if kind in flags:
+                fields[f"{kind}_begin"] = int
+                fields[f"{kind}_end"] = int
+        if "meshes" in flags:
+            fields.update(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar),
+                          collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3))
+    if "drag" in flags:
+        fields["drag"] = wp.array(dtype=scalar)
+    if "wind" in flags:
+        fields["wind_velocity"] = wp.array(dtype=vec3)
+    if "wind_noise" in flags:
+        fields.update(
+            wind_time=wp.array(dtype=scalar),
+            noise_amplitude=scalar,
+            noise_inv_scale=scalar,
+            noise_frequency=scalar,
+            noise_seed=int,
+        )
+    if "hair_hair" in flags:
+        fields.update(
+            grid_lower=wp.array(dtype=scalar),
+            grid_inv_h=scalar,
+            grid_h=scalar,
+            grid_nx=int,
+            grid_ny=int,
+            grid_nz=int,
+            grid_density=wp.array3d(dtype=scalar),
+            grid_momentum=wp.array3d(dtype=vec3),
+            grid_friction=scalar,
+            grid_repulsion=scalar,
+        )
+    if "shape" in flags:
+        fields.update(
+            shape_stiffness=wp.array(dtype=scalar),
+            shape_rest_frame=wp.array(dtype=wp.types.quaternion(dtype=scalar)),
+            shape_rest_dir=wp.array(dtype=vec3),
+        )
+    name = "StepFeatures_" + ("f64_" if scalar == wp.float64 else "f32_") + "_".join(sorted(flags))
+    cls = type(name, (), {"__annotations__": fields, "__module__": __name__, "__qualname__": name})
+    return wp.struct(cls, module="unique")
+
+
+@functools.cache
+def featured_step_kernel(scalar, correction: str, flags: frozenset):
+    """The DFTL step for ``scalar`` precision, ``correction`` form and the non-empty ``flags``."""
+    flags = check_flags(flags)
+    if not flags:
+        raise ValueError("the empty feature set runs the bare step (kernels.ftl.step_kernel)")
+    vec3 = wp.types.vector(3, scalar)
+    Features = feature_struct(scalar, flags)
+    follow = follow_func(scalar)
+    collide_sphere, collide_capsule, collide_box, collide_mesh = collide_funcs(scalar)
+    grid_sample = grid_sample_func(scalar)
+    quat_between, advance_frame = shape_funcs(scalar)
+
+    PRIOR = correction == "prior"
+    SPHERES = "spheres" in flags
+    CAPSULES = "capsules" in flags
+    BOXES = "boxes" in flags
+    MESHES = "meshes" in flags
+    COLLIDE = SPHERES or CAPSULES or BOXES or MESHES
+    DRAG = "drag" in flags
+    WIND = "wind" in flags
+    WIND_NOISE = "wind_noise" in flags
+    HAIR_HAIR = "hair_hair" in flags
+    SHAPE = "shape" in flags
+    one = scalar(1.0)
+
+    @wp.func
+    def collide_all(f: Features, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar):
+        touched = bool(False)
+        if wp.static(SPHERES):
+            for c in range(f.spheres_begin, f.spheres_end):
+                x, hit = collide_sphere(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                                        f.collider_inv_pose_prev[c], f.collider_size[c], f.collider_axis[c],
+                                        f.collider_friction[c])
+                touched = touched or hit
+        if wp.static(CAPSULES):
+            for c in range(f.capsules_begin, f.capsules_end):
+                x, hit = collide_capsule(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
+                                         f.collider_inv_pose[c], f.collider_inv_pose_prev[c], f.collider_size[c],
+                                         f.collider_axis[c], f.collider_friction[c])
+                touched = touched or hit
+        if wp.static(BOXES):
+            for c in range(f.boxes_begin, f.boxes_end):
+                x, hit = collide_box(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                                     f.collider_inv_pose_prev[c], f.collider_size[c], f.collider_axis[c],
+                                     f.collider_friction[c])
+                touched = touched or hit
+        if wp.static(MESHES):
+            for c in range(f.meshes_begin, f.meshes_end):
+                x, hit = collide_mesh(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                                      f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c],
+                                      f.collider_upper[c], f.collider_depth_band[c], f.collider_friction[c])
+                touched = touched or hit
+        return x, touched
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
+    def dftl_step_featured(
+        strand_base: wp.array(dtype=wp.int32),
+        strand_stride: wp.array(dtype=wp.int32),
+        strand_count: wp.array(dtype=wp.int32),
+        root_start: wp.array(dtype=vec3),
+        root_end: wp.array(dtype=vec3),
+        root_alpha: scalar,
+        rest_lengths: wp.array(dtype=scalar),
+        gravity: vec3,
+        dt: scalar,
+        damping: scalar,
+        features: Features,
+        positions_in: wp.array(dtype=vec3),
+        velocities_in: wp.array(dtype=vec3),
+        corrections_in: wp.array(dtype=vec3),
+        positions_out: wp.array(dtype=vec3),
+        velocities_out: wp.array(dtype=vec3),
+        corrections_out: wp.array(dtype=vec3),
+    ):
+        s = wp.tid()
+        base = strand_base[s]
+        stride = strand_stride[s]
+        n = strand_count[s]
+        inv_dt = one / dt
+        gdt2 = gravity * (dt * dt)
+        k = particle(base, stride, 0)
+        root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+        leader_old = positions_in[k]
+        positions_out[k] = root
+        velocities_out[k] = (root - leader_old) * inv_dt
+        if wp.static(PRIOR):
+            corrections_out[k] = vec3()
+        leader = root
+        k_prev = k
+
+        if wp.static(DRAG):
+            decay = wp.exp(-features.drag[s] * dt)
+            air = vec3()
+            if wp.static(WIND):
+                w0 = features.wind_velocity[0]
+                air = w0 + root_alpha * (features.wind_velocity[1] - w0)
+            if wp.static(WIND_NOISE):
+                t0 = features.wind_time[0]
+                time = t0 + root_alpha * (features.wind_time[1] - t0)
+                noise_state = wp.uint32(features.noise_seed)
+                gust = vec3()
+        if wp.static(HAIR_HAIR):
+            blend_grid = one - wp.exp(-features.grid_friction * dt)
+            push = features.grid_repulsion * features.grid_h * dt
+        if wp.static(SHAPE):
+            stiffness = features.shape_stiffness[s]
+            frame = features.shape_rest_frame[s]
+            rest_first = wp.quat_rotate(frame, vec3(one, scalar(0.0), scalar(0.0)))
+            direction = rest_first
+
+        for i in range(1, n):
+            k = particle(base, stride, i)
+            x_old = positions_in[k]
+            v = velocities_in[k]
+            if wp.static(HAIR_HAIR):
+                v_grid, grad = grid_sample(x_old, features.grid_lower, features.grid_inv_h, features.grid_nx,
+                                           features.grid_ny, features.grid_nz, features.grid_density,
+                                           features.grid_momentum)
+                v = v + blend_grid * (v_grid - v) - push * grad
+            if wp.static(DRAG):
+                w = air
+                if wp.static(WIND_NOISE):
+                    if (i - 1) % NOISE_STRIDE == 0:
+                        xyzt = wp.vec4f(wp.float32(x_old[0] * features.noise_inv_scale),
+                                        wp.float32(x_old[1] * features.noise_inv_scale),
+                                        wp.float32(x_old[2] * features.noise_inv_scale),
+                                        wp.float32(time * features.noise_frequency))
+                        gust = features.noise_amplitude * vec3(wp.curlnoise(noise_state, xyzt))
+                    w = w + gust
+                v = w + (v - w) * decay
+            p = madd(dt, v, x_old) + gdt2
+            if wp.static(PRIOR):
+                if i + 1 < n:
+                    p = madd(-damping, corrections_in[particle(base, stride, i + 1)], p)
+            rest = rest_lengths[k]
+            if wp.static(SHAPE):
+                if i > 1:
+                    target = leader + rest * wp.quat_rotate(frame, features.shape_rest_dir[k])
+                    p = p + stiffness * (target - p)
+            x = follow(leader, p, rest, leader_old, x_old)
+            correction = x - p
+            if wp.static(COLLIDE):
+                radius = features.particle_radius[k]
+                for it in range(features.collider_iterations):
+                    x, touched = collide_all(features, x, x_old, leader, rest, it == 0, radius)
+                    if not touched:
+                        break
+                    x = follow(leader, x, rest, leader_old, x_old)
+            if wp.static(SHAPE):
+                if rest > scalar(0.0):
+                    t = (x - leader) / rest
+                    if i == 1:
+                        frame = wp.normalize(quat_between(rest_first, t) * frame)
+                    else:
+                        frame = advance_frame(frame, direction, t)
+                    direction = t
+            positions_out[k] = x
+            if wp.static(PRIOR):
+                velocities_out[k] = (x - x_old) * inv_dt
+                corrections_out[k] = correction
+            else:
+                if i > 1:
+                    velocities_out[k_prev] = madd(-(damping * inv_dt), correction, (leader - leader_old) * inv_dt)
+            leader = x
+            leader_old = x_old
+            k_prev = k
+        if wp.static(not PRIOR):
+            if n > 1:
+                velocities_out[k_prev] = (leader - leader_old) * inv_dt
+
+    return dftl_step_featured

@@ -1,0 +1,187 @@
+"""Follow-the-leader step kernels: one thread per strand, a sequential sweep root -> tip.
+
+Each kernel advances every strand by one substep ``dt`` (s):
+
+1. the root (particle 0) is placed on its kinematic target, interpolated between the frame's
+   start and end targets by ``root_alpha``;
+2. every other particle is predicted, ``p_i = x_i + dt v_i + dt^2 g`` (``g`` in m/s^2, or stage
+   units/s^2), then pulled behind its leader,
+   ``x_i = x_{i-1} + l_i (p_i - x_{i-1}) / |p_i - x_{i-1}|``;
+3. velocities are corrected with ``damping`` ``s`` in one of two forms:
+
+   - *posterior* (Mueller et al. 2012, eq. 1-3): ``v_i = (x_i - x_i_old)/dt - s dx_{i+1}/dt``,
+     ``dx_{i+1} = x_{i+1} - p_{i+1}`` (zero at the tip);
+   - *prior* (the seed's eq. 4-6): the previous step's correction of particle ``i+1`` enters the
+     prediction, ``p_i -= s dx_{i+1}^{n-1}``, and ``v_i = (x_i - x_i_old)/dt``.
+
+Both forms produce the same positions. The kernels are made per precision (``wp.float32`` or
+``wp.float64``) by :func:`step_kernel`; they may run in place (``*_in`` and ``*_out`` the same
+arrays) because each thread reads a particle before it writes it.
+"""
+
+
+import functools
+
+import warp as wp
+
+from ..core.arith import madd, norm2, rsqrt
+from ..core.layout import particle
+
+CORRECTIONS = ("prior", "posterior")
+
+#: Module options of the step kernels and of the fused kernels (:mod:`.fused`). Floating-point
+#: contraction (FMA) is off so that both compute each value with the same roundings and agree
+#: bitwise on every device; the step is memory-bound, so contraction buys no speed here.
+STEP_MODULE_OPTIONS = {"fuse_fp": False}
+
+#: CUDA launch bounds (threads per block, blocks per SM) of the bare step kernels, by precision.
+#: Chosen from H200 probe runs (2026-11-21; resulting figures in docs/benchmarks.md): with the
+#: bound the compiler keeps more loads in flight (float32 prior: 88% of the copy bandwidth
+#: instead of 81%; float64: 92% instead of 90%).
+#: Launch these kernels with Warp's default block of 256 threads.
+STEP_LAUNCH_BOUNDS = {wp.float32: (256, 6), wp.float64: (256, 4)}
+
+
+@functools.cache
+def follow_func(scalar):
+    """The follow-the-leader projection for ``scalar`` precision (cached ``wp.func``)."""
+    vec3 = wp.types.vector(3, scalar)
+    # relative length below which a prediction is treated as degenerate (no usable direction)
+    degenerate = 1.0e-6 if scalar == wp.float32 else 1.0e-12
+    # float32 tests the scale factor rest / |d| itself, after its reciprocal square root (one
+    # instruction on CUDA); float64 tests |d|^2 first and takes the costlier root only past it
+    # (on the H200 that keeps the fused float64 kernel 1.3x faster)
+    scale_test = scalar == wp.float32
+
+    @wp.func
+    def follow(leader: vec3, predicted: vec3, rest: scalar, old_leader: vec3, old_self: vec3):
+        """New position of a follower: ``rest`` away from ``leader``, towards ``predicted``.
+
+        A degenerate prediction (within ``rest * degenerate`` of the leader, or on it) keeps the
+        segment's previous direction, ``old_self - old_leader``; if that too is degenerate, the
+        strand's +x axis is used. float32 tests ``rest / |d| < 1 / degenerate`` (infinite or NaN
+        when ``d`` vanishes); float64 ``|d|^2 > max((rest * degenerate)^2, 1e-30)``.
+        """
+        d = predicted - leader
+        d2 = norm2(d)
+        if wp.static(scale_test):
+            scale = rest * rsqrt(d2)
+            if scale < scalar(1.0 / degenerate):
+                return madd(scale, d, leader)
+        else:
+            tol = rest * scalar(degenerate)
+            if d2 > wp.max(tol * tol, scalar(1.0e-30)):
+                return madd(rest * rsqrt(d2), d, leader)
+        d = old_self - old_leader
+        d2 = norm2(d)
+        if d2 > scalar(1.0e-30):
+            return madd(rest * rsqrt(d2), d, leader)
+        return leader + vec3(rest, scalar(0.0), scalar(0.0))
+
+    return follow
+
+
+@functools.cache
+def bare_step_kernel(scalar, correction: str):
+    """The bare DFTL step kernel (gravity and roots only) for ``scalar`` precision and ``correction`` form."""
+    if correction not in CORRECTIONS:
+        raise ValueError(f"unknown correction {correction!r}")
+    vec3 = wp.types.vector(3, scalar)
+    follow = follow_func(scalar)
+    bounds = STEP_LAUNCH_BOUNDS.get(scalar)
+
+    if correction == "prior":
+
+        @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS, launch_bounds=bounds)
+        def dftl_step(
+            strand_base: wp.array(dtype=wp.int32),
+            strand_stride: wp.array(dtype=wp.int32),
+            strand_count: wp.array(dtype=wp.int32),
+            root_start: wp.array(dtype=vec3),
+            root_end: wp.array(dtype=vec3),
+            root_alpha: scalar,
+            rest_lengths: wp.array(dtype=scalar),
+            gravity: vec3,
+            dt: scalar,
+            damping: scalar,
+            positions_in: wp.array(dtype=vec3),
+            velocities_in: wp.array(dtype=vec3),
+            corrections_in: wp.array(dtype=vec3),
+            positions_out: wp.array(dtype=vec3),
+            velocities_out: wp.array(dtype=vec3),
+            corrections_out: wp.array(dtype=vec3),
+        ):
+            s = wp.tid()
+            base = strand_base[s]
+            stride = strand_stride[s]
+            n = strand_count[s]
+            inv_dt = scalar(1.0) / dt
+            gdt2 = gravity * (dt * dt)
+            k = particle(base, stride, 0)
+            root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+            leader_old = positions_in[k]
+            positions_out[k] = root
+            velocities_out[k] = (root - leader_old) * inv_dt
+            corrections_out[k] = vec3()
+            leader = root
+            for i in range(1, n):
+                k = particle(base, stride, i)
+                x_old = positions_in[k]
+                p = madd(dt, velocities_in[k], x_old) + gdt2
+                if i + 1 < n:
+                    p = madd(-damping, corrections_in[particle(base, stride, i + 1)], p)
+                x = follow(leader, p, rest_lengths[k], leader_old, x_old)
+                positions_out[k] = x
+                velocities_out[k] = (x - x_old) * inv_dt
+                corrections_out[k] = x - p
+                leader = x
+                leader_old = x_old
+
+        return dftl_step
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS, launch_bounds=bounds)
+    def dftl_step_posterior(
+        strand_base: wp.array(dtype=wp.int32),
+        strand_stride: wp.array(dtype=wp.int32),
+        strand_count: wp.array(dtype=wp.int32),
+        root_start: wp.array(dtype=vec3),
+        root_end: wp.array(dtype=vec3),
+        root_alpha: scalar,
+        rest_lengths: wp.array(dtype=scalar),
+        gravity: vec3,
+        dt: scalar,
+        damping: scalar,
+        positions_in: wp.array(dtype=vec3),
+        velocities_in: wp.array(dtype=vec3),
+        positions_out: wp.array(dtype=vec3),
+        velocities_out: wp.array(dtype=vec3),
+    ):
+        s = wp.tid()
+        base = strand_base[s]
+        stride = strand_stride[s]
+        n = strand_count[s]
+        inv_dt = scalar(1.0) / dt
+        gdt2 = gravity * (dt * dt)
+        k = particle(base, stride, 0)
+        root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+        leader_old = positions_in[k]
+        positions_out[k] = root
+        velocities_out[k] = (root - leader_old) * inv_dt
+        leader = root
+        k_prev = k
+        for i in range(1, n):
+            k = particle(base, stride, i)
+            x_old = positions_in[k]
+            p = madd(dt, velocities_in[k], x_old) + gdt2
+            x = follow(leader, p, rest_lengths[k], leader_old, x_old)
+            positions_out[k] = x
+            if i > 1:
+                # the leader's velocity, now that this particle's correction is known
+                velocities_out[k_prev] = madd(-(damping * inv_dt), x - p, (leader - leader_old) * inv_dt)
+            leader = x
+            leader_old = x_old
+            k_prev = k
+        if n > 1:
+            velocities_out[k_prev] = (leader - leader_old) * inv_dt
+
+    return dftl_step_posterior
