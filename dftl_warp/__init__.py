@@ -3,7 +3,7 @@
 Data flows one way: USD -> :class:`Model` -> :class:`State` -> solver -> writer / renderer.
 """
 
-__version__ = "0.1.0"
+from .version import __version__  # noqa: F401
 
 from .simulation.strands import Recording, simulate_strands  # noqa: E402
 from .core.model import Model  # noqa: E402

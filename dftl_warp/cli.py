@@ -2,13 +2,22 @@
 
 Each command lives in :mod:`dftl_warp.commands` as a module with ``add_parser(subparsers)`` and
 ``run(args) -> int``. A :class:`~dftl_warp.errors.UserError` ends the program with one line on
-stderr and exit status 2, never a traceback.
+stderr and exit status 2, never a traceback; so does a bad flag (argparse's usage block is left
+out: ``--help`` shows it).
+
+Signals: SIGINT, SIGTERM and SIGHUP (what farm schedulers send) unwind the command like an
+exception, so every temporary file is removed (an output being written, a PNG being saved);
+the program prints one line and exits with 128 + the signal number (130, 143, 129). A batch's
+checkpoints survive (they are what a resumed batch continues from). A closed stdout (``info
+--json | head``) ends the program quietly with status 141 (128 + SIGPIPE).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
 
 from .errors import UserError
@@ -17,16 +26,42 @@ from .errors import UserError
 #: ``add_parser`` chooses its subcommand's name (``import_groom`` registers ``import``)
 COMMANDS = ("simulate", "render", "batch", "study", "info", "devices", "import_groom")
 
+#: signals that end a run cleanly (temporary files removed), with exit status 128 + number
+HANDLED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised in the main thread by SIGTERM / SIGHUP / SIGINT (a KeyboardInterrupt, so code that
+    cleans up after Ctrl-C cleans up after these too)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def name(self) -> str:
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line on stderr (exit status 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .version import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="dftl-warp",
         description="GPU hair simulation (Dynamic Follow-The-Leader) and rendering with NVIDIA Warp.",
     )
     parser.add_argument("--version", action="version", version=f"dftl-warp {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for name in COMMANDS:
         try:
             module = importlib.import_module(f"dftl_warp.commands.{name}")
@@ -38,24 +73,73 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _raise_terminated(signum, frame):
+    for other in HANDLED_SIGNALS:  # let the clean-up finish: later signals are ignored
+        signal.signal(other, signal.SIG_IGN)
+    raise Terminated(signum)
+
+
+def install_signal_handlers() -> dict:
+    """Make SIGINT / SIGTERM / SIGHUP raise :class:`Terminated` in the main thread; returns the
+    previous handlers (for :func:`restore_signal_handlers`). Does nothing off the main thread."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous = {}
+    for signum in HANDLED_SIGNALS:
+        try:
+            previous[signum] = signal.signal(signum, _raise_terminated)
+        except (ValueError, OSError):  # pragma: no cover
+            pass
+    return previous
+
+
+def restore_signal_handlers(previous: dict) -> None:
+    for signum, handler in previous.items():
+        signal.signal(signum, handler)
+
+
+def _stdout_closed() -> int:
+    """The reader of stdout went away: send the rest of our output nowhere, no traceback."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):
+        pass
+    return 128 + 13  # 128 + SIGPIPE, what a shell reports for a command killed by a closed pipe
+
+
 def main(argv=None) -> int:
-    """Entry point of the ``dftl-warp`` console script."""
+    """Entry point of the ``dftl-warp`` console script; returns the exit status."""
     from .core.devices import init_warp
 
-    init_warp()
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "run", None):
-        parser.print_help()
-        return 0
+    previous = install_signal_handlers()
     try:
-        return int(args.run(args) or 0)
-    except UserError as exc:
-        print(f"dftl-warp: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("dftl-warp: interrupted", file=sys.stderr)
-        return 130
+        try:
+            init_warp()
+            parser = build_parser()
+            args = parser.parse_args(argv)  # SystemExit(2) after one line for a bad flag
+            if not getattr(args, "run", None):
+                parser.print_help()
+                return 0
+            status = int(args.run(args) or 0)
+            sys.stdout.flush()
+            return status
+        except UserError as exc:
+            print(f"dftl-warp: error: {exc}", file=sys.stderr)
+            return 2
+        except Terminated as exc:
+            print(f"dftl-warp: stopped by {exc.name}", file=sys.stderr)
+            return 128 + exc.signum
+        except KeyboardInterrupt:
+            print("dftl-warp: interrupted", file=sys.stderr)
+            return 130
+        except BrokenPipeError:
+            return _stdout_closed()
+    finally:
+        restore_signal_handlers(previous)
 
 
 if __name__ == "__main__":

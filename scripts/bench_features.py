@@ -223,7 +223,7 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
 
             def one_frame(solver=solver, state=state, control=control, binding=binding):
                 if binding:
-                    control.features.set_binding_points(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]))
+                    control.bind_roots(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]))
                 solver.advance(state, control, dt, SUBSTEPS)
 
             for _ in range(SETTLE_FRAMES):  # warm-up (compile, capture), and let the groom settle

@@ -319,3 +319,73 @@ def test_interleave_follows_what_the_solver_carries():
     assert dw.DFTLSolver(model, correction="posterior").state().storage.shape[0] == model.num_slots + 32
     with pytest.raises(ValueError, match="interleaves 2 state vectors"):
         dw.DFTLSolver(model, correction="prior").state()
+
+
+# -- argument checks (issue 18 item 7) -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"dt": float("nan")}, "dt must be a finite number"),
+    ({"dt": 0.0}, "dt must be"),
+    ({"dt": -1 / 24}, "dt must be"),
+    ({"dt": float("inf")}, "dt must be"),
+    ({"dt": True}, "dt must be"),
+    ({"gravity": (0.0, float("nan"), 0.0)}, "gravity must be 3 finite numbers"),
+    ({"gravity": (0.0, -float("inf"), 0.0)}, "gravity must be 3 finite numbers"),
+    ({"gravity": (1.0, 2.0)}, "gravity must be 3 finite numbers"),
+    ({"steps": -1}, "steps must be an integer >= 0"),
+    ({"steps": 2.5}, "steps must be an integer >= 0"),
+    ({"record_every": 0}, "record_every must be an integer >= 1"),
+    ({"damping": 1.5}, "damping must be in [0, 1]"),
+    ({"correction": "later"}, "correction must be one of prior, posterior"),
+    ({"solver": "magic"}, "solver must be one of"),
+    ({"precision": "float16"}, "precision must be one of float32, float64"),
+])
+def test_simulate_strands_checks_its_arguments(kwargs, message):
+    args = {"steps": 2, "dt": 1 / 24, "gravity": G, **kwargs}
+    with pytest.raises(ValueError) as exc:
+        dw.simulate_strands(chain(4, 0.1), [4], **args)
+    assert message in str(exc.value)
+
+
+@pytest.mark.parametrize("solver", ["dftl", "ftl", "pbd", "reference"])
+def test_every_solver_checks_dt_substeps_and_gravity(solver):
+    from dftl_warp.solvers import make_solver
+
+    model = dw.Model.from_strands(chain(4, 0.1), [4], device="cpu", precision="float64")
+    sim = make_solver(model, solver, gravity=G)
+    state, control = sim.state(), model.control()
+    before = state.positions.numpy().copy()
+    for dt in (float("nan"), 0.0, -0.01, float("inf"), np.float32("nan")):
+        with pytest.raises(ValueError, match="dt must be"):
+            sim.advance(state, control, dt, 2)
+        with pytest.raises(ValueError, match="dt must be"):
+            sim.step(state, state, control, dt)
+    for substeps in (0, -1, 2.5, True, "2"):
+        with pytest.raises(ValueError, match="substeps must be an integer >= 1"):
+            sim.advance(state, control, 1 / 24, substeps)
+    np.testing.assert_array_equal(state.positions.numpy(), before)  # nothing ran
+    sim.advance(state, control, np.float64(1 / 24), np.int64(2))  # numpy scalars are fine
+    assert np.isfinite(state.positions.numpy()).all()
+    for g in ((0.0, float("nan"), 0.0), (float("inf"), 0.0, 0.0)):
+        with pytest.raises(ValueError, match="gravity must be 3 finite numbers"):
+            make_solver(model, solver, gravity=g)
+
+
+def test_a_new_solver_gets_the_checks_without_a_line_of_its_own():
+    from dftl_warp.solvers import Solver
+
+    class Toy(Solver):
+        name = "toy-unregistered"
+
+        def step(self, state_in, state_out, control, dt, root_alpha=1.0):
+            self.ran = True
+
+    model = dw.Model.from_strands(chain(3, 0.1), [3], device="cpu")
+    toy = Toy(model)
+    with pytest.raises(ValueError, match="dt must be"):
+        toy.step(None, None, None, float("nan"))
+    with pytest.raises(ValueError, match="substeps must be"):
+        toy.advance(None, None, 0.01, 0)
+    toy.step(None, None, None, 0.01)
+    assert toy.ran

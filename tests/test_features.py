@@ -190,7 +190,7 @@ def test_roots_follow_a_deforming_mesh():
     for f in range(5):
         bent = mesh_pts + [0.0, 0.0, 0.0] + np.outer(mesh_pts[:, 0], [0.0, 0.1 * (f + 1), 0.0])
         moved = bent + [0.05 * (f + 1), 0.0, 0.0]
-        control.features.set_binding_points(moved)
+        control.bind_roots(moved)
         solver.advance(state, control, 1.0 / 240, 10)
     x = model.points_from_device(state.positions)
     # a point's barycentric weights are affine-invariant: the root is where the map sends it
@@ -330,7 +330,7 @@ def test_all_features_together_keep_lengths(precision, correction):
 
 
 def test_dftl_attributes_map_to_features():
-    from dftl_warp.features.attributes import features_from_attributes
+    from dftl_warp.features import features_from_attributes
 
     scene = {"dftl:drag": 1.5, "dftl:wind": [[0.0, 1.0, 0.0, 0.0], [2.0, 3.0, 0.0, 0.0]], "dftl:windNoise": 0.2,
              "dftl:hairHair": True, "dftl:hairHairRepulsion": 8.0}
@@ -351,7 +351,7 @@ def test_dftl_attributes_map_to_features():
 
 
 def test_memory_estimate_counts_the_features():
-    from dftl_warp.features.data import memory_estimate
+    from dftl_warp.features import memory_estimate
 
     pts = np.stack([np.arange(10) * 0.01, np.zeros(10), np.zeros(10)], 1)
     bare = memory_estimate(dw.Model.from_strands(pts, [10]))

@@ -8,7 +8,8 @@ import pytest
 from batch_stages import groom_stage, layer_content
 from dftl_warp.cli import main
 from dftl_warp.batch.jobs import Job
-from dftl_warp.simulation.multi_device import SplitGroup, split_strands
+from dftl_warp.simulation.group import Group
+from dftl_warp.simulation.multi_device import SplitModel, split_strands
 from dftl_warp.batch.checkpoint import CheckpointPolicy, run_job
 from dftl_warp.simulation.simulate import Simulation, SimulationOptions, simulate_usd
 from dftl_warp.usd.read import read_scene
@@ -64,7 +65,7 @@ def _frames(stage, device, frames=8, **options):
 def test_split_equals_single_device(far_stage, devices, options):
     split, got = _frames(far_stage, devices, **options)
     single, want = _frames(far_stage, "cpu", **options)
-    assert all(isinstance(g, SplitGroup) for g in split.groups)
+    assert all(isinstance(g, Group) and isinstance(g.model, SplitModel) for g in split.groups)
     assert any(len(g.model.parts) == len(devices.split(",")) for g in split.groups)
     assert np.any(split.groups[0].model.origin != 0.0)
     for frame_got, frame_want in zip(got, want):

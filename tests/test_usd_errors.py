@@ -135,8 +135,9 @@ def test_corrupt_binary_file(tmp_path, capsys):
 
 def test_unwritable_outputs(tmp_path, capsys):
     f = curves_file(tmp_path, chain(3), [3])
-    assert_refused(capsys, tmp_path, [f], "cannot write: folder", "does not exist",
-                   output=tmp_path / "no" / "such" / "out.usdc")
+    # a missing output folder is created, as render and batch create theirs (issue 18, item 10)
+    code, _, err = run_cli(capsys, f, "-o", tmp_path / "no" / "such" / "out.usdc")
+    assert code == 0 and (tmp_path / "no" / "such" / "out.usdc").exists(), err
     (tmp_path / "dir.usdc").mkdir()
     assert_refused(capsys, tmp_path, [f], "dir.usdc: cannot write: is a directory", output=tmp_path / "dir.usdc")
     (tmp_path / "file").write_text("x")

@@ -113,7 +113,9 @@ class JobFiles:
 
     @property
     def lock(self) -> Path:
-        return self._sibling("dftl-lock")
+        from ..output.lock import lock_path
+
+        return lock_path(self.output)
 
     def temporary(self, path: Path) -> Path:
         return path.with_name(path.name + ".tmp")
@@ -160,7 +162,7 @@ def settings_hash(input_path, output, options, first: int, last: int) -> str:
     depends on, the input and output paths, the frame range and the simulate options (except the
     device: every device gives the same results). ``options`` is a
     :class:`~dftl_warp.simulation.simulate.SimulationOptions`."""
-    from .. import __version__
+    from ..version import __version__
 
     opts = {k: v for k, v in asdict(options).items() if k not in ("device", "start", "end")}
     record = {
@@ -177,7 +179,9 @@ def settings_hash(input_path, output, options, first: int, last: int) -> str:
 
 def state_signature(sim) -> str:
     """What a saved state's layout depends on: device kinds and the arrays' shapes and types."""
-    kinds = ",".join("cuda" if d.startswith("cuda") else d for d in str(sim.options.device).split(","))
+    from ..core.devices import parse_devices
+
+    kinds = ",".join("cuda" if d.startswith("cuda") else d for d in parse_devices(sim.options.device))
     shapes = {k: [list(np.shape(v)), str(np.asarray(v).dtype)] for k, v in sim.save_state().items() if k != "frame"}
     return json.dumps({"devices": kinds, "arrays": shapes}, sort_keys=True)
 
@@ -255,38 +259,14 @@ def remove_job_files(files: JobFiles) -> None:
         _remove(path)
 
 
-@contextlib.contextmanager
 def job_lock(path: Path, wait: float | None = None):
     """Exclusive lock on ``path`` (created, removed on exit) so that two processes never work on
-    the same output; waits up to ``wait`` s for a holder (e.g. a process being killed)."""
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX: no locking
-        yield
-        return
-    deadline = time.monotonic() + (LOCK_WAIT_SECONDS if wait is None else wait)
-    while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            if time.monotonic() > deadline:
-                raise UserError(f"{path}: another dftl-warp process is working on this output") from None
-            time.sleep(0.1)
-            continue
-        try:  # the file we locked may have been removed by its last holder: lock the new one
-            same = os.fstat(fd).st_ino == os.stat(path).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    try:
-        yield
-    finally:
-        _remove(path)
-        os.close(fd)
+    the same output; waits up to ``wait`` s (default ``LOCK_WAIT_SECONDS``) for a holder (e.g. a
+    process being killed). The lock :func:`dftl_warp.output.lock.output_lock` that ``simulate``
+    takes too."""
+    from ..output.lock import output_lock
+
+    return output_lock(path, LOCK_WAIT_SECONDS if wait is None else wait)
 
 
 # -- running ----------------------------------------------------------------------------------------

@@ -11,14 +11,12 @@ or a bad value is refused alone (:attr:`Job.error`) so that the others still run
 
 from __future__ import annotations
 
-import difflib
-import math
 import os
-import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..options import BY_TOML, DEVICE_PATTERN as _DEVICE_PATTERN, check_toml, did_you_mean
 from ..errors import UserError
 
 if sys.version_info >= (3, 11):
@@ -28,71 +26,21 @@ else:  # pragma: no cover - Python 3.10
 
 #: keys a job table may hold besides the simulate options
 JOB_KEYS = ("input", "output", "name")
-#: ``device`` values: cpu, cuda, cuda:N, or a comma-separated list of those (split across devices)
-DEVICE_PATTERN = re.compile(r"^(cpu|cuda(:\d+)?)(,(cpu|cuda(:\d+)?))*$")
+#: ``device`` values (the options table's pattern)
+DEVICE_PATTERN = _DEVICE_PATTERN
 
 
-def _integer(value, name):
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    return value
-
-
-def _positive_integer(value, name):
-    if _integer(value, name) < 1:
-        raise ValueError(f"{name} must be >= 1, got {value}")
-    return value
-
-
-def _unit_float(value, name):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{name} must be a number in [0, 1], got {value!r}")
-    if math.isnan(value) or not 0.0 <= value <= 1.0:
-        raise ValueError(f"{name} must be in [0, 1], got {value}")
-    return float(value)
-
-
-def _choice(choices):
+def _validator(key):
     def check(value, name):
-        if value not in choices:
-            raise ValueError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
-        return value
+        return check_toml(key, value)
 
     return check
 
 
-def _device(value, name):
-    if not isinstance(value, str) or not DEVICE_PATTERN.match(value.replace(" ", "")):
-        raise ValueError(f"{name} must be cpu, cuda:N or a comma-separated list of them, got {value!r}")
-    return value.replace(" ", "")
-
-
-def _prims(value, name):
-    items = [value] if isinstance(value, str) else value
-    if not isinstance(items, list) or not items or not all(isinstance(p, str) and p.startswith("/") for p in items):
-        raise ValueError(f"{name} must be a prim path or a list of prim paths (starting with /), got {value!r}")
-    return list(items)
-
-
 def _simulate_options():
-    """Option name -> validator, matching the long options of ``dftl-warp simulate``."""
-    from ..core.precision import PRECISIONS
-    from ..simulation.quality import QUALITY_PRESETS
-    from ..solvers import SOLVERS
-
-    return {
-        "start": _integer,
-        "end": _integer,
-        "substeps": _positive_integer,
-        "damping": _unit_float,
-        "correction": _choice(("prior", "posterior")),
-        "solver": _choice(SOLVERS),
-        "precision": _choice(PRECISIONS),
-        "device": _device,
-        "prim": _prims,
-        "iterations": _positive_integer,
-        "quality": _choice(tuple(QUALITY_PRESETS)),
-    }
+    """Option name -> validator, matching the long options of ``dftl-warp simulate``: the options
+    table's entries with a TOML key (:mod:`dftl_warp.options`)."""
+    return {key: _validator(key) for key in BY_TOML}
 
 
 @dataclass
@@ -119,8 +67,7 @@ class Job:
 
 
 def _unknown(name: str, known) -> str:
-    close = difflib.get_close_matches(name, list(known), n=1)
-    return f"unknown option {name!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+    return f"unknown option {name!r}" + did_you_mean(name, known)
 
 
 def _check_options(table: dict, where: str, allowed_extra=()) -> dict:

@@ -31,8 +31,10 @@ def require_ray():
 
 def task_device(device: str) -> tuple[str, int]:
     """(device inside the Ray task, GPUs to request): the k-th CUDA device named becomes cuda:k."""
+    from ..core.devices import parse_devices
+
     parts, gpus = [], 0
-    for d in device.split(","):
+    for d in parse_devices(device):
         if d.startswith("cuda"):
             parts.append(f"cuda:{gpus}")
             gpus += 1

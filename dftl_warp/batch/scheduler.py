@@ -20,6 +20,7 @@ import time
 from collections import Counter, deque
 from dataclasses import asdict
 
+from ..core.devices import parse_devices
 from .jobs import Job
 from .checkpoint import CheckpointPolicy, JobResult
 
@@ -53,12 +54,12 @@ class DevicePicker:
 
     def take(self, job: Job) -> str:
         device = job.device or min(self.devices, key=lambda d: (self.busy[d], self.devices.index(d)))
-        for d in device.split(","):
+        for d in parse_devices(device):
             self.busy[d] += 1
         return device
 
     def release(self, device: str) -> None:
-        for d in device.split(","):
+        for d in parse_devices(device):
             self.busy[d] -= 1
 
 
@@ -154,6 +155,11 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
         by_index = {job.index: job for job in jobs}
         try:
             _dispatch(pool, pending, picker, policy, outbox, by_index, results, reporter, ctx)
+        except BaseException:  # Ctrl-C, SIGTERM, SIGHUP: stop the workers now; their checkpoints stay
+            for w in pool:
+                if w.process.is_alive():
+                    w.process.kill()
+            raise
         finally:
             for w in pool:
                 w.stop()
@@ -233,6 +239,8 @@ class Reporter(NullReporter):
         self.progress = None
         self.tasks: dict[int, int] = {}
         self.devices: dict[int, str] = {}
+        #: per-job line progress when stderr is not a terminal (dftl_warp.output.progress)
+        self.lines: dict = {}
         if not quiet and self.console.is_terminal:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -270,8 +278,16 @@ class Reporter(NullReporter):
                     self._label(job), total=event["total"], completed=done, status=str(self.devices.get(job.index)))
             else:
                 self._line(text)
+                if not self.quiet:  # not a terminal: a line per 10 % of the job or per minute
+                    from ..output.progress import LineProgress
+
+                    line = self.lines[job.index] = LineProgress(event["total"], self._label(job), "frames",
+                                                                sys.stderr)
+                    line.n = line._last_n = 0 if resumed is None else resumed - event["first"] + 1
         elif kind == "frames" and self.progress is not None and job.index in self.tasks:
             self.progress.update(self.tasks[job.index], completed=event["done"])
+        elif kind == "frames" and job.index in self.lines:
+            self.lines[job.index].set(event["done"])
         elif kind == "note":
             self._line(f"{self._label(job)}: {event['text']}")
 

@@ -12,8 +12,11 @@ def add_parser(sub):
 def run(args) -> int:
     import warp as wp
 
-    wp.init()
+    from ..core.devices import default_device, init_warp
+
+    init_warp()
     for name in wp.get_devices():
         device = wp.get_device(name)
         print(f"{device.alias:10s} {device.name}")
+    print(f"default: {default_device()}")
     return 0

@@ -33,7 +33,8 @@ def add_parser(sub):
                    "(default: the stage's first camera, else auto)")
     p.add_argument("--resolution", default="960x540", metavar="WxH", help="image size in pixels (default 960x540)")
     p.add_argument("--spp", type=int, default=8, help="samples per pixel (default 8)")
-    p.add_argument("--device", default="cpu", help="Warp device: cpu or cuda:N (default cpu)")
+    p.add_argument("--device", default=None,
+                   help="Warp device: cpu or cuda:N (default cuda:0 when there is a CUDA device, else cpu)")
     p.add_argument("--shading", default="marschner", choices=("marschner", "kajiya-kay"), help="hair shading model")
     p.add_argument("--conform", default="expandAperture",
                    choices=("expandAperture", "cropAperture", "adjustApertureWidth", "adjustApertureHeight"),
@@ -97,6 +98,8 @@ def _check_output(args, n_images: int):
 
 
 def run(args) -> int:
+    from ..core.devices import device_line, resolve_device
+    from ..output.paths import check_writable
     from ..render import image, usd_scene
     from ..render.renderer import Renderer, orbit_cameras, to_rgba8
 
@@ -105,17 +108,35 @@ def run(args) -> int:
         raise UserError(f"--turntable {args.turntable}: must be at least 1")
     if args.turntable and args.start is not None:
         raise UserError("--turntable orbits one frame: give --frame, not --start/--end")
+
     stage = usd_scene.open_stage(args.input)
     source = args.input
     times = _frames(args, stage)
     n_images = args.turntable or len(times)
     kind = _check_output(args, n_images)
+    # everything that can fail is checked before the first frame is rendered
+    usd_scene.check_samples(stage, times, source)
+    check_writable(image.frame_path(args.output, times[0] if times[0] is not None else 0)
+                   if kind == "pattern" else args.output)
+    if kind == "video":
+        image.check_video(args.output)
+    args.device = resolve_device(args.device)
     renderer = Renderer(width, height, spp=args.spp, device=args.device, shading=args.shading, conform=args.conform)
+    if not args.quiet:
+        print(device_line(args.device), file=sys.stderr)
 
     cam_path = args.camera
     if cam_path is None:
         found = usd_scene.cameras(stage)
         cam_path = found[0] if found else "auto"
+
+    def read(t):
+        scene = usd_scene.read_scene(stage, t, source)
+        if usd_scene.is_empty(scene):
+            at = "" if t is None else f" at frame {t:g}"
+            raise UserError(f"{source}: nothing to render{at}: no visible BasisCurves, Sphere, Capsule, "
+                            "Cube or Mesh prim (an output whose input moved?)")
+        return scene
 
     def camera_at(t, scene):
         if cam_path == "auto":
@@ -124,7 +145,7 @@ def run(args) -> int:
 
     jobs = []  # (label, scene, camera)
     if args.turntable:
-        scene = usd_scene.read_scene(stage, times[0], source)
+        scene = read(times[0])
         cams = orbit_cameras(camera_at(times[0], scene), scene, args.turntable)
         jobs = [(k, scene, c) for k, c in enumerate(cams)]
     else:
@@ -135,7 +156,7 @@ def run(args) -> int:
     t_all = _time.perf_counter()
     for k, (label, scene, cam) in enumerate(jobs):
         if scene is None:
-            scene = usd_scene.read_scene(stage, label, source)
+            scene = read(label)
             cam = camera_at(label, scene)
         t0 = _time.perf_counter()
         rgba = to_rgba8(renderer.render(scene, cam))

@@ -5,10 +5,13 @@ from __future__ import annotations
 import sys
 
 
+#: the options table's entries offered as flags, in the order ``--help`` lists them
+FLAGS = ("start", "end", "substeps", "damping", "correction", "solver", "iterations", "precision",
+         "quality", "device", "prims")
+
+
 def add_parser(sub):
-    from ..core.precision import PRECISIONS
-    from ..simulation.simulate import DEFAULT_SUBSTEPS
-    from ..simulation.quality import QUALITY_PRESETS
+    from ..options import add_arguments
     from ..solvers import SOLVERS
 
     p = sub.add_parser(
@@ -24,72 +27,33 @@ def add_parser(sub):
     p.add_argument("input", metavar="INPUT", help="USD stage (.usd, .usda, .usdc, .usdz)")
     p.add_argument("-o", "--output", required=True, metavar="OUTPUT",
                    help="output layer (.usdc by default; .usda and .usd allowed)")
-    p.add_argument("--start", type=int, metavar="F", help="first frame (default: the stage's startTimeCode)")
-    p.add_argument("--end", type=int, metavar="F", help="last frame, inclusive (default: the stage's endTimeCode)")
-    p.add_argument("--substeps", type=_positive_int, metavar="N",
-                   help=f"solver steps per frame (default: dftl:substeps, else {DEFAULT_SUBSTEPS})")
-    p.add_argument("--damping", type=_unit_float, metavar="S",
-                   help="share of the follow-the-leader correction removed from velocities, in [0, 1] (default 1)")
-    p.add_argument("--correction", choices=("prior", "posterior"), help="velocity correction form (default prior)")
-    p.add_argument("--solver", choices=SOLVERS, help="solver (default dftl)")
-    p.add_argument("--iterations", type=_positive_int, metavar="K",
-                   help="Gauss-Seidel iterations per step of --solver pbd (default 4)")
-    p.add_argument("--precision", choices=PRECISIONS, help="floating-point precision (default float32)")
-    p.add_argument("--quality", choices=tuple(QUALITY_PRESETS),
-                   help="a measured preset of solver, substeps and precision (docs/accuracy.md); "
-                        "explicit flags override its parts")
-    p.add_argument("--device", default="cpu",
-                   help="cpu or cuda:N (default cpu); a list (cuda:0,cuda:1) splits the strands across devices")
-    p.add_argument("--prim", action="append", metavar="PATH",
-                   help="simulate only the BasisCurves prims at or below PATH (repeatable)")
+    # from the options table (dftl_warp/options.py); the solver names from the live registry
+    add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
     p.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
     p.set_defaults(run=run)
 
 
-def _positive_int(text):
-    import argparse
-
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _unit_float(text):
-    import argparse
-    import math
-
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (0.0 <= value <= 1.0) or math.isnan(value):
-        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text}")
-    return value
-
-
 def run(args) -> int:
-    from ..simulation.quality import quality_preset
+    from ..simulation.quality import describe_quality, quality_preset
     from ..simulation.simulate import simulate_usd
 
     preset = quality_preset(args.quality) if args.quality else {}
-    for name in ("solver", "substeps", "precision", "damping", "correction"):
+    given = {n: getattr(args, n) for n in ("solver", "substeps", "precision", "damping", "correction")}
+    for name in given:
         if getattr(args, name) is None and name in preset:
             setattr(args, name, preset[name])
     summary = simulate_usd(
         args.input,
         args.output,
         progress=not args.quiet,
+        notes=[describe_quality(args.quality, given)] if args.quality else [],
         start=args.start,
         end=args.end,
         substeps=args.substeps,
         damping=args.damping,
         correction=args.correction,
         solver=args.solver,
-        precision=args.precision or "float32",
+        precision=args.precision,
         iterations=args.iterations,
         device=args.device,
         prims=args.prim,

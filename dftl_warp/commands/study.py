@@ -18,7 +18,8 @@ def add_parser(sub):
                     "form, precision and solver (dftl, ftl, pbd, reference) on standard scenarios; writes "
                     "CSV, PNG plots and accuracy.md into --out.")
     p.add_argument("--fast", action="store_true", help="the small subset that CI runs (seconds)")
-    p.add_argument("--device", default="cpu", help="Warp device, e.g. cpu or cuda:0 (default cpu)")
+    p.add_argument("--device", default=None,
+                   help="Warp device, e.g. cpu or cuda:0 (default cuda:0 when there is a CUDA device, else cpu)")
     p.add_argument("--out", default="study", help="folder for CSV, PNG and accuracy.md (default ./study)")
     p.add_argument("--docs", default=None, help="also write the report here, image links relative to it")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -50,12 +51,18 @@ def run(args) -> int:
     from ..study.sweeps import StudyConfig, run_study
     from ..study.report import write_results
 
+    from ..core.devices import device_line, resolve_device
+
+    args.device = resolve_device(args.device)
     try:
         device = wp.get_device(args.device)
-    except (RuntimeError, ValueError) as exc:
+    except (RuntimeError, ValueError, KeyError) as exc:
         raise UserError(f"--device {args.device}: not available ({exc})") from None
+
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         raise UserError(f"--out {args.out}: exists and is not a folder")
+    if not args.quiet:
+        print(device_line(str(device)), file=sys.stderr)
     cfg = StudyConfig.fast(str(device)) if args.fast else StudyConfig(device=str(device))
     log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, flush=True))
     with wp.ScopedDevice(device):

@@ -1,10 +1,23 @@
-"""Warp initialisation for command-line use: quiet unless ``DFTL_WARP_VERBOSE`` is set."""
+"""Warp devices for command-line use: quiet initialisation, the default device, device lists.
+
+- :func:`init_warp` initialises Warp once, without its banner (unless ``DFTL_WARP_VERBOSE``).
+  Nothing in dftl_warp initialises Warp at import time: ``import dftl_warp`` prints nothing.
+- :func:`default_device` is what every command runs on without ``--device``: ``cuda:0`` when
+  Warp finds a CUDA device, else ``cpu`` (``DFTL_WARP_DEVICE`` overrides it, e.g. to keep a CI
+  machine with a GPU on the CPU).
+- :func:`parse_devices` is the one parser of device lists (``cuda:0,cuda:1``).
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
 import sys
+
+from ..errors import UserError
+
+#: environment variable naming the device used when a command gets no ``--device``
+DEVICE_ENV = "DFTL_WARP_DEVICE"
 
 
 def init_warp() -> None:
@@ -15,9 +28,53 @@ def init_warp() -> None:
     if os.environ.get("DFTL_WARP_VERBOSE"):
         wp.init()
         return
+    wp.config.quiet = True
     wp.config.log_level = wp.LOG_WARNING
     with _stderr_silenced():
         wp.init()
+
+
+def parse_devices(text) -> list[str]:
+    """``"cuda:0,cuda:1"`` -> ``["cuda:0", "cuda:1"]`` (names as given, blanks removed); a
+    UserError for an empty list or an empty name in it."""
+    devices = [d.strip() for d in str(text).split(",")]
+    if not all(devices):
+        raise UserError(f"--device {text}: empty device name in the list")
+    return devices
+
+
+def default_device() -> str:
+    """``$DFTL_WARP_DEVICE`` if set, else ``cuda:0`` when Warp finds a CUDA device, else ``cpu``."""
+    chosen = os.environ.get(DEVICE_ENV, "").strip()
+    if chosen:
+        return chosen
+    import warp as wp
+
+    init_warp()
+    return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
+
+
+def resolve_device(device) -> str:
+    """``device`` as given, or :func:`default_device` when it is None or empty."""
+    if device is None or not str(device).strip():
+        return default_device()
+    return str(device)
+
+
+def device_line(device) -> str:
+    """One line saying which device(s) a command runs on, e.g.
+    ``dftl-warp: device cuda:0 (NVIDIA H100 80GB HBM3)``."""
+    import warp as wp
+
+    init_warp()
+    names = []
+    for name in parse_devices(device):
+        try:
+            d = wp.get_device(name)
+            names.append(f"{d.alias} ({d.name})" if d.is_cuda else d.alias)
+        except (ValueError, RuntimeError, KeyError):
+            names.append(name)
+    return f"dftl-warp: device {', '.join(names)}"
 
 
 @contextlib.contextmanager

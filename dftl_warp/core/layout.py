@@ -45,6 +45,16 @@ LAYOUTS = ("strand-major", "particle-major")
 CHUNK_STRANDS = 32
 
 
+def strand_offsets(counts, *, with_end: bool = False) -> np.ndarray:
+    """Index of each strand's first point in the concatenated points of strands with vertex
+    ``counts`` (int64, one per strand); ``with_end``: one more entry, the total point count (so
+    strand ``s`` is ``offsets[s]:offsets[s + 1]``)."""
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    offsets = np.zeros(counts.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    return offsets if with_end else offsets[:-1]
+
+
 def default_layout(device: str) -> str:
     """The layout measured fastest on ``device`` (``"cpu"`` or ``"cuda:N"``)."""
     return "particle-major" if str(device).startswith("cuda") else "strand-major"
@@ -128,8 +138,7 @@ def make_layout(counts: np.ndarray, name: str, interleave: int = 1) -> Layout:
         raise ValueError(f"layout {name!r} cannot interleave {interleave} state vectors")
     counts = np.asarray(counts, dtype=np.int64)
     num_strands = counts.shape[0]
-    point_start = np.zeros(num_strands + 1, dtype=np.int64)
-    np.cumsum(counts, out=point_start[1:])
+    point_start = strand_offsets(counts, with_end=True)
     num_points = int(point_start[-1])
     local = np.arange(num_points, dtype=np.int64) - np.repeat(point_start[:-1], counts)
 

@@ -16,8 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout
+from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets
 from .precision import numpy_type, scalar_type, vec3_type
+from .state import feature_hook
 
 
 def _world_origin(points: np.ndarray) -> np.ndarray:
@@ -56,9 +57,9 @@ class Model:
     rest_positions: np.ndarray
     #: initial root positions per device strand, relative to ``origin``
     root_rest: wp.array
-    #: the optional features (:mod:`dftl_warp.features.objects`) given at build time
+    #: the optional features (:mod:`dftl_warp.features`) given at build time
     features: tuple = ()
-    #: their device data (:class:`~dftl_warp.features.data.ModelFeatures`), None without features
+    #: their device data (:class:`~dftl_warp.features.step.ModelFeatures`), None without features
     feature_data: object = None
 
     @property
@@ -108,7 +109,7 @@ class Model:
 
         Vertex 0 of each strand is its root. Rest lengths are the input's segment lengths.
         ``layout`` defaults to the fastest for ``device`` (:func:`~dftl_warp.core.layout.default_layout`).
-        ``features``: optional feature objects (:mod:`dftl_warp.features.objects`); ``widths``: hair
+        ``features``: optional feature objects (:mod:`dftl_warp.features`); ``widths``: hair
         diameter (m), one value or one per point, used as the contact distance of colliders.
         ``origin`` (3,) overrides the world origin (models sharing one give identical results).
         ``interleave``: state vectors per 32-strand chunk of a particle-major layout (default
@@ -138,8 +139,7 @@ class Model:
         origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         local = points - origin
 
-        starts = np.zeros(counts.shape[0], dtype=np.int64)
-        np.cumsum(counts[:-1], out=starts[1:])
+        starts = strand_offsets(counts)
         seg = np.zeros(points.shape[0])
         seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
         seg[starts] = 0.0  # roots have no incoming segment
@@ -154,9 +154,7 @@ class Model:
         vec3 = vec3_type(precision)
         feature_data = None
         if features:
-            from ..features.data import build
-
-            feature_data = build(
+            feature_data = feature_hook("build")(
                 dict(device=device, precision=precision, layout=lay, scalar=scalar_type(precision), vec3=vec3,
                      counts=counts, points=points, origin=origin),
                 features, widths=widths)

@@ -14,6 +14,26 @@ import warp as wp
 
 FIELDS = ("positions", "velocities", "corrections")
 
+#: how a model's features become device data and per-frame controls: ``build(model_args, features,
+#: widths=)`` (Model.from_strands) and ``control(model)`` (Control.at_rest), installed by
+#: :mod:`dftl_warp.features` when it is imported (the feature objects come from there, so it is
+#: whenever a model has features): the core does not import the features, which sit above it
+FEATURE_HOOKS: dict = {}
+
+
+def install_feature_hooks(*, build, control) -> None:
+    """Install the features' builders (:func:`dftl_warp.features.step.build`,
+    :class:`dftl_warp.features.step.FeatureControl`)."""
+    FEATURE_HOOKS.update(build=build, control=control)
+
+
+def feature_hook(name: str):
+    """The installed feature hook ``name`` (``"build"`` or ``"control"``)."""
+    hook = FEATURE_HOOKS.get(name)
+    if hook is None:
+        raise ValueError("features need dftl_warp.features imported (their objects come from there)")
+    return hook
+
 
 @dataclass(eq=False)
 class State:
@@ -146,7 +166,7 @@ class Control:
     model: object
     root_start: wp.array
     root_end: wp.array
-    #: per-frame data of the model's features (:class:`~dftl_warp.features.data.FeatureControl`:
+    #: per-frame data of the model's features (:class:`~dftl_warp.features.step.FeatureControl`:
     #: collider poses, mesh points, wind, bound-root mesh points); None without features
     features: object = None
     #: (the last ``end`` passed to :meth:`set_root_targets`, its device-order copy)
@@ -156,10 +176,19 @@ class Control:
     def at_rest(cls, model) -> Control:
         control = cls(model=model, root_start=wp.clone(model.root_rest), root_end=wp.clone(model.root_rest))
         if model.feature_data is not None:
-            from ..features.data import FeatureControl
-
-            control.features = FeatureControl(model, control)
+            control.features = feature_hook("control")(model)
         return control
+
+    def bind_roots(self, start, end=None) -> None:
+        """Set the frame's root targets from the world points (P, 3) of the model's root-binding
+        mesh at frame start and end (``end`` defaults to ``start``): the features compute the
+        bound roots (:meth:`~dftl_warp.features.step.FeatureControl.bound_roots`), the Control
+        takes them."""
+        if self.features is None:
+            raise ValueError("the model has no RootBinding feature")
+        root_start, root_end = self.features.bound_roots(start, end)
+        wp.copy(self.root_start, root_start)
+        wp.copy(self.root_end, root_end)
 
     def set_root_targets(self, start, end=None) -> None:
         """Set the frame's root targets from world positions (S, 3) in input strand order.

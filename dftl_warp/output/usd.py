@@ -16,6 +16,14 @@ them back lazily from disk, so memory stays flat however many frames are written
 ``.usda`` outputs it exports text first); :meth:`UsdWriter.abort` deletes it. An interrupted run
 therefore never leaves a half-written output. :meth:`UsdWriter.reopen` continues a partial file
 (the batch / resume feature).
+
+The partial file of a resumable writer (``keep_partial=True``, batch) has the fixed name
+:func:`partial_path` that :meth:`UsdWriter.reopen` finds; any other writer streams into a unique
+name (``.NAME.dftl-partial.XXXXXXXX.usdc``), so that two runs writing one output never share a
+file. Both kinds run under the output's lock (:mod:`dftl_warp.output.lock`), taken by
+``simulate`` and ``batch``. The output's folder is created when missing.
+
+The layer's start and end time codes are the simulated frames, whatever the input's range.
 """
 
 from __future__ import annotations
@@ -27,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .paths import check_writable
 
 OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
 #: save (and so release) the in-memory samples once this many new bytes have accumulated
@@ -39,24 +48,40 @@ def partial_path(output) -> Path:
     return output.with_name(f".{output.name}.dftl-partial.usdc")
 
 
+def unique_partial_path(output) -> Path:
+    """A new, empty file next to ``output`` that no other run uses (``.NAME.dftl-partial.XXXXXXXX.usdc``)."""
+    import tempfile
+
+    output = Path(output)
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{output.name}.dftl-partial.", suffix=".usdc", dir=output.parent)
+    except OSError as exc:
+        raise UserError(f"{output}: cannot write: {exc.strerror or exc}") from None
+    os.close(fd)
+    return Path(name)
+
+
 def check_output_path(output, input_path=None) -> Path:
-    """Refuse outputs that cannot be written, before any work is done."""
+    """Refuse outputs that cannot be written, before any work is done. A missing folder is
+    fine when it can be created (:func:`ensure_folder` creates it)."""
     output = Path(os.fspath(output))
     if output.suffix.lower() not in OUTPUT_EXTENSIONS:
         raise UserError(f"{output}: output must end in {', '.join(OUTPUT_EXTENSIONS)} (.usdc is the default)")
-    if output.is_dir():
-        raise UserError(f"{output}: cannot write: is a directory")
-    folder = output.parent if str(output.parent) else Path(".")
-    if not folder.is_dir():
-        raise UserError(f"{output}: cannot write: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise UserError(f"{output}: cannot write: folder {folder} is not writable")
-    if output.exists() and not os.access(output, os.W_OK):
-        raise UserError(f"{output}: cannot write: file is read-only")
+    check_writable(output)
     if input_path is not None and output.exists() and Path(input_path).exists():
         if os.path.samefile(output, input_path):
             raise UserError(f"{output}: the output would overwrite the input")
     return output
+
+
+def ensure_folder(output) -> Path:
+    """Create the folder of ``output`` if it is missing (a UserError when it cannot be)."""
+    folder = Path(os.fspath(output)).parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{output}: cannot create folder {folder}: {exc.strerror or exc}") from None
+    return folder
 
 
 def sublayer_path(input_path: str, output: Path) -> str:
@@ -73,7 +98,7 @@ def sublayer_path(input_path: str, output: Path) -> str:
 
 
 def _tf_error(exc) -> str:
-    from ..usd.read import _tf_message
+    from ..usd.stage import tf_message as _tf_message
 
     return _tf_message(exc)
 
@@ -118,18 +143,26 @@ class UsdWriter:
         """A new partial file for ``output``: metadata, sublayer and ``over`` specs, saved once
         (so that an unwritable location fails now, not after the simulation).
 
-        ``frames`` (first, last) is authored as start/end time codes when the input has none.
+        ``frames`` (first, last) is authored as the layer's start/end time codes (else the
+        input's). A ``keep_partial`` (resumable) writer streams into :func:`partial_path`, any
+        other into a :func:`unique_partial_path`. The output's folder is created if missing.
         """
         from pxr import Sdf, Tf
 
         output = check_output_path(output, scene.source)
-        partial = partial_path(output)
-        _remove(partial)
+        ensure_folder(output)
+        if keep_partial:
+            partial = partial_path(output)
+            _remove(partial)
+        else:
+            partial = unique_partial_path(output)
         try:
             layer = Sdf.Layer.CreateNew(str(partial))
         except Tf.ErrorException as exc:
+            _remove(partial)
             raise UserError(f"{output}: cannot write: {_tf_error(exc)}") from None
         if layer is None:
+            _remove(partial)
             raise UserError(f"{output}: cannot write {partial}")
         try:
             targets = _author_structure(layer, scene, output, frames)
@@ -239,17 +272,19 @@ class UsdWriter:
         self.flush()
         try:
             if self.output.suffix.lower() == ".usda":
-                text = self.output.with_name(f".{self.output.name}.dftl-partial.usda")
+                text = self.partial.with_suffix(".usda")
                 try:
                     if not self.layer.Export(str(text)):
                         raise UserError(f"{self.output}: cannot write {text}")
                 except Tf.ErrorException as exc:
                     raise UserError(f"{self.output}: cannot write: {_tf_error(exc)}") from None
+                _usual_permissions(text)
                 os.replace(text, self.output)
                 self._close()
                 _remove(self.partial)
             else:
                 self._close()
+                _usual_permissions(self.partial)
                 os.replace(self.partial, self.output)
         except OSError as exc:
             self.abort()
@@ -264,7 +299,7 @@ class UsdWriter:
         self._close()
         if not self.keep_partial:
             _remove(self.partial)
-        _remove(self.output.with_name(f".{self.output.name}.dftl-partial.usda"))
+        _remove(self.partial.with_suffix(".usda"))
 
     def _close(self) -> None:
         self.layer = None
@@ -284,6 +319,13 @@ def _rows(array) -> np.ndarray:
     if a.dtype not in (np.float32, np.float64):
         a = a.astype(np.float64)
     return np.ascontiguousarray(a).reshape(-1, 3)
+
+
+def _usual_permissions(path) -> None:
+    """0666 less the umask (mkstemp makes 0600 files)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)
 
 
 def _remove(path) -> None:
@@ -321,12 +363,12 @@ def _author_structure(layer, scene, output: Path, frames) -> list[_Target]:
         layer.timeCodesPerSecond = float(info.time_codes_per_second)
         if info.frames_per_second is not None:
             layer.framesPerSecond = float(info.frames_per_second)
-        if info.start_time_code is not None:
-            layer.startTimeCode = float(info.start_time_code)
-            layer.endTimeCode = float(info.end_time_code)
-        elif frames is not None:
+        if frames is not None:  # the simulated range: the frames that have samples
             layer.startTimeCode = float(frames[0])
             layer.endTimeCode = float(frames[1])
+        elif info.start_time_code is not None:
+            layer.startTimeCode = float(info.start_time_code)
+            layer.endTimeCode = float(info.end_time_code)
         if info.default_prim:
             layer.defaultPrim = info.default_prim
         layer.comment = "Simulated by dftl-warp (Dynamic Follow-The-Leader): time-sampled points, velocities, extent"

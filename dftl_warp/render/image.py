@@ -17,19 +17,43 @@ VIDEO_SUFFIXES = (".mp4", ".gif", ".mov", ".webm")
 
 
 def _atomic(path, write):
+    """Run ``write(tmp)`` on a temporary file next to ``path``, then rename it onto ``path``.
+    The folder is created if missing. Any OSError (unwritable folder, full disk) becomes a
+    one-line UserError and leaves no file behind."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+        os.close(fd)
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
     try:
         write(tmp)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the usual permissions
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def check_video(path) -> None:
+    """UserError now (before any rendering) when a video ``path`` cannot be written here:
+    imageio (and for anything but GIF, imageio-ffmpeg) from the ``video`` extra is missing."""
+    suffix = Path(path).suffix.lower()
+    try:
+        import imageio.v3  # noqa: F401
+    except ImportError:
+        raise UserError(f"{path}: writing a video needs imageio: pip install 'dftl-warp[video]'") from None
+    if suffix != ".gif":
+        try:
+            import imageio_ffmpeg  # noqa: F401
+        except ImportError:
+            raise UserError(f"{path}: writing {suffix} needs imageio-ffmpeg: pip install 'dftl-warp[video]'") from None
 
 
 def write_png(path, rgba8: np.ndarray) -> None:

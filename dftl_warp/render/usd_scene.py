@@ -35,20 +35,71 @@ _BASIS = {  # (4x4 basis matrix for [1, u, u^2, u^3] @ M @ [P0..P3], vstep)
 
 
 def open_stage(path):
-    """Open a USD stage for reading, or raise UserError."""
-    from pxr import Usd
+    """Open a USD stage for reading, or raise UserError; also when a sublayer of it cannot be
+    found (e.g. a simulated output whose input has moved: it would render nothing)."""
+    from pxr import Usd, UsdUtils
 
     p = Path(path)
     if not p.exists():
         raise UserError(f"{path}: no such file")
+    if p.is_dir():
+        raise UserError(f"{path}: is a folder, not a USD stage")
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # USD's warnings would be extra lines
     try:
         stage = Usd.Stage.Open(str(p))
     except Exception as exc:  # pxr raises Tf.ErrorException
         msg = str(exc).strip().splitlines()
         raise UserError(f"{path}: cannot open as a USD stage: {msg[-1] if msg else exc}") from None
+    finally:
+        del delegate
     if stage is None:
         raise UserError(f"{path}: cannot open as a USD stage")
+    _check_sublayers(stage, path)
     return stage
+
+
+def _check_sublayers(stage, source) -> None:
+    """UserError naming the first sublayer of the stage's layer stack that did not open."""
+    opened = set()
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        opened.update(x for x in (layer.identifier, layer.realPath) if x)
+    for layer in stage.GetLayerStack(includeSessionLayers=False):
+        for sub in layer.subLayerPaths:
+            absolute = layer.ComputeAbsolutePath(sub)
+            if absolute not in opened and str(Path(absolute).resolve()) not in opened:
+                raise UserError(f"{source}: sublayer {sub} of {layer.identifier} cannot be opened "
+                                f"({absolute}: missing or unreadable; was the input moved?)")
+
+
+def check_samples(stage, times, source: str | None = None) -> None:
+    """UserError naming the first of ``times`` at which a time-sampled BasisCurves ``points``
+    has no sample of its own (before its first or after its last): USD would hold the nearest
+    sample and every such frame would show the same hair. Stages without time-sampled points
+    (a static groom, perhaps on an animated transform) pass."""
+    from pxr import Usd, UsdGeom
+
+    source = source or stage_source(stage)
+    ranges = []  # (first, last, prim path)
+    for prim in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)):
+        if prim.IsA(UsdGeom.BasisCurves):
+            samples = UsdGeom.BasisCurves(prim).GetPointsAttr().GetTimeSamples()
+            if samples:
+                ranges.append((samples[0], samples[-1], str(prim.GetPath())))
+    if not ranges:
+        return
+    for t in times:
+        if t is None:
+            continue
+        for first, last, path in ranges:
+            if not first - 1e-6 <= t <= last + 1e-6:
+                raise UserError(f"{source}: frame {t:g} has no samples: {path}.points has samples at "
+                                f"{first:g}..{last:g} only (render those frames, or simulate this one)")
+
+
+def is_empty(scene) -> bool:
+    """True when a RenderScene draws nothing (no strand, shape or mesh triangle)."""
+    return (int(np.sum(scene.curve_vertex_counts)) == 0 and not scene.shapes
+            and len(scene.mesh_triangles) == 0)
 
 
 def stage_source(stage) -> str:
@@ -115,11 +166,30 @@ def _finite(values, source, prim, name):
 
 
 def read_scene(stage, time=None, source: str | None = None) -> RenderScene:
-    """Everything drawn at ``time`` (a number, a Usd.TimeCode or None = default)."""
+    """Everything drawn at ``time`` (a number, a Usd.TimeCode or None = default). Data USD
+    itself refuses (a bad xformOp, a value of the wrong type) is a UserError too."""
+    from pxr import Tf
+
+    source = source or stage_source(stage)
+    try:
+        return _read_scene(stage, time, source)
+    except Tf.ErrorException as exc:
+        raise UserError(f"{source}: {_usd_message(exc)}") from None
+
+
+def _usd_message(exc) -> str:
+    """The last line of a USD error, without its 'Error in ... at line ... in file ...' prefix."""
+    import re
+
+    lines = [x.strip() for x in str(exc).strip().splitlines() if x.strip()]
+    text = lines[-1] if lines else type(exc).__name__
+    return re.sub(r"^Error in '.*?' at line \d+ in file \S+ : ", "", text).strip("'")
+
+
+def _read_scene(stage, time, source) -> RenderScene:
     from pxr import UsdGeom
 
     time = _time(time)
-    source = source or stage_source(stage)
     strands = []  # (points, counts, radii, colors)
     shapes = []
     mesh_pts, mesh_tris = [], []
@@ -384,9 +454,18 @@ def cameras(stage):
 
 def read_camera(stage, path, time=None, source: str | None = None) -> Camera:
     """The UsdGeom.Camera at ``path`` at ``time``."""
-    from pxr import Sdf, UsdGeom
+    from pxr import Tf
 
     source = source or stage_source(stage)
+    try:
+        return _read_camera(stage, path, time, source)
+    except Tf.ErrorException as exc:
+        raise UserError(f"{source}: {path}: {_usd_message(exc)}") from None
+
+
+def _read_camera(stage, path, time, source) -> Camera:
+    from pxr import Sdf, UsdGeom
+
     time = _time(time)
     prim = stage.GetPrimAtPath(Sdf.Path(path)) if Sdf.Path.IsValidPathString(path) else None
     if not prim or not prim.IsA(UsdGeom.Camera):

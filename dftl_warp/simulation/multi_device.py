@@ -9,13 +9,14 @@ the same kind of device. A frame launches every part before waiting for any (CUD
 graph replays are asynchronous), so the devices work at the same time; the host gathers the parts
 when the frame is written.
 
-:class:`SplitGroup` stands in for ``simulate._Group`` (same attributes), with composite
-``model``/``solver``/``state``/``control`` objects that present the single-device interface the
-frame loop uses. A device may appear twice (``cpu,cpu``: two Models on one device, for tests).
+:class:`~dftl_warp.simulation.group.Group` builds the parts; the composites here
+(:class:`SplitModel`, :class:`SplitSolver`, :class:`SplitState`, :class:`SplitControl`,
+:class:`SplitMonitor`) present the single-device interface the frame loop uses. A device may
+appear twice (``cpu,cpu``: two Models on one device, for tests).
 
-Features (:mod:`dftl_warp.features.objects`): colliders and wind are shared by every part; per-strand
+Features (:mod:`dftl_warp.features`): colliders and wind are shared by every part; per-strand
 values (drag rate, shape-retention stiffness, root-binding triangles) are sliced with the strands.
-Hair-hair interaction (:class:`~dftl_warp.features.objects.HairHair`) couples strands through a grid:
+Hair-hair interaction (:class:`~dftl_warp.features.HairHair`) couples strands through a grid:
 every part gets the grid shape of the whole groom, and :class:`SplitSolver` then steps the parts
 in lockstep, exchanging the grid each substep (:class:`GridExchange`): the lower corner is the
 minimum of the parts' bounds and density and momentum are the sum of the parts' splats, both
@@ -29,16 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.devices import parse_devices  # noqa: F401  (re-exported)
 from ..errors import UserError
-from .settings import check_extent, describe_setting
-
-
-def parse_devices(text: str) -> list[str]:
-    """``"cuda:0,cuda:1"`` -> ``["cuda:0", "cuda:1"]`` (names as given, blanks removed)."""
-    devices = [d.strip() for d in str(text).split(",")]
-    if not all(devices):
-        raise UserError(f"--device {text}: empty device name in the list")
-    return devices
+from ..features import Drag, HairHair, RootBinding, ShapeRetention
 
 
 def split_strands(counts, parts: int) -> list[tuple[int, int]]:
@@ -56,10 +50,16 @@ def split_strands(counts, parts: int) -> list[tuple[int, int]]:
 
 
 class SplitArray:
-    """A per-particle array held as one Warp array per part (concatenated in part order)."""
+    """A per-particle field of the parts' States seen as one array: ``numpy()`` concatenates the
+    parts' device arrays (each in its layout's slot order), ``assign`` writes them back through
+    :meth:`State.write <dftl_warp.core.state.State.write>`, which leaves the other fields of an
+    interleaved State untouched."""
 
-    def __init__(self, parts):
-        self.parts = list(parts)
+    def __init__(self, states, models, name: str):
+        self.states = list(states)
+        self.models = list(models)
+        self.name = name
+        self.parts = [getattr(s, name) for s in self.states]
 
     def numpy(self) -> np.ndarray:
         return np.concatenate([p.numpy() for p in self.parts])
@@ -69,8 +69,8 @@ class SplitArray:
 
         host = values.numpy() if isinstance(values, wp.array) else np.asarray(values)
         start = 0
-        for p in self.parts:
-            p.assign(host[start:start + p.shape[0]])
+        for state, model, p in zip(self.states, self.models, self.parts):
+            state.write(self.name, host[start:start + p.shape[0]], layout=model.layout)
             start += p.shape[0]
         if start != host.shape[0]:
             raise ValueError(f"expected {start} values, got {host.shape[0]}")
@@ -81,12 +81,15 @@ class SplitArray:
 
 
 class SplitState:
-    def __init__(self, states):
+    """The parts' States: ``positions``, ``velocities`` and ``corrections`` as :class:`SplitArray`."""
+
+    def __init__(self, states, models):
         self.parts = list(states)
-        self.positions = SplitArray(s.positions for s in states)
-        self.velocities = SplitArray(s.velocities for s in states)
-        has = [s.corrections is not None for s in states]
-        self.corrections = SplitArray(s.corrections for s in states) if all(has) else None
+        models = list(models)
+        self.positions = SplitArray(self.parts, models, "positions")
+        self.velocities = SplitArray(self.parts, models, "velocities")
+        has = [s.corrections is not None for s in self.parts]
+        self.corrections = SplitArray(self.parts, models, "corrections") if all(has) else None
 
 
 class SplitModel:
@@ -111,9 +114,6 @@ class SplitModel:
     @property
     def num_points(self) -> int:
         return sum(m.num_points for m in self.parts)
-
-    def points_from_device(self, array: SplitArray, *, relative: bool = True) -> np.ndarray:
-        return np.concatenate([m.points_from_device(a, relative=relative) for m, a in zip(self.parts, array.parts)])
 
 
 class _Broadcast:
@@ -143,6 +143,11 @@ class SplitControl:
         for c, (s0, s1) in zip(self.parts, self.strand_ranges):
             c.set_root_targets(start[s0:s1], end[s0:s1])
 
+    def bind_roots(self, start, end=None) -> None:
+        """Every part's root targets from the root-binding mesh's world points (shared)."""
+        for c in self.parts:
+            c.bind_roots(start, end)
+
 
 def _copy(dest, src) -> None:
     """``wp.copy`` that first orders the copy after the work queued on ``src``'s device (Warp
@@ -155,7 +160,7 @@ def _copy(dest, src) -> None:
 
 
 class GridExchange:
-    """Makes the hair-hair grids of the parts' :class:`~dftl_warp.features.data.FeatureStep` objects
+    """Makes the hair-hair grids of the parts' :class:`~dftl_warp.features.step.FeatureStep` objects
     the grid of the whole groom: each part's grid is combined into the first part's (through a
     scratch grid on its device), and the result copied back to every part."""
 
@@ -267,11 +272,9 @@ class SplitMonitor:
 def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid_extent=None) -> list:
     """The features of strands ``s0:s1`` of a group: per-strand values sliced, scene-wide ones
     (colliders, wind) shared; hair-hair interaction gets ``grid_extent`` (3,), m, the whole
-    group's grid size (:func:`~dftl_warp.features.data.hair_hair_extent`), so that every part's
+    group's grid size (:func:`~dftl_warp.features.hair_hair_extent`), so that every part's
     grid has the whole group's shape."""
     from dataclasses import replace
-
-    from ..features.objects import Drag, HairHair, RootBinding, ShapeRetention
 
     def per_strand(values, what):
         v = np.asarray(values)
@@ -296,88 +299,3 @@ def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid
             f = replace(f, stiffness=per_strand(f.stiffness, "shape retention stiffness"))
         out.append(f)
     return out
-
-
-class SplitGroup:
-    """``simulate._Group`` with its strands split across ``options.device`` (a comma list)."""
-
-    def __init__(self, settings, members: list[int], scene, frame: int, options):
-        import warp as wp
-
-        from ..features.data import hair_hair_extent
-        from ..features.objects import HairHair, find
-        from ..core.model import Model, _world_origin
-        from ..usd.scene import transform_points
-        from ..features.from_scene import group_features
-        from ..solvers import carries_corrections, make_solver
-
-        self.settings = settings
-        self.members = members
-        self.curves = curves = [scene.curves[i] for i in members]
-        self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
-        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
-        counts = np.concatenate([c.counts for c in curves])
-        check_extent(points, self.point_offsets, curves, scene.source, options.precision)
-        features, widths = group_features(scene, curves, frame)
-        hair_hair = find(features, HairHair)
-        grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
-        origin = _world_origin(points)
-        devices = parse_devices(options.device)
-        ranges = split_strands(counts, len(devices))
-        starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
-        models, solvers, states, controls = [], [], [], []
-        extra = {} if options.iterations is None else {"iterations": options.iterations}
-        for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
-            part = part_features(features, s0, s1, len(counts), scene.source, grid_extent)
-            with wp.ScopedDevice(device):
-                try:
-                    model = Model.from_strands(
-                        points[p0:p1], counts[s0:s1], device=device, precision=options.precision, origin=origin,
-                        widths=None if widths is None else widths[p0:p1], features=part,
-                        corrections=carries_corrections(settings.solver, settings.correction))
-                    solver = make_solver(model, settings.solver, damping=settings.damping,
-                                         correction=settings.correction, gravity=scene.gravity, **extra)
-                except ValueError as exc:
-                    raise UserError(f"{scene.source}: {exc}") from None
-                models.append(model)
-                solvers.append(solver)
-                states.append(solver.state())
-                controls.append(model.control())
-        self.devices = [str(m.device) for m in models]
-        self.model = SplitModel(models, ranges)
-        self.solver = SplitSolver(solvers)
-        self.state = SplitState(states)
-        self.control = SplitControl(controls, ranges)
-        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
-        self.monitor = None
-        if options.monitor:
-            from .monitor import EnergyMonitor
-
-
-            setting = describe_setting(scene, members, settings, options)
-            self.monitor = SplitMonitor(EnergyMonitor(s, setting, st) for s, st in zip(solvers, states))
-        self._sample_buffers = None
-
-    @property
-    def num_strands(self) -> int:
-        return self.model.num_strands
-
-    @property
-    def num_points(self) -> int:
-        return int(self.point_offsets[-1])
-
-    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """As ``simulate._Group.local_samples``: every part gathers and transforms its points on
-        its device (all launched first), then the host concatenates them in input order (new
-        arrays, so the result is the caller's whatever ``owned`` says)."""
-        from ..output.samples import LocalSamples
-
-        if self._sample_buffers is None:
-            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
-            self._sample_buffers = [LocalSamples(model, member[p0:p1])
-                                    for model, (p0, p1) in zip(self.model.parts, self.point_ranges)]
-        for model, state, buffers in zip(self.model.parts, self.state.parts, self._sample_buffers):
-            buffers.launch(model, state, to_local, rate)
-        gathered = [buffers.fetch(owned=False) for buffers in self._sample_buffers]
-        return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])

@@ -33,3 +33,28 @@ def quality_preset(name: str) -> dict:
     if name not in QUALITY_PRESETS:
         raise ValueError(f"unknown quality {name!r}; choose one of {', '.join(QUALITY_PRESETS)}")
     return dict(QUALITY_PRESETS[name])
+
+
+def describe_quality(preset, overrides: dict | None = None) -> str:
+    """The line ``--quality`` prints: what the preset ``preset`` (a name, or its dict) chose,
+    e.g. ``dftl-warp: quality production: solver dftl, 16 substeps per frame, float32, damping 1,
+    prior correction``. ``overrides`` (option name -> value given explicitly, None = not given)
+    are shown where they replace the preset's part."""
+    name = preset if isinstance(preset, str) else None
+    values = quality_preset(preset) if isinstance(preset, str) else dict(preset)
+    given = {k: v for k, v in (overrides or {}).items() if v is not None and k in values and v != values[k]}
+
+    def part(key, text):
+        if key in given:
+            return f"{text(given[key])} (given; the preset has {text(values[key])})"
+        return text(values[key])
+
+    parts = [part("solver", lambda v: f"solver {v}"),
+             part("substeps", lambda v: f"{v} substep{'s' if int(v) != 1 else ''} per frame"),
+             part("precision", str)]
+    if "damping" in values:
+        parts.append(part("damping", lambda v: f"damping {float(v):g}"))
+    if "correction" in values:
+        parts.append(part("correction", lambda v: f"{v} correction"))
+    label = f"quality {name}" if name else "quality"
+    return f"dftl-warp: {label}: {', '.join(parts)}"

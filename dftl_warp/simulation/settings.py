@@ -8,25 +8,30 @@ defaults); :func:`resolve_frames` the frame range.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from ..errors import UserError
+from ..options import check_api, default
 from ..usd.scene import Scene
 
-#: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise
-DEFAULT_SOLVER = "dftl"
-DEFAULT_DAMPING = 1.0
-DEFAULT_CORRECTION = "prior"
-DEFAULT_SUBSTEPS = 8
+#: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise (the
+#: options table's defaults, :mod:`dftl_warp.options`; these names are kept for scripts)
+DEFAULT_SOLVER = default("solver")
+DEFAULT_DAMPING = default("damping")
+DEFAULT_CORRECTION = default("correction")
+DEFAULT_SUBSTEPS = default("substeps")
 
 
 @dataclass
 class SimulationOptions:
-    """Settings of a run. ``None`` defers to the prims' ``dftl:`` attributes, then the defaults.
+    """Settings of a run. ``None`` defers to the prims' ``dftl:`` attributes, then the defaults
+    (the options table, :mod:`dftl_warp.options`).
 
-    Command-line values override ``dftl:`` attributes.
+    Command-line values override ``dftl:`` attributes. Every value is checked against the table
+    when the options are made: a bad one raises :class:`~dftl_warp.options.OptionError` (a
+    ValueError and a UserError) naming the field.
     """
 
     start: int | None = None
@@ -35,13 +40,21 @@ class SimulationOptions:
     damping: float | None = None
     correction: str | None = None
     solver: str | None = None
-    precision: str = "float32"
-    device: str = "cpu"
+    precision: str = field(default=default("precision"))
+    device: str = field(default=default("device"))
     prims: list[str] | None = None
     #: Gauss-Seidel iterations per step of the pbd solver
     iterations: int | None = None
     #: watch each group's energy and warn once when it grows without bound (dftl_warp.simulation.monitor)
-    monitor: bool = True
+    monitor: bool = field(default=default("monitor"))
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None:  # None: unset (a field with a default of its own takes it)
+                setattr(self, f.name, f.default)
+                continue
+            setattr(self, f.name, check_api(f.name, value))
 
 
 @dataclass(frozen=True)

@@ -28,10 +28,11 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from ..core.devices import parse_devices, resolve_device
 from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
-from .multi_device import SplitGroup
+from .group import Group
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
     DEFAULT_DAMPING,
@@ -71,73 +72,6 @@ class Summary:
         return asdict(self)
 
 
-class _Group:
-    """Prims simulated together: one Model, Solver, State and Control."""
-
-    def __init__(self, settings: GroupSettings, members: list[int], scene: Scene, frame: int, options):
-        import warp as wp
-
-        from ..core.model import Model
-        from ..solvers import carries_corrections, make_solver
-
-        self.settings = settings
-        self.members = members
-        curves = [scene.curves[i] for i in members]
-        self.point_offsets = np.concatenate([[0], np.cumsum([c.num_points for c in curves])]).astype(np.int64)
-        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
-        counts = np.concatenate([c.counts for c in curves])
-        check_extent(points, self.point_offsets, curves, scene.source, options.precision)
-        from ..features.from_scene import group_features
-
-        self.curves = curves
-        features, widths = group_features(scene, curves, frame)
-        with wp.ScopedDevice(options.device):
-            try:
-                self.model = Model.from_strands(points, counts, device=options.device, precision=options.precision,
-                                                widths=widths, features=features,
-                                                corrections=carries_corrections(settings.solver, settings.correction))
-            except ValueError as exc:
-                raise UserError(f"{scene.source}: {exc}") from None
-            try:
-                extra = {} if options.iterations is None else {"iterations": options.iterations}
-                self.solver = make_solver(
-                    self.model, settings.solver, damping=settings.damping,
-                    correction=settings.correction, gravity=scene.gravity, **extra,
-                )
-            except ValueError as exc:
-                raise UserError(f"{scene.source}: {exc}") from None
-            self.state = self.solver.state()
-            self.control = self.model.control()
-        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
-        self.monitor = None
-        if options.monitor:
-            from .monitor import EnergyMonitor
-
-            self.monitor = EnergyMonitor(self.solver, describe_setting(scene, members, settings, options), self.state)
-        #: device buffers of local_samples, made on first use
-        self._sample_buffers = None
-
-    @property
-    def num_strands(self) -> int:
-        return self.model.num_strands
-
-    @property
-    def num_points(self) -> int:
-        return int(self.point_offsets[-1])
-
-    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """Points and velocities (N, 3, float32) in input order and local space, from
-        column-vector world-to-local matrices and frame rates per member prim
-        (:class:`~dftl_warp.output.samples.LocalSamples`; ``owned=False``: views valid until the next call)."""
-        from ..output.samples import LocalSamples
-
-        if self._sample_buffers is None:
-            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
-            self._sample_buffers = LocalSamples(self.model, member)
-        self._sample_buffers.launch(self.model, self.state, to_local, rate)
-        return self._sample_buffers.fetch(owned)
-
-
 class Simulation:
     """A scene being simulated, one frame at a time, starting at ``frame``.
 
@@ -152,12 +86,12 @@ class Simulation:
         self.options = options
         self.frame = int(frame)
         devices = []
-        for name in str(options.device).split(","):  # a list splits the strands (multi_device)
+        for name in parse_devices(resolve_device(options.device)):  # a list splits the strands (multi_device)
             try:
-                devices.append(wp.get_device(name.strip()))
+                devices.append(wp.get_device(name))
             except (ValueError, RuntimeError, KeyError) as exc:
                 available = ", ".join(d.alias for d in wp.get_devices())
-                raise UserError(f"--device {name.strip()}: not available here ({available}): {exc}") from None
+                raise UserError(f"--device {name}: not available here ({available}): {exc}") from None
         self.device = devices[0]
         options = replace(options, device=",".join(str(d) for d in devices))
         self.options = options
@@ -166,10 +100,8 @@ class Simulation:
         for i, c in enumerate(scene.curves):
             key = (group_settings(scene, options, i), c.root_mesh.path if c.root_mesh is not None else None)
             by_settings.setdefault(key, []).append(i)
-        group = _Group
-        if len(devices) > 1:
-            group = SplitGroup
-        self.groups = [group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
+        # one Group per key, on one device or split over the list (simulation.group)
+        self.groups = [Group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         #: group index -> (frame, world root targets at that frame): the last advance's end targets
         self._end_roots: dict = {}
@@ -195,7 +127,7 @@ class Simulation:
     def _forget_before(self, frame: int) -> None:
         self._matrices = {k: v for k, v in self._matrices.items() if k[1] >= frame}
 
-    def _roots_world(self, group: _Group, frame: int) -> np.ndarray:
+    def _roots_world(self, group: Group, frame: int) -> np.ndarray:
         return np.concatenate([
             transform_points(self._matrix(i, frame), self._roots_local[i]) for i in group.members
         ])
@@ -372,18 +304,27 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
     return {"simulating": t_sim, "writing": t_write}
 
 
-def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary:
+def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) -> Summary:
     """Simulate the hair of the USD stage ``input`` and write ``output``.
 
     Keyword options are the fields of :class:`SimulationOptions` (start, end, substeps, damping,
-    correction, solver, precision, device, prims). ``progress=True`` shows a tqdm bar on stderr.
+    correction, solver, precision, device, prims); ``device=None`` picks
+    :func:`~dftl_warp.core.devices.default_device`. ``progress=True`` shows progress on stderr
+    (a tqdm bar on a terminal, else a line per 10 % or per minute) and, once the input is read,
+    the device line and the lines ``notes`` (what a quality preset chose) on stderr.
     Bad input raises :class:`~dftl_warp.errors.UserError`; no output file is left behind on any
-    failure.
+    failure. The output's folder is created if missing. While the frames are written the
+    output is locked (:mod:`dftl_warp.output.lock`): a second run on the same output fails at
+    once with "OUTPUT: another dftl-warp run is writing it" instead of waiting.
     """
     from ..usd.read import read_scene
-    from ..output.usd import UsdWriter, check_output_path
-    from ..core.devices import init_warp
+    from ..output.lock import lock_path, output_lock
+    from ..output.progress import progress_bar
+    from ..output.usd import UsdWriter, check_output_path, ensure_folder
+    from ..core.devices import device_line, init_warp, resolve_device
 
+    if "device" in options and options["device"] is None:
+        options = {**options, "device": resolve_device(None)}
     opts = SimulationOptions(**options)
     init_warp()
     t0 = time.perf_counter()
@@ -392,22 +333,25 @@ def simulate_usd(input, output, *, progress: bool = False, **options) -> Summary
     first, last = resolve_frames(scene, opts.start, opts.end)
     sim = Simulation(scene, opts, first)
     t_load = time.perf_counter() - t0
-
-    bar = None
     if progress:
-        from tqdm import tqdm
+        for line in (*notes, device_line(sim.options.device)):
+            print(line, file=sys.stderr)
 
-        bar = tqdm(total=last - first + 1, unit="frame", desc="simulating", leave=True, dynamic_ncols=True)
-        sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
-    try:
-        with UsdWriter.create(output, scene, frames=(first, last)) as writer:
-            times = run_frames(sim, writer, last, progress=bar.update if bar else None)
-            a = time.perf_counter()
-            writer.commit()
-            times["writing"] += time.perf_counter() - a
-    finally:
-        if bar is not None:
-            bar.close()
+    ensure_folder(output)
+    with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
+        bar = None
+        if progress:
+            bar = progress_bar(last - first + 1, desc="simulating", unit="frame")
+            sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
+        try:
+            with UsdWriter.create(output, scene, frames=(first, last)) as writer:
+                times = run_frames(sim, writer, last, progress=bar.update if bar else None)
+                a = time.perf_counter()
+                writer.commit()
+                times["writing"] += time.perf_counter() - a
+        finally:
+            if bar is not None:
+                bar.close()
     return Summary(
         output=str(output),
         prims=len(scene.curves),

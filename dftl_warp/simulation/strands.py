@@ -8,7 +8,9 @@ import numpy as np
 import warp as wp
 
 from ..core.model import Model
+from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, carries_corrections, make_solver
+from ..solvers.base import check_gravity, check_step
 
 
 class Recording(NamedTuple):
@@ -50,9 +52,21 @@ def simulate_strands(
 
     Returns:
         :class:`Recording` with frame 0 the initial state and ``steps // record_every`` more.
+
+    Raises:
+        ValueError naming the argument: ``dt`` not a finite number > 0, ``gravity`` not 3 finite
+        numbers, ``steps`` not an integer >= 0, ``record_every`` not an integer >= 1, or a
+        ``damping``, ``correction``, ``precision`` or ``solver`` the options table refuses.
     """
-    if steps < 0 or record_every < 1:
-        raise ValueError("steps must be >= 0 and record_every >= 1")
+    for name, value, least in (("steps", steps, 0), ("record_every", record_every, 1)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least:
+            raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+    check_step(dt)
+    gravity = check_gravity(gravity)
+    damping = check_api("damping", damping)
+    correction = check_api("correction", correction)
+    precision = check_api("precision", precision)
+    solver = check_api("solver", solver)
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     counts = np.asarray(counts, dtype=np.int64).reshape(-1)
     if roots is not None:

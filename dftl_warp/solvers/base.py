@@ -12,14 +12,25 @@ A solver advances a :class:`~dftl_warp.core.state.State` by substeps of ``dt`` s
 A new solver subclasses :class:`Solver`, decorates itself with :func:`register`, and is imported
 by ``dftl_warp/solvers/__init__.py`` (one line). :func:`make_solver` builds one by name, passing
 the options the class lists in ``options``.
+
+Arguments are checked in Python before anything launches (:func:`check_step`): a NaN, infinite,
+zero or negative ``dt``, a ``substeps`` that is not an integer >= 1 and a non-finite ``gravity``
+raise ValueError naming the argument. Every subclass's ``step`` and ``advance`` are wrapped with
+the check (:meth:`Solver.__init_subclass__`), so a new solver gets it without a line of its own;
+it costs a few float comparisons per call, nothing on the device.
 """
 
 from __future__ import annotations
+
+import functools
+import math
+import numbers
 
 import numpy as np
 import warp as wp
 
 from ..kernels.solvers.diagnostics import strand_diagnostics_kernel
+from ..options import add_choice
 
 #: standard gravity, m/s^2, along -Y (the default up axis)
 DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
@@ -28,11 +39,53 @@ DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
 SOLVERS: dict[str, type] = {}
 
 
+def check_step(dt, substeps=None) -> None:
+    """ValueError naming the argument unless ``dt`` is a finite number > 0 (seconds) and
+    ``substeps`` (when given) an integer >= 1."""
+    if isinstance(dt, (bool, np.bool_)) or not isinstance(dt, numbers.Real) or not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite number of seconds > 0, got {dt!r}")
+    if substeps is not None and (isinstance(substeps, (bool, np.bool_)) or not isinstance(substeps, numbers.Integral)
+                                 or substeps < 1):
+        raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+
+
+def check_gravity(gravity) -> np.ndarray:
+    """``gravity`` as a (3,) float64 array; ValueError naming it unless it is 3 finite numbers."""
+    try:
+        g = np.asarray(gravity, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError):
+        raise ValueError(f"gravity must be 3 finite numbers (an acceleration), got {gravity!r}") from None
+    if not np.isfinite(g).all():
+        raise ValueError(f"gravity must be 3 finite numbers (an acceleration), got {tuple(g.tolist())}")
+    return g
+
+
+def _checked_step(step):
+    @functools.wraps(step)
+    def checked(self, state_in, state_out, control, dt, *args, **kwargs):
+        check_step(dt)
+        return step(self, state_in, state_out, control, dt, *args, **kwargs)
+
+    checked._checked = True
+    return checked
+
+
+def _checked_advance(advance):
+    @functools.wraps(advance)
+    def checked(self, state, control, dt, substeps, *args, **kwargs):
+        check_step(dt, substeps)
+        return advance(self, state, control, dt, substeps, *args, **kwargs)
+
+    checked._checked = True
+    return checked
+
+
 def register(cls):
     """Class decorator: make ``cls`` available to :func:`make_solver` under ``cls.name``."""
     if not cls.name or cls.name in SOLVERS:
         raise ValueError(f"solver name {cls.name!r} is empty or taken")
     SOLVERS[cls.name] = cls
+    add_choice("solver", cls.name)  # the options table (--solver, dftl:solver, TOML) accepts it
     return cls
 
 
@@ -48,9 +101,17 @@ class Solver:
     #: keyword options :func:`make_solver` passes on (besides ``gravity``); others are dropped
     options: tuple[str, ...] = ()
 
+    def __init_subclass__(cls, **kwargs):
+        """Wrap the subclass's own ``step`` and ``advance`` with :func:`check_step`."""
+        super().__init_subclass__(**kwargs)
+        for name, wrap in (("step", _checked_step), ("advance", _checked_advance)):
+            method = cls.__dict__.get(name)
+            if method is not None and not getattr(method, "_checked", False):
+                setattr(cls, name, wrap(method))
+
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY):
         self.model = model
-        self.gravity = model.vec3(*np.asarray(gravity, dtype=np.float64).reshape(3))
+        self.gravity = model.vec3(*check_gravity(gravity))
         self._graphs: dict = {}
 
     @staticmethod
@@ -85,6 +146,7 @@ class Solver:
         On CUDA the substeps are captured once per (state, control, dt, substeps) in a CUDA graph
         and replayed afterwards.
         """
+        check_step(dt, substeps)
         m = self.model
         if m.num_strands == 0:
             return

@@ -60,7 +60,7 @@ class DFTLSolver(Solver):
         self._kernel = step_kernel(model.scalar, correction, model.feature_flags)
         self._features = None
         if model.feature_flags:
-            from ..features.data import FeatureStep
+            from ..features.step import FeatureStep
 
             self._features = FeatureStep(model, self._kernel)
         # the prior form fuses strands of any length (the pipelined kernel); the posterior form
@@ -115,16 +115,14 @@ class DFTLSolver(Solver):
             state_in.positions, state_in.velocities,
         ]
         outputs = [state_out.positions, state_out.velocities]
-        if self.carries_corrections:
-            if state_in.corrections is None or state_out.corrections is None:
-                raise ValueError("the prior correction form needs states with corrections (solver.state())")
+        if self.carries_corrections:  # both states have corrections: checked above
             inputs.append(state_in.corrections)
             outputs.append(state_out.corrections)
         wp.launch(self._kernel, dim=m.num_strands, inputs=inputs, outputs=outputs, device=m.device)
 
     def feature_head(self, control, dt: float, root_alpha: float) -> list:
         """The leading inputs of the featured sweep (:meth:`FeatureStep.sweep
-        <dftl_warp.features.data.FeatureStep.sweep>`)."""
+        <dftl_warp.features.step.FeatureStep.sweep>`)."""
         m = self.model
         return [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
                 root_alpha, m.rest_lengths, self.gravity, dt, self.damping]

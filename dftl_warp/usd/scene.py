@@ -1,4 +1,4 @@
-"""What was read from a USD stage: plain data, no USD objects except inside transform samplers.
+"""What was read from a USD stage: plain data, no USD objects (a Scene pickles; no stage stays open).
 
 :func:`dftl_warp.usd.read.read_scene` builds a :class:`Scene`; the simulation
 (:mod:`dftl_warp.simulation.simulate`) and the writer (:mod:`dftl_warp.output.usd`) consume it. Every length is
@@ -20,11 +20,52 @@ import numpy as np
 TransformSampler = Callable[[float], np.ndarray]
 
 
+class Samples:
+    """A value read at time codes ``times`` (K,), ``values`` (K, ...): calling it with a time code
+    returns the sample there, interpolates linearly between samples (held: the earlier sample)
+    and holds the first/last sample outside them, as USD does. Plain data: it pickles."""
+
+    def __init__(self, times, values, held: bool = False):
+        self.times = np.asarray(times, dtype=np.float64).reshape(-1)
+        self.values = np.asarray(values, dtype=np.float64)
+        if self.times.shape[0] == 0 or self.values.shape[0] != self.times.shape[0]:
+            raise ValueError("Samples need one value per time, at least one")
+        if np.any(np.diff(self.times) <= 0):
+            raise ValueError("Samples need increasing times")
+        self.values.setflags(write=False)
+        self.held = bool(held)
+
+    def __call__(self, time) -> np.ndarray:
+        t = self.times[0] if time is None else float(time)
+        k = int(np.searchsorted(self.times, t, side="right")) - 1
+        if k < 0:
+            return self.values[0]
+        if k >= self.times.shape[0] - 1 or self.times[k] == t or self.held:
+            return self.values[k]
+        u = (t - self.times[k]) / (self.times[k + 1] - self.times[k])
+        return (1.0 - u) * self.values[k] + u * self.values[k + 1]
+
+    def __repr__(self) -> str:
+        return f"Samples({self.times.shape[0]} times {self.times[0]:g}..{self.times[-1]:g}, {self.values.shape[1:]})"
+
+
+class Constant:
+    """The same value at every time code (a static transform or mesh). Plain data: it pickles."""
+
+    def __init__(self, value):
+        self.value = np.array(value, dtype=np.float64)
+        self.value.setflags(write=False)
+
+    def __call__(self, time=None) -> np.ndarray:
+        return self.value
+
+    def __repr__(self) -> str:
+        return f"Constant({self.value.shape})"
+
+
 def constant_transform(matrix=None) -> TransformSampler:
     """A sampler that returns ``matrix`` (identity by default) at every time code."""
-    m = np.eye(4) if matrix is None else np.asarray(matrix, dtype=np.float64).reshape(4, 4)
-    m.setflags(write=False)
-    return lambda time: m
+    return Constant(np.eye(4) if matrix is None else np.asarray(matrix, dtype=np.float64).reshape(4, 4))
 
 
 def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -71,7 +112,7 @@ class MeshSource:
     path: str
     #: (T, 3) int64 triangles (fan-triangulated faces)
     triangles: np.ndarray
-    #: local points (V, 3) at a time code
+    #: local points (V, 3) at a time code (:class:`Samples` or :class:`Constant`)
     points: Callable[[float], np.ndarray]
     transform: TransformSampler = field(default_factory=constant_transform)
     #: whether points or transform may change over time
@@ -102,7 +143,8 @@ class CurvesPrim:
     #: displayColor as authored (K, 3) and its interpolation, if any
     display_color: np.ndarray | None = None
     display_color_interpolation: str = ""
-    #: local-to-world matrix at a time code
+    #: local-to-world matrix at a time code (:class:`Samples` read for the run's frames, or
+    #: :class:`Constant`)
     transform: TransformSampler = field(default_factory=constant_transform)
     #: whether the local-to-world transform may change over time
     animated: bool = False

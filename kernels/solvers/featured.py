@@ -3,7 +3,8 @@
 :func:`featured_step_kernel` builds, per precision, correction form and feature set, one kernel
 whose code holds exactly the features asked for: each feature's code sits under
 ``if wp.static(FLAG):`` and is dropped at code generation when the flag is off, and its
-parameters travel in a Warp struct (:func:`feature_struct`) that has fields for the present
+parameters travel in a Warp struct (:func:`~dftl_warp.kernels.features.step.feature_struct`)
+that has fields for the present
 features only. The empty feature set is never built here: :func:`dftl_warp.kernels.solvers.ftl.step_kernel`
 returns the bare kernel for it.
 
@@ -19,9 +20,12 @@ Flags (:data:`FLAGS`) and where they act in the sweep of particle ``i`` (root ex
 - ``shape``: ``p += stiffness (target - p)``, ``target`` the rest direction of the segment in the
   frame of the segment before it (``kernels/shape.py``);
 - follow-the-leader projection to the rest length;
-- colliders (``spheres``, ``capsules``, ``boxes``, ``meshes``): ``iterations`` rounds of
-  collide-then-project-to-rest-length (``kernels/collide.py``), the first with a continuous test.
-  The rest length is restored last, so collisions never stretch a segment.
+- colliders (the registered shapes: ``spheres``, ``capsules``, ``boxes``, ``meshes``, in
+  :data:`~dftl_warp.kernels.features.collide.COLLIDER_KERNELS`): ``iterations`` rounds of
+  collide-then-project-to-rest-length (``kernels/features/collide.py``), the first with a
+  continuous test; the present shapes are composed at code generation
+  (:func:`~dftl_warp.kernels.features.collide.collide_all_func`). The rest length is restored
+  last, so collisions never stretch a segment.
 """
 
 
@@ -30,89 +34,12 @@ import functools
 import warp as wp
 
 from ..core.arith import madd
-from ..features.collide import collide_funcs, transform_type
-from .ftl import STEP_MODULE_OPTIONS, follow_func
-from ..features.grid import grid_sample_func
 from ..core.layout import particle
+from ..features.collide import collide_all_func, collider_flags
+from ..features.grid import grid_sample_func
 from ..features.shape import shape_funcs
-
-COLLIDER_FLAGS = ("spheres", "capsules", "boxes", "meshes")
-#: the wind's curl noise is sampled at every NOISE_STRIDE-th particle of a strand and held between
-NOISE_STRIDE = 8
-FLAGS = COLLIDER_FLAGS + ("drag", "wind", "wind_noise", "hair_hair", "shape")
-
-
-def check_flags(flags) -> frozenset:
-    flags = frozenset(flags)
-    unknown = flags - set(FLAGS)
-    if unknown:
-        raise ValueError(f"unknown feature flags {sorted(unknown)}; known: {', '.join(FLAGS)}")
-    if ("wind" in flags or "wind_noise" in flags) and "drag" not in flags:
-        raise ValueError("wind acts through air drag: the 'wind' flags need 'drag'")
-    if "wind_noise" in flags and "wind" not in flags:
-        raise ValueError("'wind_noise' needs 'wind'")
-    return flags
-
-
-@functools.cache
-def feature_struct(scalar, flags: frozenset):
-    """The Warp struct carrying the parameters of the features in ``flags`` (and nothing else)."""
-    flags = check_flags(flags)
-    vec3 = wp.types.vector(3, scalar)
-    fields = {}
-    if flags & set(COLLIDER_FLAGS):
-        fields.update(
-            particle_radius=wp.array(dtype=scalar),
-            collider_pose=wp.array(dtype=transform_type(scalar)),
-            collider_inv_pose=wp.array(dtype=transform_type(scalar)),
-            collider_inv_pose_prev=wp.array(dtype=transform_type(scalar)),
-            collider_size=wp.array(dtype=vec3),
-            collider_axis=wp.array(dtype=vec3),
-            collider_friction=wp.array(dtype=scalar),
-            collider_iterations=int,
-        )
-        for kind in COLLIDER_FLAGS:
-            if kind in flags:
-                fields[f"{kind}_begin"] = int
-                fields[f"{kind}_end"] = int
-        if "meshes" in flags:
-            fields.update(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar),
-                          collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3))
-    if "drag" in flags:
-        fields["drag"] = wp.array(dtype=scalar)
-    if "wind" in flags:
-        fields["wind_velocity"] = wp.array(dtype=vec3)
-    if "wind_noise" in flags:
-        fields.update(
-            wind_time=wp.array(dtype=scalar),
-            noise_amplitude=scalar,
-            noise_inv_scale=scalar,
-            noise_frequency=scalar,
-            noise_seed=int,
-        )
-    if "hair_hair" in flags:
-        fields.update(
-            grid_lower=wp.array(dtype=scalar),
-            grid_inv_h=scalar,
-            grid_h=scalar,
-            grid_nx=int,
-            grid_ny=int,
-            grid_nz=int,
-            grid_density=wp.array3d(dtype=scalar),
-            grid_momentum=wp.array3d(dtype=vec3),
-            grid_friction=scalar,
-            grid_repulsion=scalar,
-        )
-    if "shape" in flags:
-        fields.update(
-            shape_stiffness=wp.array(dtype=scalar),
-            shape_rest_frame=wp.array(dtype=wp.types.quaternion(dtype=scalar)),
-            shape_rest_dir=wp.array(dtype=vec3),
-        )
-    name = "StepFeatures_" + ("f64_" if scalar == wp.float64 else "f32_") + "_".join(sorted(flags))
-    cls = type(name, (), {"__annotations__": fields, "__module__": __name__, "__qualname__": name})
-    return wp.struct(cls, module="unique")
-
+from ..features.step import NOISE_STRIDE, check_flags, feature_struct  # noqa: F401  (re-exported)
+from .ftl import STEP_MODULE_OPTIONS, follow_func
 
 @functools.cache
 def featured_step_kernel(scalar, correction: str, flags: frozenset):
@@ -123,51 +50,18 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     vec3 = wp.types.vector(3, scalar)
     Features = feature_struct(scalar, flags)
     follow = follow_func(scalar)
-    collide_sphere, collide_capsule, collide_box, collide_mesh = collide_funcs(scalar)
     grid_sample = grid_sample_func(scalar)
     quat_between, advance_frame = shape_funcs(scalar)
 
     PRIOR = correction == "prior"
-    SPHERES = "spheres" in flags
-    CAPSULES = "capsules" in flags
-    BOXES = "boxes" in flags
-    MESHES = "meshes" in flags
-    COLLIDE = SPHERES or CAPSULES or BOXES or MESHES
+    COLLIDE = bool(flags & set(collider_flags()))
+    collide_all = collide_all_func(scalar, Features, flags) if COLLIDE else None
     DRAG = "drag" in flags
     WIND = "wind" in flags
     WIND_NOISE = "wind_noise" in flags
     HAIR_HAIR = "hair_hair" in flags
     SHAPE = "shape" in flags
     one = scalar(1.0)
-
-    @wp.func
-    def collide_all(f: Features, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar):
-        touched = bool(False)
-        if wp.static(SPHERES):
-            for c in range(f.spheres_begin, f.spheres_end):
-                x, hit = collide_sphere(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
-                                        f.collider_inv_pose_prev[c], f.collider_size[c], f.collider_axis[c],
-                                        f.collider_friction[c])
-                touched = touched or hit
-        if wp.static(CAPSULES):
-            for c in range(f.capsules_begin, f.capsules_end):
-                x, hit = collide_capsule(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
-                                         f.collider_inv_pose[c], f.collider_inv_pose_prev[c], f.collider_size[c],
-                                         f.collider_axis[c], f.collider_friction[c])
-                touched = touched or hit
-        if wp.static(BOXES):
-            for c in range(f.boxes_begin, f.boxes_end):
-                x, hit = collide_box(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
-                                     f.collider_inv_pose_prev[c], f.collider_size[c], f.collider_axis[c],
-                                     f.collider_friction[c])
-                touched = touched or hit
-        if wp.static(MESHES):
-            for c in range(f.meshes_begin, f.meshes_end):
-                x, hit = collide_mesh(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
-                                      f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c],
-                                      f.collider_upper[c], f.collider_depth_band[c], f.collider_friction[c])
-                touched = touched or hit
-        return x, touched
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_step_featured(

@@ -1,0 +1,123 @@
+"""Shared helpers of the feature modules: validation, per-strand values, numpy quaternions,
+authored-attribute parsing.
+
+Quaternions are ``(x, y, z, w)`` like Warp's; the numpy ones mirror ``kernels/features/shape.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def vector(value, n: int, what: str) -> np.ndarray:
+    """``value`` as ``n`` finite float64 numbers, or ValueError naming ``what``."""
+    a = np.asarray(value, dtype=np.float64).reshape(-1)
+    if a.shape != (n,) or not np.isfinite(a).all():
+        raise ValueError(f"{what} must be {n} finite numbers, got {value!r}")
+    return a
+
+
+def unit_quaternion(rotation, what: str = "rotation") -> np.ndarray:
+    """``rotation`` (x, y, z, w) normalized; ValueError for a zero or non-finite one."""
+    q = vector(rotation, 4, f"{what} (quaternion x, y, z, w)")
+    norm = np.linalg.norm(q)
+    if norm < 1e-12:
+        raise ValueError(f"{what} quaternion is zero")
+    return q / norm
+
+
+def nonnegative(value, what: str) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value < 0.0:
+        raise ValueError(f"{what} must be a finite number >= 0, got {value}")
+    return value
+
+
+def per_strand(value, num_strands: int, what: str) -> np.ndarray:
+    """One value, or one per strand (input order), as ``num_strands`` float64 values."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        return np.full(num_strands, float(a))
+    if a.shape != (num_strands,):
+        raise ValueError(f"{what}: expected one value or {num_strands} (one per strand), got shape {a.shape}")
+    return a
+
+
+def find(features, kind):
+    """The feature of type ``kind`` in ``features``, or None."""
+    for f in features or ():
+        if isinstance(f, kind):
+            return f
+    return None
+
+
+# -- numpy quaternions (x, y, z, w) -------------------------------------------------------------------
+
+
+def quat_multiply(a, b):
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+
+
+def quat_rotate(q, v):
+    u, w = q[..., :3], q[..., 3:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def quat_between(a, b):
+    """The minimal rotation taking unit vectors ``a`` to ``b`` (a half turn when opposite)."""
+    c = np.sum(a * b, axis=-1, keepdims=True)
+    v = np.cross(a, b)
+    q = np.concatenate([v, 1.0 + c], axis=-1)
+    opposite = c[..., 0] < -0.999999
+    if np.any(opposite):
+        ao = a[opposite]
+        axis = np.cross(ao, [1.0, 0.0, 0.0])
+        small = np.linalg.norm(axis, axis=-1) < 1e-3
+        axis[small] = np.cross(ao[small], [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        q[opposite] = np.concatenate([axis, np.zeros((len(axis), 1))], axis=-1)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+# -- authored dftl: attributes --------------------------------------------------------------------------
+
+
+def authored(values: dict, name: str, where: str, kind, default=None):
+    """The authored value ``values[name]`` as ``kind`` (float, int or bool), or ``default`` when
+    unset; ValueError naming ``where`` and the attribute for a bad one."""
+    if name not in values or values[name] is None:
+        return default
+    v = values[name]
+    try:
+        if kind is float:
+            v = float(v)
+            if not np.isfinite(v):
+                raise ValueError
+        elif kind is int:
+            v = int(v)
+        elif kind is bool:
+            v = bool(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {name} = {values[name]!r}: expected {kind.__name__}") from None
+    return v
+
+
+def authored_per_strand(scene: dict, curves: list, counts: list, name: str, where: str, check) -> np.ndarray:
+    """A ``dftl:`` value per strand: the curves prim's own, else the scene's (0 when neither);
+    ``check(value, message)`` raises for a bad one."""
+    base = authored(scene, name, where, float, 0.0)
+    out = np.empty(sum(int(c) for c in counts))
+    at = 0
+    for values, n in zip(curves, counts):
+        v = authored(values, name, values.get("path", "curves"), float, base)
+        check(v, f"{values.get('path', 'curves')}: {name} = {v}")
+        out[at:at + int(n)] = v
+        at += int(n)
+    check(base, f"{where}: {name} = {base}")
+    return out

@@ -1,0 +1,122 @@
+"""Roots on a deforming triangle mesh (:class:`RootBinding`).
+
+Model data: each device strand's triangle (three point indices) and barycentric weights.
+Control (:class:`BindingControl`): the mesh's points at frame start and end (m, device
+coordinates); :meth:`BindingControl.bound_roots` returns the roots they place, and the caller sets
+them as the Control's root targets (:meth:`dftl_warp.core.state.Control.bind_roots`): the feature
+never writes the Control. USD: ``dftl:rootMesh`` on a curves prim (closest point at rest). Costs
+one small kernel per frame (``kernels/features/binding.py``), nothing per step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..core.layout import strand_offsets
+from ..core.precision import numpy_type
+from ..kernels.features.binding import bind_roots_kernel, closest_face
+
+#: name -> (type, where: "scene", "curves" or "both", description)
+ATTRIBUTES = {
+    "dftl:rootMesh": ("rel", "curves", "a Mesh prim the roots are bound to (closest point at rest); follows its animated points"),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class RootBinding:
+    """Roots bound to a deforming triangle mesh: each root is a barycentric point on a triangle.
+
+    ``points`` (P, 3) world rest positions (m), ``indices`` (T, 3). ``triangles`` (S,) and
+    ``weights`` (S, 3) per input strand, or ``None`` to bind each root to the closest point of
+    the rest mesh. Animate with ``control.bind_roots(start, end)`` (the mesh's world points).
+    Costs nothing per step: the root targets are computed once per frame.
+    """
+
+    points: np.ndarray
+    indices: np.ndarray
+    triangles: np.ndarray | None = None
+    weights: np.ndarray | None = None
+
+    def __post_init__(self):
+        pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 3)
+        idx = np.asarray(self.indices, dtype=np.int64).reshape(-1, 3)
+        if idx.size == 0 or idx.min() < 0 or idx.max() >= len(pts):
+            raise ValueError("root binding mesh: indices must reference its points")
+        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "indices", idx.astype(np.int32))
+        if (self.triangles is None) != (self.weights is None):
+            raise ValueError("root binding: give both triangles and weights, or neither")
+
+    flags = frozenset()
+
+
+def build(rb: RootBinding, ctx) -> dict:
+    """``triangle`` (point indices) and barycentric ``weights`` per device strand, and the mesh's
+    ``num_points``, of a model being built (``ctx``: the model's fields)."""
+    device, counts, points = ctx["device"], ctx["counts"], ctx["points"]
+    num_strands = len(counts)
+    order = ctx["layout"].strand_order
+    if rb.triangles is None:
+        starts = strand_offsets(counts)
+        mesh = wp.Mesh(points=wp.array(rb.points.astype(np.float32), dtype=wp.vec3, device=device),
+                       indices=wp.array(rb.indices.reshape(-1), dtype=wp.int32, device=device))
+        face = wp.zeros(num_strands, dtype=wp.int32, device=device)
+        bary = wp.zeros(num_strands, dtype=wp.vec3, device=device)
+        wp.launch(closest_face, dim=num_strands, device=device,
+                  inputs=[mesh.id, wp.array(points[starts].astype(np.float32), dtype=wp.vec3, device=device)],
+                  outputs=[face, bary])
+        tri, weights = face.numpy().astype(np.int64), bary.numpy().astype(np.float64)
+    else:
+        tri = np.asarray(rb.triangles, dtype=np.int64).reshape(-1)
+        weights = np.asarray(rb.weights, dtype=np.float64).reshape(-1, 3)
+    if tri.shape != (num_strands,) or weights.shape != (num_strands, 3):
+        raise ValueError(f"root binding: need one triangle and weight triple per strand ({num_strands})")
+    if tri.min(initial=0) < 0 or tri.max(initial=0) >= len(rb.indices):
+        raise ValueError("root binding: triangle index out of range")
+    return {
+        "triangle": wp.array(np.ascontiguousarray(rb.indices[tri[order]].astype(np.int32)), dtype=wp.vec3i,
+                             device=device),
+        "weights": wp.array(np.ascontiguousarray(weights[order].astype(ctx["ftype"])), dtype=ctx["vec3"],
+                            device=device),
+        "num_points": len(rb.points),
+    }
+
+
+class BindingControl:
+    """The binding mesh's points at frame start and end, and the roots they place."""
+
+    def __init__(self, model, binding: dict):
+        self.model = model
+        self.binding = binding
+        self.points = [wp.zeros(binding["num_points"], dtype=model.vec3, device=model.device) for _ in range(2)]
+        self.roots = [wp.zeros(model.num_strands, dtype=model.vec3, device=model.device) for _ in range(2)]
+
+    def bound_roots(self, start, end=None) -> tuple:
+        """The roots (device strand order, m relative to ``model.origin``; Warp arrays reused by
+        the next call) at frame start and end, from the mesh's world points (P, 3) then."""
+        m, b = self.model, self.binding
+        f = numpy_type(m.precision)
+        for dst, pts in zip(self.points, (start, start if end is None else end)):
+            pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+            if pts.shape[0] != b["num_points"]:
+                raise ValueError(f"root binding mesh: expected {b['num_points']} points, got {pts.shape[0]}")
+            dst.assign((pts - m.origin).astype(f))
+        wp.launch(bind_roots_kernel(m.scalar), dim=m.num_strands, device=m.device,
+                  inputs=[b["triangle"], b["weights"], *self.points], outputs=self.roots)
+        return self.roots[0], self.roots[1]
+
+
+def from_scene(curves, frame) -> list:
+    """The RootBinding of curves prims bound to one ``dftl:rootMesh`` (grouped by it), at ``frame``."""
+    mesh = curves[0].root_mesh
+    return [] if mesh is None else [RootBinding(mesh.world_points(frame), mesh.triangles)]
+
+
+def update_from_scene(curves, control, frame, nxt) -> None:
+    """Roots of an animated ``dftl:rootMesh`` for the frame ``frame`` -> ``nxt`` (time codes)."""
+    mesh = curves[0].root_mesh
+    if mesh is not None and mesh.animated:
+        control.bind_roots(mesh.world_points(frame), mesh.world_points(nxt))

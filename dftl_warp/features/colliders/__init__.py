@@ -1,0 +1,26 @@
+"""Colliders: shapes the hair stays outside of (:class:`Colliders` of registered shapes).
+
+Add a collider shape: its host module here (a :class:`ColliderShape` subclass: parameters,
+``size_axis``, ``from_prim`` for USD, optional device data), its kernel module in
+``kernels/features/`` (its signed distance or collide function, as a
+:class:`~dftl_warp.kernels.features.collide.ColliderKernel`), and its line in :data:`SHAPES` below.
+"""
+
+from .analytic import Box, Capsule, Sphere
+from .base import ATTRIBUTES, SHAPES, ColliderShape, Colliders, register_shape, shape_kinds
+from .device import ColliderControl, ColliderData, build, fixed_bytes, inverse_poses
+from .mesh import MeshColliders, TriangleMesh
+from .usd import from_scene, shape_from_prim, split_matrix, update_from_scene
+
+# the registered shapes, in device order (one line per shape)
+for _shape in (Sphere, Capsule, Box, TriangleMesh):
+    register_shape(_shape)
+del _shape
+
+#: kernel flags of the registered shapes, in device order
+SHAPE_KINDS = shape_kinds()
+
+__all__ = ["ATTRIBUTES", "SHAPES", "SHAPE_KINDS", "ColliderShape", "Colliders", "register_shape", "shape_kinds",
+           "ColliderControl", "ColliderData", "build", "fixed_bytes", "inverse_poses", "MeshColliders",
+           "from_scene", "shape_from_prim", "split_matrix", "update_from_scene",
+           *(cls.__name__ for cls in SHAPES.values())]

@@ -1,0 +1,167 @@
+"""Colliders on the device: the Model's immutable data (:func:`build`, :class:`ColliderData`) and
+the Control's per-frame poses (:class:`ColliderControl`).
+
+Device colliders are sorted by shape kind in registration order (then in the user's order), so
+that each kind's colliders are one index range; ``order`` maps the user's index to the device's.
+Poses are ``(p, q xyzw)`` rows relative to ``model.origin`` (m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ...core.precision import numpy_type
+from ...kernels.features.collide import collider_pose_kernel, transform_type
+from ..base import quat_rotate
+from .base import SHAPES, Colliders
+
+
+def inverse_poses(poses) -> np.ndarray:
+    """Inverses of (C, 7) poses ``(p, q xyzw)``."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 7)
+    conj = poses[:, 3:] * np.array([-1.0, -1.0, -1.0, 1.0])
+    return np.concatenate([-quat_rotate(conj, poses[:, :3]), conj], axis=1)
+
+
+class ColliderData:
+    """The Model's collider data: ``colliders`` (the feature), ``order`` (device index of each user
+    collider), ``kinds`` (present kinds, device order), ``bounds`` (kind ``j`` owns device colliders
+    ``bounds[j]:bounds[j + 1]``), device vectors ``particle_radius`` (m, per slot), ``size``,
+    ``axis``, ``friction`` per device collider, and ``rest_pose`` (C, 7) numpy."""
+
+    def __init__(self, colliders, order, kinds, bounds, arrays, rest_pose):
+        self.colliders = colliders
+        self.order = order
+        self.kinds = kinds
+        self.bounds = bounds
+        self.arrays = arrays
+        self.rest_pose = rest_pose
+
+
+def build(colliders: Colliders, ctx, widths=None) -> ColliderData:
+    """Device data of ``colliders`` for a model being built (``ctx``: the model's fields);
+    ``widths``: hair diameters (m), one or one per point: the contact distance is half of it."""
+    lay, ftype, scalar, vec3, device = ctx["layout"], ctx["ftype"], ctx["scalar"], ctx["vec3"], ctx["device"]
+    points = ctx["points"]
+
+    def arr(a, dtype):
+        return wp.array(np.ascontiguousarray(a), dtype=dtype, device=device)
+
+    radius = np.zeros(lay.num_slots, dtype=ftype)
+    if widths is not None:
+        w = np.asarray(widths, dtype=np.float64).reshape(-1)
+        if w.size == 1:
+            w = np.full(len(points), float(w[0]))
+        if w.shape != (len(points),) or not np.isfinite(w).all() or np.any(w < 0):
+            raise ValueError(f"widths must be one value or one per point ({len(points)}), finite and >= 0")
+        radius[lay.slot_of_point] = 0.5 * w
+    shapes = colliders.shapes
+    kinds_order = list(SHAPES)
+    device_order = sorted(range(len(shapes)), key=lambda i: (kinds_order.index(shapes[i].kind), i))
+    order = np.empty(len(shapes), dtype=np.int64)
+    order[device_order] = np.arange(len(shapes))
+    ordered = [shapes[i] for i in device_order]
+    sizes, axes = zip(*(s.size_axis() for s in ordered))
+    arrays = {
+        "particle_radius": arr(radius, scalar),
+        "size": arr(np.array(sizes, dtype=ftype), vec3),
+        "axis": arr(np.array(axes, dtype=ftype), vec3),
+        "friction": arr(np.array([s.friction for s in ordered], dtype=ftype), scalar),
+    }
+    rest_pose = np.array([np.concatenate([s.position - ctx["origin"], s.rotation]) for s in ordered])
+    kinds = [k for k in kinds_order if any(s.kind == k for s in ordered)]
+    bounds = [0]
+    for k in kinds:
+        bounds.append(bounds[-1] + sum(s.kind == k for s in ordered))
+    return ColliderData(colliders, order, tuple(kinds), tuple(bounds), arrays,
+                        rest_pose.reshape(-1, 7).astype(ftype))
+
+
+class ColliderControl:
+    """Collider poses of a Control: ``pose_start``/``pose_end`` of the frame, and the current and
+    previous substep's ``pose``/``pose_prev`` with their inverses (updated by each step), per
+    device collider; ``kind_data``: the data of kinds that have their own (meshes)."""
+
+    def __init__(self, model, data: ColliderData):
+        self.model = model
+        self.data = data
+        device = model.device
+        transform = transform_type(model.scalar)
+        rest = data.rest_pose
+        self.pose_start, self.pose_end, self.pose, self.pose_prev = (
+            wp.array(rest, dtype=transform, device=device) for _ in range(4))
+        inverse = inverse_poses(rest).astype(rest.dtype)
+        self.inv_pose, self.inv_pose_prev = (wp.array(inverse, dtype=transform, device=device) for _ in range(2))
+        self._synced = False
+        self.kind_data = {}
+        for kind in data.kinds:
+            mine = {int(data.order[i]): (i, s) for i, s in enumerate(data.colliders.shapes) if s.kind == kind}
+            made = SHAPES[kind].make_device_data(model, mine, len(rest))
+            if made is not None:
+                self.kind_data[kind] = made
+
+    def set_poses(self, start, end=None) -> None:
+        """Poses of all colliders for this frame: (C, 7) rows ``(px, py, pz, qx, qy, qz, qw)``,
+        world space (m), in the Colliders' order; ``end`` defaults to ``start``.
+
+        The first call (and the first after :meth:`resync`) also places the colliders at
+        ``start`` for the previous substep, so that they do not sweep from their rest pose."""
+        m = self.model
+        n = len(self.data.colliders.shapes)
+        f = numpy_type(m.precision)
+        for dst, rows in ((self.pose_start, start), (self.pose_end, start if end is None else end)):
+            rows = np.asarray(rows, dtype=np.float64).reshape(-1, 7).copy()
+            if rows.shape[0] != n:
+                raise ValueError(f"expected {n} collider poses, got {rows.shape[0]}")
+            rows[:, :3] -= m.origin
+            rows[:, 3:] /= np.linalg.norm(rows[:, 3:], axis=1, keepdims=True)
+            device_rows = np.empty_like(rows)
+            device_rows[self.data.order] = rows
+            dst.assign(device_rows.astype(f))
+            if dst is self.pose_start and not self._synced:
+                inverse = inverse_poses(device_rows).astype(f)
+                for a, v in ((self.pose, device_rows), (self.pose_prev, device_rows), (self.inv_pose, inverse),
+                             (self.inv_pose_prev, inverse)):
+                    a.assign(v.astype(f))
+        self._synced = True
+
+    def resync(self) -> None:
+        """Forget the colliders' previous pose (after restoring a saved state)."""
+        self._synced = False
+
+    def set_mesh_points(self, index: int, points) -> None:
+        """New local points (P, 3), m, of mesh collider ``index`` (Colliders order), from now on."""
+        meshes = self.kind_data.get("meshes")
+        if meshes is None:
+            raise ValueError(f"collider {index} is not a mesh")
+        meshes.set_points(index, points)
+
+    def advance(self, root_alpha: float) -> None:
+        """This substep's poses: ``alpha`` of the way from the frame's start to its end."""
+        m = self.model
+        wp.launch(collider_pose_kernel(m.scalar), dim=self.pose.shape[0], device=m.device,
+                  inputs=[self.pose_start, self.pose_end, root_alpha],
+                  outputs=[self.pose, self.pose_prev, self.inv_pose, self.inv_pose_prev])
+
+    def fill_struct(self, st) -> None:
+        """The colliders' fields of the step struct."""
+        d, a = self.data, self.data.arrays
+        st.particle_radius = a["particle_radius"]
+        st.collider_pose = self.pose
+        st.collider_inv_pose = self.inv_pose
+        st.collider_inv_pose_prev = self.inv_pose_prev
+        st.collider_size = a["size"]
+        st.collider_axis = a["axis"]
+        st.collider_friction = a["friction"]
+        st.collider_iterations = int(d.colliders.iterations)
+        st.collider_bounds = wp.types.vector(len(d.bounds), wp.int32)(*d.bounds)
+        for made in self.kind_data.values():
+            made.fill_struct(st)
+
+
+def fixed_bytes(data: ColliderData, precision: str) -> int:
+    """Device bytes of the colliders that do not grow with the hair."""
+    f = np.dtype(precision).itemsize
+    shapes = data.colliders.shapes
+    return len(shapes) * (6 * 7 * f + 4 * 3 * f + 2 * f + 8) + sum(s.fixed_bytes() for s in shapes)

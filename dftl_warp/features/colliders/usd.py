@@ -1,0 +1,89 @@
+"""Colliders of a USD Scene: prims with ``UsdPhysics.CollisionAPI``
+(:class:`~dftl_warp.usd.scene.ColliderPrim`), each made into the registered shape whose
+``usd_kind`` it has. Transforms split into a rigid pose (animated per frame) and a scale (from the
+first frame, baked into the geometry). Friction: the prim's (``dftl:friction``, else its physics
+material's), else 0.3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import UserError
+from .base import SHAPES, Colliders
+
+
+def _quat_from_rotation(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion (x, y, z, w) of a proper rotation matrix (column-vector convention)."""
+    t = np.trace(r)
+    if t > 0:
+        s = 2.0 * np.sqrt(t + 1.0)
+        q = [(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s]
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+        q = [0.0, 0.0, 0.0, (r[k, j] - r[j, k]) / s]
+        q[i] = 0.25 * s
+        q[j] = (r[j, i] + r[i, j]) / s
+        q[k] = (r[k, i] + r[i, k]) / s
+    q = np.asarray(q)
+    return q / np.linalg.norm(q)
+
+
+def split_matrix(m: np.ndarray):
+    """A 4x4 row-vector matrix -> (position (3,), rotation quaternion (4,), scale (3,)).
+
+    ``scale[i]`` is the length of local axis ``i`` in the world (negative for the first axis of a
+    mirroring transform); shear is dropped (the nearest rotation is kept).
+    """
+    lin = np.asarray(m, dtype=np.float64)[:3, :3]
+    scale = np.linalg.norm(lin, axis=1)
+    if np.any(scale < 1e-300):
+        raise ValueError("zero scale")
+    rows = lin / scale[:, None]
+    if np.linalg.det(rows) < 0:
+        scale[0], rows[0] = -scale[0], -rows[0]
+    u, _, vt = np.linalg.svd(rows)
+    rows = u @ vt  # nearest rotation (drops shear)
+    return np.asarray(m, dtype=np.float64)[3, :3].copy(), _quat_from_rotation(rows.T), scale
+
+
+def shape_from_prim(prim, matrix, where: str):
+    """The collider shape of ``prim`` under the 4x4 row-vector ``matrix``."""
+    position, rotation, scale = split_matrix(matrix)
+    friction = 0.3 if prim.friction is None else prim.friction
+    common = dict(position=position, rotation=rotation, friction=friction, name=prim.path)
+    for cls in SHAPES.values():
+        if cls.usd_kind == prim.kind:
+            return cls.from_prim(prim, position, rotation, scale, common)
+    raise UserError(f"{where}: collider kind {prim.kind!r} is not supported")
+
+
+def from_scene(scene, frame) -> list:
+    """The Colliders of ``scene`` at ``frame`` (none when it has no collider prims)."""
+    if not scene.colliders:
+        return []
+    where = scene.source
+    shapes = [shape_from_prim(c, c.transform(frame), f"{where}: {c.path}") for c in scene.colliders]
+    iterations = int(scene.features.get("dftl:collisionIterations", 2))
+    if iterations < 1:
+        raise UserError(f"{where}: dftl:collisionIterations = {iterations}: must be >= 1")
+    return [Colliders(shapes, iterations=iterations)]
+
+
+def update_from_scene(scene, fc, frame, nxt) -> None:
+    """Collider poses and deforming mesh points for the frame ``frame`` -> ``nxt`` (time codes)."""
+    if fc.pose_start is not None and any(c.animated for c in scene.colliders):
+        def poses(t):
+            rows = []
+            for c in scene.colliders:
+                p, q, _ = split_matrix(c.transform(t))
+                rows.append(np.concatenate([p, q]))
+            return np.array(rows)
+
+        fc.set_collider_poses(poses(frame), poses(nxt))
+    for i, c in enumerate(scene.colliders):
+        if c.kind == "mesh" and c.points_sampler is not None:
+            _, _, scale = split_matrix(c.transform(frame))
+            fc.set_mesh_points(i, c.points_sampler(nxt) * scale)

@@ -1,0 +1,135 @@
+"""Hair-hair interaction (:class:`HairHair`) on a grid that follows the hair (Petrovic et al. 2005).
+
+Model data: the grid's node counts and cell size (m). Step scratch (:class:`Grid`): the grid's
+lower corner (m), density (particles per node) and momentum (m/s per node), rebuilt every substep
+(``kernels/features/grid.py``). USD: ``dftl:hairHair`` and ``dftl:hairHair*`` on the scene.
+Memory: 4 scalars per node.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..core.layout import strand_offsets
+from ..kernels.features.grid import grid_bounds_kernel, grid_reset_kernel, grid_splat_kernel
+from .base import authored, nonnegative
+
+#: name -> (type, where: "scene", "curves" or "both", description)
+ATTRIBUTES = {
+    "dftl:hairHair": (bool, "scene", "true turns hair-hair interaction on"),
+    "dftl:hairHairCellSize": (float, "scene", "grid cell size (stage units); default 4 x the mean segment length"),
+    "dftl:hairHairFriction": (float, "scene", "rate (1/s) of relaxation toward the local mean velocity"),
+    "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit density difference across a cell"),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class HairHair:
+    """Hair-hair interaction on a grid of ``cell_size`` (m) that follows the hair.
+
+    ``friction`` (1/s): rate at which velocities relax toward the grid (local mean) velocity;
+    ``repulsion`` (m/s^2): acceleration per unit density difference (particles per grid node)
+    across one cell, pushing particles toward lower density. ``extent`` (3,), m: the grid's size,
+    by default the rest bounds of the hair plus twice the longest strand on each axis, capped
+    at ``max_cells`` nodes (particles outside the grid feel nothing).
+    """
+
+    cell_size: float
+    friction: float = 2.0
+    repulsion: float = 5.0
+    extent: np.ndarray | None = None
+    max_cells: int = 1 << 24
+
+    def __post_init__(self):
+        if not float(self.cell_size) > 0:
+            raise ValueError(f"hair-hair cell_size must be > 0 (m), got {self.cell_size}")
+        nonnegative(self.friction, "hair-hair friction")
+        nonnegative(self.repulsion, "hair-hair repulsion")
+
+    flags = frozenset({"hair_hair"})
+
+
+def hair_hair_extent(hh: HairHair, points, counts) -> np.ndarray:
+    """Size (3,), m, of the hair-hair grid of strands ``points`` (N, 3, world) with vertex
+    ``counts``: ``hh.extent``, or the rest bounds plus twice the longest strand on each axis."""
+    if hh.extent is not None:
+        return np.asarray(hh.extent, dtype=np.float64).reshape(3)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if not len(points):
+        return np.zeros(3)
+    starts = strand_offsets(counts)
+    seg = np.zeros(len(points))
+    seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    seg[starts] = 0.0
+    longest = float(np.add.reduceat(seg, starts).max())
+    return points.max(0) - points.min(0) + 2.0 * longest
+
+
+def grid_dimensions(hh: HairHair, points, counts) -> tuple[tuple[int, int, int], float]:
+    """(node counts (3,), cell size m) of the grid of ``hh`` for strands ``points``/``counts``."""
+    cell = float(hh.cell_size)
+    extent = hair_hair_extent(hh, points, counts)
+    shape = tuple(int(np.ceil(e / cell)) + 3 for e in extent)
+    if int(np.prod(shape)) > hh.max_cells:
+        raise ValueError(f"hair-hair grid of {shape} nodes exceeds max_cells={hh.max_cells}; "
+                         f"increase cell_size ({cell} m) or give a smaller extent")
+    return shape, cell
+
+
+class Grid:
+    """The step's grid: ``arrays`` ``lower`` (3,) m, ``density`` and ``momentum`` per node."""
+
+    def __init__(self, model, shape, cell: float):
+        self.model = model
+        self.shape = tuple(shape)
+        self.cell = float(cell)
+        self.arrays = {
+            "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
+            "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
+            "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),
+        }
+
+    def kernels(self) -> list:
+        s = self.model.scalar
+        return [grid_reset_kernel(s), grid_bounds_kernel(s), grid_splat_kernel(s)]
+
+    def bounds(self, positions) -> None:
+        """The lower corner from this model's particles (atomic min)."""
+        m, g = self.model, self.arrays
+        wp.launch(grid_reset_kernel(m.scalar), dim=1, device=m.device, outputs=[g["lower"]])
+        wp.launch(grid_bounds_kernel(m.scalar), dim=m.num_slots, device=m.device, inputs=[positions],
+                  outputs=[g["lower"]])
+
+    def splat(self, positions, velocities) -> None:
+        """Density and momentum of this model's particles onto the grid (from ``lower``)."""
+        m, g = self.model, self.arrays
+        g["density"].zero_()
+        g["momentum"].zero_()
+        wp.launch(grid_splat_kernel(m.scalar), dim=m.num_slots, device=m.device,
+                  inputs=[positions, velocities, g["lower"], 1.0 / self.cell, *self.shape],
+                  outputs=[g["density"], g["momentum"]])
+
+    def fill_struct(self, st, hh: HairHair) -> None:
+        g = self.arrays
+        st.grid_lower = g["lower"]
+        st.grid_h = self.cell
+        st.grid_inv_h = 1.0 / self.cell
+        st.grid_nx, st.grid_ny, st.grid_nz = self.shape
+        st.grid_density = g["density"]
+        st.grid_momentum = g["momentum"]
+        st.grid_friction = float(hh.friction)
+        st.grid_repulsion = float(hh.repulsion)
+
+
+def from_attributes(scene: dict, where: str, mean_segment: float) -> list:
+    """HairHair from authored ``dftl:hairHair*`` values; the default cell is 4 mean segments."""
+    if not authored(scene, "dftl:hairHair", where, bool, False):
+        return []
+    cell = authored(scene, "dftl:hairHairCellSize", where, float, 4.0 * mean_segment)
+    if not cell > 0:
+        raise ValueError(f"{where}: dftl:hairHairCellSize = {cell}: must be > 0")
+    return [HairHair(cell_size=cell, friction=authored(scene, "dftl:hairHairFriction", where, float, 2.0),
+                     repulsion=authored(scene, "dftl:hairHairRepulsion", where, float, 5.0))]

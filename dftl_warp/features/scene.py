@@ -1,0 +1,94 @@
+"""A USD :class:`~dftl_warp.usd.scene.Scene`'s features, composed from each feature's USD mapping:
+colliders from its ColliderPrims, the ``dftl:`` feature attributes, roots bound to a
+``dftl:rootMesh``; and their per-frame animation. Everything stays in stage units.
+
+:func:`features_from_attributes` takes the authored values as plain dicts (no USD objects), so
+it is the same whoever reads the stage. Scene-wide values are authored on the stage's physics
+scene prim (``UsdPhysics.Scene``) or, when there is none, on the default prim; per-curve values on
+a ``BasisCurves`` prim override the scene's for that prim's curves. Lengths are in stage units,
+times in seconds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UserError
+from . import air, binding, colliders, hair_hair, shape
+
+#: every ``dftl:`` feature attribute: name -> (type, where: "scene", "curves" or "both", description)
+ATTRIBUTES = {**air.ATTRIBUTES, **hair_hair.ATTRIBUTES, **shape.ATTRIBUTES, **colliders.ATTRIBUTES,
+              **binding.ATTRIBUTES}
+
+
+def features_from_attributes(scene: dict, curves: list, counts: list, *, mean_segment: float = 0.0,
+                             where: str = "scene") -> list:
+    """Feature objects for authored ``dftl:`` values.
+
+    Args:
+        scene: scene-wide values (name -> value; ``dftl:wind`` may be (3,) or keyframes (K, 4)
+            of (seconds, vx, vy, vz)).
+        curves: one dict per curves prim (with an optional ``"path"`` for messages).
+        counts: strands in each curves prim, same order.
+        mean_segment: mean rest segment length (stage units), for the default grid cell.
+
+    Returns the features the attributes turn on (possibly none); raises ``ValueError`` naming the
+    prim and attribute for a bad value.
+    """
+    counts = [int(c) for c in counts]
+    return (air.from_attributes(scene, curves, counts, where)
+            + hair_hair.from_attributes(scene, where, mean_segment)
+            + shape.from_attributes(scene, curves, counts, where))
+
+
+def widths_per_point(curve) -> np.ndarray | None:
+    """Hair widths (stage units) per point of a curves prim, or None when not authored."""
+    w = curve.widths
+    if w is None or w.size == 0:
+        return None
+    if w.size == 1:
+        return np.full(curve.num_points, float(w[0]))
+    if w.size == curve.num_points:
+        return w.astype(np.float64)
+    if w.size == curve.num_strands:
+        return np.repeat(w, curve.counts).astype(np.float64)
+    return np.full(curve.num_points, float(np.mean(w)))  # e.g. varying widths of cubic curves
+
+
+def group_features(scene, curves, frame) -> tuple[list, np.ndarray | None]:
+    """(features, widths per point or None) of the curves prims ``curves`` simulated together."""
+    where = scene.source
+    feats = colliders.from_scene(scene, frame)
+    seg = [np.linalg.norm(np.diff(c.points, axis=0), axis=1).mean() for c in curves if c.num_points > 1]
+    try:
+        feats += features_from_attributes(
+            scene.features, [dict(c.features, path=f"{where}: {c.path}") for c in curves],
+            [c.num_strands for c in curves], mean_segment=float(np.mean(seg)) if seg else 0.0, where=where)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    feats += binding.from_scene(curves, frame)
+    widths = [widths_per_point(c) for c in curves]
+    if all(w is None for w in widths):
+        return feats, None
+    return feats, np.concatenate([np.zeros(c.num_points) if w is None else w for c, w in zip(curves, widths)])
+
+
+def update_frame(scene, curves, control, frame: int, nxt: int) -> None:
+    """Set ``control``'s per-frame feature data for the frame ``frame`` -> ``nxt`` (time codes):
+    collider poses and mesh points, the wind's time, and the roots of a bound mesh."""
+    fc = control.features
+    if fc is None:
+        return
+    colliders.update_from_scene(scene, fc, frame, nxt)
+    if fc.wind is not None:
+        tcps = scene.stage.time_codes_per_second
+        fc.set_frame_time(frame / tcps, nxt / tcps)
+    binding.update_from_scene(curves, control, frame, nxt)
+
+
+def feature_names(flags) -> list[str]:
+    """Readable names of kernel flags, for ``dftl-warp info``."""
+    names = {"drag": "air drag", "wind": "wind", "wind_noise": "wind noise",
+             "hair_hair": "hair-hair interaction", "shape": "shape retention"}
+    names.update({kind: f"{cls.usd_kind} colliders" for kind, cls in colliders.SHAPES.items()})
+    return [names[f] for f in sorted(flags)]

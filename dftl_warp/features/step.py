@@ -1,0 +1,316 @@
+"""The features of a model, composed: validation and kernel flags, the Model's device data
+(:class:`ModelFeatures`), the Control's per-frame data (:class:`FeatureControl`, as
+``control.features``) and one featured step (:class:`FeatureStep`, in the solver), which
+launches the collider poses, the hair-hair grid, then the sweep specialized to the present
+features (``kernels/solvers/featured.py``).
+
+Each feature's own parameters, device data, per-frame control and USD mapping live in its module
+(:mod:`~dftl_warp.features.colliders`, :mod:`~dftl_warp.features.binding`,
+:mod:`~dftl_warp.features.air`, :mod:`~dftl_warp.features.hair_hair`,
+:mod:`~dftl_warp.features.shape`). Device coordinates are relative to ``model.origin`` (m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..core.precision import numpy_type
+from ..kernels.features.collide import collider_pose_kernel
+from ..kernels.features.step import feature_struct
+from . import air, binding, colliders, hair_hair, shape
+from .air import Drag, Wind
+from .base import find
+from .binding import RootBinding
+from .colliders import Colliders
+from .hair_hair import HairHair
+from .shape import ShapeRetention
+
+FEATURE_TYPES = (Colliders, RootBinding, Drag, Wind, HairHair, ShapeRetention)
+
+
+def check_features(features) -> tuple:
+    """Validate a feature list: known types, at most one of each, wind only with drag."""
+    features = tuple(features or ())
+    seen = set()
+    for f in features:
+        if not isinstance(f, FEATURE_TYPES):
+            raise ValueError(f"unknown feature {f!r}; use one of {', '.join(t.__name__ for t in FEATURE_TYPES)}")
+        if type(f) in seen:
+            raise ValueError(f"feature {type(f).__name__} given twice")
+        seen.add(type(f))
+    if Wind in seen and Drag not in seen:
+        raise ValueError("Wind acts through air drag: add a Drag feature")
+    return features
+
+
+def feature_flags(features) -> frozenset:
+    """Kernel flags of ``features`` (the empty set for a gravity-only scene)."""
+    flags = frozenset()
+    for f in check_features(features):
+        flags |= f.flags
+    return flags
+
+
+class ModelFeatures:
+    """The immutable device data of a model's features (see :func:`build`).
+
+    ``colliders``: the Colliders feature (shapes in the user's order) or None, its device data
+    ``collider_data`` and ``collider_order`` (device index of each user collider); ``arrays``:
+    per-strand and per-slot arrays (drag rate, shape retention); ``binding``: the root binding's
+    triangles and weights; ``grid_shape``/``grid_cell``: the hair-hair grid's nodes and cell (m)."""
+
+    def __init__(self, features, flags, arrays, collider_data, binding, grid_shape, grid_cell):
+        self.features = features
+        self.flags = flags
+        self.arrays = arrays
+        self.collider_data = collider_data
+        self.colliders = collider_data.colliders if collider_data is not None else None
+        self.collider_order = collider_data.order if collider_data is not None else None
+        self.binding = binding
+        self.grid_shape = grid_shape
+        self.grid_cell = grid_cell
+
+    def bytes_per_particle(self, precision: str) -> float:
+        """Device bytes per particle of the features' per-particle arrays (model and scratch)."""
+        f = np.dtype(precision).itemsize
+        b = 0
+        if "shape" in self.flags:
+            b += 3 * f
+        if self.collider_data is not None:
+            b += f
+        return b
+
+    def bytes_per_strand(self, precision: str) -> float:
+        f = np.dtype(precision).itemsize
+        b = 0
+        if "drag" in self.flags:
+            b += f
+        if "shape" in self.flags:
+            b += 5 * f
+        if self.binding is not None:
+            b += 12 + 3 * f
+        return b
+
+    def grid_bytes(self, precision: str) -> int:
+        if self.grid_shape is None:
+            return 0
+        return int(np.prod(self.grid_shape)) * 4 * np.dtype(precision).itemsize
+
+
+def build(model_args, features, *, widths=None) -> ModelFeatures:
+    """Device data for ``features`` of a model being built (``model_args``: the Model's fields:
+    device, precision, layout, scalar, vec3, counts, points (world, input order), origin)."""
+    features = check_features(features)
+    flags = feature_flags(features)
+    ctx = dict(model_args, ftype=numpy_type(model_args["precision"]))
+    arrays = {}
+    collider_data = None
+    found = find(features, Colliders)
+    if found is not None and found.shapes:
+        collider_data = colliders.build(found, ctx, widths)
+    drag = find(features, Drag)
+    if drag is not None:
+        arrays["drag"] = air.build_drag(drag, len(ctx["counts"]), ctx["layout"].strand_order, ctx["scalar"],
+                                        ctx["ftype"], ctx["device"])
+    retention = find(features, ShapeRetention)
+    if retention is not None:
+        arrays.update(shape.build(retention, ctx))
+    rb = find(features, RootBinding)
+    bound = binding.build(rb, ctx) if rb is not None else None
+    grid_shape = grid_cell = None
+    hh = find(features, HairHair)
+    if hh is not None:
+        grid_shape, grid_cell = hair_hair.grid_dimensions(hh, ctx["points"], ctx["counts"])
+    return ModelFeatures(features, flags, arrays, collider_data, bound, grid_shape, grid_cell)
+
+
+class FeatureControl:
+    """Per-frame animated data of the features (``control.features``), device coordinates:
+    collider poses (``colliders``: :class:`~dftl_warp.features.colliders.ColliderControl`), the
+    wind (``air``: :class:`~dftl_warp.features.air.WindControl`), the root-binding mesh
+    (``binding``: :class:`~dftl_warp.features.binding.BindingControl`); each None when absent.
+
+    Collider poses move from ``start`` to ``end`` across a frame like the roots; the current and
+    previous substep's poses (``pose``, ``pose_prev``, and their inverses) are updated by each step.
+    It never writes the Control: the bound roots go back to the caller
+    (:meth:`~dftl_warp.core.state.Control.bind_roots`).
+    """
+
+    def __init__(self, model):
+        self.model = model
+        mf = model.feature_data
+        self.colliders = colliders.ColliderControl(model, mf.collider_data) if mf.collider_data is not None else None
+        #: the Wind feature, or None
+        self.wind = find(mf.features, Wind)
+        self.air = air.WindControl(self.wind, model) if self.wind is not None else None
+        self.binding = binding.BindingControl(model, mf.binding) if mf.binding is not None else None
+
+    # -- colliders -----------------------------------------------------------------------------
+
+    def _collider(self, name):
+        return None if self.colliders is None else getattr(self.colliders, name)
+
+    pose_start = property(lambda self: self._collider("pose_start"))
+    pose_end = property(lambda self: self._collider("pose_end"))
+    pose = property(lambda self: self._collider("pose"))
+    pose_prev = property(lambda self: self._collider("pose_prev"))
+    inv_pose = property(lambda self: self._collider("inv_pose"))
+    inv_pose_prev = property(lambda self: self._collider("inv_pose_prev"))
+
+    def set_collider_poses(self, start, end=None) -> None:
+        """Poses of all colliders for this frame: (C, 7) rows ``(px, py, pz, qx, qy, qz, qw)``,
+        world space (m), in the Colliders' order; ``end`` defaults to ``start``
+        (:meth:`ColliderControl.set_poses <dftl_warp.features.colliders.ColliderControl.set_poses>`)."""
+        if self.colliders is None:
+            if len(np.asarray(start).reshape(-1, 7)):
+                raise ValueError(f"expected 0 collider poses, got {len(np.asarray(start).reshape(-1, 7))}")
+            return
+        self.colliders.set_poses(start, end)
+
+    def resync(self) -> None:
+        """Forget the colliders' previous pose (after restoring a saved state): the next
+        :meth:`set_collider_poses` places them at its start without sweeping."""
+        if self.colliders is not None:
+            self.colliders.resync()
+
+    def set_mesh_points(self, index: int, points) -> None:
+        """New local points (P, 3), m, of mesh collider ``index`` (Colliders order), from now on."""
+        if self.colliders is None:
+            raise ValueError(f"collider {index} is not a mesh")
+        self.colliders.set_mesh_points(index, points)
+
+    # -- wind ----------------------------------------------------------------------------------
+
+    @property
+    def wind_velocity(self):
+        return None if self.air is None else self.air.velocity
+
+    @property
+    def wind_time(self):
+        return None if self.air is None else self.air.time
+
+    def set_frame_time(self, start: float, end: float) -> None:
+        """The frame spans ``start`` -> ``end`` seconds: wind velocity from its keyframes, noise time."""
+        if self.air is not None:
+            self.air.set_frame_time(start, end)
+
+    def set_wind(self, start, end=None) -> None:
+        """Wind velocity (3,) m/s at frame start and end (overrides the keyframes for this frame)."""
+        if self.air is None:
+            raise ValueError("the model has no Wind feature")
+        self.air.set_wind(start, end)
+
+    # -- roots on a deforming mesh -------------------------------------------------------------
+
+    def bound_roots(self, start, end=None) -> tuple:
+        """The bound roots (device strand order, m relative to ``model.origin``) at frame start and
+        end from the root-binding mesh's world points (P, 3) then; the caller sets them as root
+        targets (:meth:`~dftl_warp.core.state.Control.bind_roots` does both)."""
+        if self.binding is None:
+            raise ValueError("the model has no RootBinding feature")
+        return self.binding.bound_roots(start, end)
+
+
+class FeatureStep:
+    """One featured step: collider poses, hair-hair grid, then the specialized sweep."""
+
+    def __init__(self, model, kernel):
+        self.model = model
+        self.kernel = kernel
+        mf = model.feature_data
+        self.flags = mf.flags
+        self._structs = {}
+        self._grid = None
+        if "hair_hair" in self.flags:
+            self._grid = hair_hair.Grid(model, mf.grid_shape, mf.grid_cell)
+        #: the hair-hair grid's arrays (lower, density, momentum), or None
+        self.grid = None if self._grid is None else self._grid.arrays
+
+    def kernels(self):
+        """Every kernel a step launches (to load before a CUDA graph capture)."""
+        ks = [self.kernel]
+        if self.model.feature_data.collider_data is not None:
+            ks.append(collider_pose_kernel(self.model.scalar))
+        if self._grid is not None:
+            ks += self._grid.kernels()
+        return ks
+
+    def _struct(self, control):
+        key = id(control)
+        cached = self._structs.get(key)
+        if cached is not None and cached[0] is control:
+            return cached[1]
+        m = self.model
+        mf = m.feature_data
+        fc = control.features
+        st = feature_struct(m.scalar, self.flags)()
+        flags = self.flags
+        if fc.colliders is not None:
+            fc.colliders.fill_struct(st)
+        air.fill_struct(st, flags, mf.arrays.get("drag"), fc.air)
+        if self._grid is not None:
+            self._grid.fill_struct(st, find(mf.features, HairHair))
+        if "shape" in flags:
+            shape.fill_struct(st, mf.arrays)
+        self._structs[key] = (control, st)
+        return st
+
+    def launch(self, state_in, state_out, control, dt, root_alpha, head_inputs):
+        self.pose_and_bounds(state_in, control, root_alpha)
+        self.splat(state_in)
+        self.sweep(state_in, state_out, control, head_inputs)
+
+    # the phases of :meth:`launch`; a split groom (dftl_warp.simulation.multi_device) combines its parts'
+    # grids between them
+
+    def pose_and_bounds(self, state_in, control, root_alpha) -> None:
+        """This substep's collider poses; the grid's lower corner from this model's particles."""
+        if control.features is None:
+            raise ValueError("this control was made before the model had features; use model.control()")
+        fc = control.features
+        if fc.colliders is not None:
+            fc.colliders.advance(root_alpha)
+        if self._grid is not None:
+            self._grid.bounds(state_in.positions)
+
+    def splat(self, state_in) -> None:
+        """Density and momentum of this model's particles onto the grid (from ``lower``)."""
+        if self._grid is not None:
+            self._grid.splat(state_in.positions, state_in.velocities)
+
+    def sweep(self, state_in, state_out, control, head_inputs) -> None:
+        """The featured sweep of every strand (reading the grid, if any)."""
+        st = self._struct(control)
+        wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device,
+                  inputs=[*head_inputs, st, state_in.positions, state_in.velocities, state_in.corrections],
+                  outputs=[state_out.positions, state_out.velocities, state_out.corrections])
+
+
+def memory_estimate(model, correction: str = "prior") -> dict:
+    """Device bytes the simulation of ``model`` holds: per strand (mean, strands of the model's
+    sizes), split into the bare solver's and the features', plus fixed-size feature memory.
+
+    Counts the State (positions, velocities, and corrections in the prior form), the Model's
+    rest lengths and strand tables, the Control's root targets, and the features' arrays.
+    """
+    f = np.dtype(model.precision).itemsize
+    points = model.num_points
+    strands = max(model.num_strands, 1)
+    vectors = 3 if correction == "prior" else 2
+    bare = points * (vectors * 3 * f + f) + model.num_strands * (3 * 4 + 3 * 3 * f)
+    mf = model.feature_data
+    feature = 0
+    fixed = 0
+    if mf is not None:
+        feature = points * mf.bytes_per_particle(model.precision) + model.num_strands * mf.bytes_per_strand(
+            model.precision)
+        fixed = mf.grid_bytes(model.precision)
+        if mf.collider_data is not None:
+            fixed += colliders.fixed_bytes(mf.collider_data, model.precision)
+    return {
+        "bare_bytes_per_strand": bare / strands,
+        "feature_bytes_per_strand": feature / strands,
+        "bytes_per_strand": (bare + feature) / strands,
+        "fixed_feature_bytes": fixed,
+    }

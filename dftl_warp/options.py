@@ -1,0 +1,409 @@
+"""The one table of options: every setting of a simulation run and every ``dftl:`` USD attribute.
+
+Each :class:`Option` holds its name, type, default, range or choices, unit and help, and how each
+front end spells it: the ``dftl-warp simulate`` flag (``cli``), the USD attribute (``usd``, read on
+the prims named by ``scope``), the batch TOML key (``toml``) and the Python keyword of
+:class:`~dftl_warp.simulation.settings.SimulationOptions` / ``simulate_usd(**options)``
+(``api``). The front ends validate through :meth:`Option.check` and format its
+:class:`BadValue` in their own words:
+
+- the command line builds its arguments with :func:`add_arguments`;
+- the USD reader (:mod:`dftl_warp.usd.attributes`) checks the authored ``dftl:`` attributes and
+  warns about unknown ones (:func:`unknown_message`);
+- the batch TOML (:mod:`dftl_warp.batch.jobs`) checks each key;
+- the Python API checks its keywords (:func:`check_api`, :class:`OptionError`).
+
+A foundation module: it imports only :mod:`dftl_warp.errors`, the standard library and numpy.
+Names that live in higher layers (the solver registry, the quality presets, the precisions, the
+feature attributes) are written out here; ``tests/test_options.py`` checks that they agree.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .errors import UserError
+
+#: the ``dftl:`` namespace of the USD attributes
+NAMESPACE = "dftl:"
+
+#: ``device`` values: cpu, cuda, cuda:N, or a comma-separated list of those (split across devices)
+DEVICE_PATTERN = re.compile(r"^(cpu|cuda(:\d+)?)(,(cpu|cuda(:\d+)?))*$")
+
+#: where a USD attribute is read: BasisCurves prims, the scene prim (the UsdPhysics.Scene prim,
+#: else the default prim), both, or prims with UsdPhysics.CollisionAPI
+SCOPES = ("curves", "scene", "both", "collider")
+
+
+class OptionError(UserError, ValueError):
+    """A bad option value given to the Python API: a :class:`ValueError` for scripts and a
+    :class:`~dftl_warp.errors.UserError` (one line, exit status 2) for the command line."""
+
+
+class BadValue(ValueError):
+    """``value`` is not valid for ``option``. ``kind`` is "type", "range" or "choice";
+    ``expected`` completes "must be ..." (``an integer``, ``in [0, 1]``, ``one of a, b``)."""
+
+    def __init__(self, option: Option, value, kind: str, expected: str):
+        self.option, self.value, self.kind, self.expected = option, value, kind, expected
+        super().__init__(f"{option.name} must be {expected}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option: what it is, and how each front end spells it (None: not offered there)."""
+
+    #: the option's name (the Python keyword where ``api`` is set)
+    name: str
+    #: int, float, str, bool, "paths" (prim paths), "float3" (3 numbers) or "rel" (a relationship)
+    type: object
+    #: the value used when nobody sets it (None: decided elsewhere, as ``help`` says)
+    default: object
+    help: str
+    #: physical unit of the value ("" when none)
+    unit: str = ""
+    #: the allowed values of a str option, in the order help lists them
+    choices: tuple = ()
+    #: numeric range: ``low`` <= value (< when ``low_open``), value <= ``high``
+    low: float | None = None
+    low_open: bool = False
+    high: float | None = None
+    #: regular expression a str option must match (after removing spaces)
+    pattern: re.Pattern | None = None
+    #: ``dftl-warp simulate`` flag, its metavar, and whether it may repeat (a list)
+    cli: str | None = None
+    metavar: str | None = None
+    repeat: bool = False
+    #: USD attribute and the prims it is read on (:data:`SCOPES`)
+    usd: str | None = None
+    scope: str = ""
+    #: batch TOML key
+    toml: str | None = None
+    #: Python keyword (SimulationOptions field, simulate_usd keyword)
+    api: str | None = None
+
+    # -- checking ------------------------------------------------------------------------------
+
+    @property
+    def range_text(self) -> str:
+        """``in [0, 1]``, ``>= 1``, ``> 0`` or "" (no range)."""
+        if self.low is not None and self.high is not None:
+            return f"in {'(' if self.low_open else '['}{_num(self.low)}, {_num(self.high)}]"
+        if self.low is not None:
+            return f"{'>' if self.low_open else '>='} {_num(self.low)}"
+        if self.high is not None:
+            return f"<= {_num(self.high)}"
+        return ""
+
+    def _type_text(self) -> str:
+        if self.type is int:
+            return "an integer"
+        if self.type is float:
+            return "a number" + (f" {self.range_text}" if self.range_text else "")
+        if self.type is bool:
+            return "true or false"
+        if self.type == "paths":
+            return "a prim path or a list of prim paths (starting with /)"
+        if self.type == "float3":
+            return "3 finite numbers"
+        if self.type == "rel":
+            return "a relationship"
+        if self.pattern is not None:
+            return "cpu, cuda:N or a comma-separated list of them" if self.name == "device" else "a string"
+        if self.choices:
+            return self._choice_text()
+        return "a string"
+
+    def _choice_text(self) -> str:
+        return "one of " + ", ".join(self.choices)
+
+    def check(self, value):
+        """``value`` checked and normalised (int for int, float for float, a list for paths);
+        raises :class:`BadValue`. None is not a value: callers skip unset options."""
+        kind = self.type
+        if kind is bool:
+            if not isinstance(value, (bool, np.bool_)):
+                raise BadValue(self, value, "type", self._type_text())
+            return bool(value)
+        if kind is int:
+            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+            if not ok or not math.isfinite(value) or float(value) != int(value):
+                raise BadValue(self, value, "type", self._type_text())
+            value = int(value)
+            self._check_range(value)
+            return value
+        if kind is float:
+            if not isinstance(value, (int, float, np.integer, np.floating)) or isinstance(value, (bool, np.bool_)):
+                raise BadValue(self, value, "type", self._type_text())
+            value = float(value)
+            if not math.isfinite(value):
+                if self.range_text:
+                    raise BadValue(self, value, "range", self.range_text)
+                raise BadValue(self, value, "type", "a finite number")
+            self._check_range(value)
+            return value
+        if kind is str:
+            if self.choices:
+                if not isinstance(value, str) or value not in self.choices:
+                    raise BadValue(self, value, "choice", self._choice_text())
+                return value
+            if not isinstance(value, str):
+                raise BadValue(self, value, "type", self._type_text())
+            if self.pattern is not None:
+                value = value.replace(" ", "")
+                if not self.pattern.match(value):
+                    raise BadValue(self, value, "type", self._type_text())
+            return value
+        if kind == "paths":
+            items = [value] if isinstance(value, str) else value
+            if not isinstance(items, (list, tuple)) or not items \
+                    or not all(isinstance(p, str) and p.startswith("/") for p in items):
+                raise BadValue(self, value, "type", self._type_text())
+            return list(items)
+        if kind == "float3":
+            try:
+                v = np.array(value, dtype=np.float64).reshape(3)
+            except (TypeError, ValueError):
+                raise BadValue(self, value, "type", self._type_text()) from None
+            if not np.isfinite(v).all():
+                raise BadValue(self, value, "type", self._type_text())
+            return v
+        return value
+
+    def _check_range(self, value) -> None:
+        if self.low is not None and (value <= self.low if self.low_open else value < self.low):
+            raise BadValue(self, value, "range", self.range_text)
+        if self.high is not None and value > self.high:
+            raise BadValue(self, value, "range", self.range_text)
+
+
+def _num(x) -> str:
+    return f"{x:g}"
+
+
+# -- the table ------------------------------------------------------------------------------------
+
+#: the solver registry's names (dftl_warp.solvers.SOLVERS; the table is below the registry)
+SOLVER_NAMES = ("dftl", "ftl", "pbd", "reference")
+#: the velocity correction forms (dftl_warp.kernels.solvers.ftl.CORRECTIONS)
+CORRECTION_NAMES = ("prior", "posterior")
+#: the floating-point precisions (dftl_warp.core.precision.PRECISIONS)
+PRECISION_NAMES = ("float32", "float64")
+#: the quality presets (dftl_warp.simulation.quality.QUALITY_PRESETS)
+QUALITY_NAMES = ("draft", "production", "reference")
+
+_RUN = [
+    Option("start", int, None, "first frame (default: the stage's startTimeCode)",
+           cli="--start", metavar="F", toml="start", api="start"),
+    Option("end", int, None, "last frame, inclusive (default: the stage's endTimeCode)",
+           cli="--end", metavar="F", toml="end", api="end"),
+    Option("substeps", int, 8, "solver steps per frame", low=1,
+           cli="--substeps", metavar="N", usd="dftl:substeps", scope="curves", toml="substeps", api="substeps"),
+    Option("damping", float, 1.0,
+           "share of the follow-the-leader correction removed from velocities", low=0.0, high=1.0,
+           cli="--damping", metavar="S", usd="dftl:damping", scope="curves", toml="damping", api="damping"),
+    Option("correction", str, "prior", "velocity correction form", choices=CORRECTION_NAMES,
+           cli="--correction", usd="dftl:correction", scope="curves", toml="correction", api="correction"),
+    Option("solver", str, "dftl", "solver", choices=SOLVER_NAMES,
+           cli="--solver", usd="dftl:solver", scope="curves", toml="solver", api="solver"),
+    Option("iterations", int, 4, "Gauss-Seidel iterations per step of --solver pbd", low=1,
+           cli="--iterations", metavar="K", toml="iterations", api="iterations"),
+    Option("precision", str, "float32", "floating-point precision", choices=PRECISION_NAMES,
+           cli="--precision", toml="precision", api="precision"),
+    Option("quality", str, None,
+           "a measured preset of solver, substeps and precision (docs/accuracy.md); explicit flags "
+           "override its parts", choices=QUALITY_NAMES, cli="--quality", toml="quality"),
+    Option("device", str, None,
+           "cpu or cuda:N; a list (cuda:0,cuda:1) splits the strands across devices; unset: cuda:0 "
+           "when Warp finds a CUDA device, else cpu ($DFTL_WARP_DEVICE overrides)",
+           pattern=DEVICE_PATTERN, cli="--device", toml="device", api="device"),
+    Option("prims", "paths", None, "simulate only the BasisCurves prims at or below PATH (repeatable)",
+           cli="--prim", metavar="PATH", repeat=True, toml="prim", api="prims"),
+    Option("monitor", bool, True,
+           "watch each group's energy and warn once when it grows without bound", api="monitor"),
+]
+
+_USD = [
+    Option("simulate", bool, True, "false leaves the prim out of the simulation",
+           usd="dftl:simulate", scope="curves"),
+    Option("friction", float, None,
+           "Coulomb friction coefficient (overrides the bound physics material's dynamicFriction)",
+           low=0.0, usd="dftl:friction", scope="collider"),
+    # the feature attributes (dftl_warp.features.attributes.ATTRIBUTES; docs/features.md)
+    Option("drag", float, 0.0, "air drag rate: velocities relax toward the air's velocity; 0: no drag",
+           unit="1/s", low=0.0, usd="dftl:drag", scope="both"),
+    Option("wind", "float3", None, "wind velocity, time-sampled for gusts; needs dftl:drag > 0",
+           unit="stage units/s", usd="dftl:wind", scope="scene"),
+    Option("windNoise", float, 0.0, "curl-noise amplitude added to the wind", unit="stage units/s",
+           low=0.0, usd="dftl:windNoise", scope="scene"),
+    Option("windNoiseScale", float, 0.1, "feature size of the noise", unit="stage units", low=0.0,
+           low_open=True, usd="dftl:windNoiseScale", scope="scene"),
+    Option("windNoiseFrequency", float, 1.0, "how fast the noise changes", unit="1/s",
+           usd="dftl:windNoiseFrequency", scope="scene"),
+    Option("windSeed", int, 0, "noise field selector", usd="dftl:windSeed", scope="scene"),
+    Option("hairHair", bool, False, "true turns hair-hair interaction on", usd="dftl:hairHair", scope="scene"),
+    Option("hairHairCellSize", float, None, "grid cell size (default 4 x the mean segment length)",
+           unit="stage units", low=0.0, low_open=True, usd="dftl:hairHairCellSize", scope="scene"),
+    Option("hairHairFriction", float, 2.0, "rate of relaxation toward the local mean velocity", unit="1/s",
+           low=0.0, usd="dftl:hairHairFriction", scope="scene"),
+    Option("hairHairRepulsion", float, 5.0, "acceleration per unit density difference across a cell",
+           unit="stage units/s^2", low=0.0, usd="dftl:hairHairRepulsion", scope="scene"),
+    Option("shapeStiffness", float, 0.0, "shape retention per substep; 0: off", low=0.0, high=1.0,
+           usd="dftl:shapeStiffness", scope="both"),
+    Option("collisionIterations", int, 2, "collide-and-restore rounds per particle", low=1,
+           usd="dftl:collisionIterations", scope="scene"),
+    Option("rootMesh", "rel", None,
+           "a Mesh prim the roots are bound to (closest point at rest); follows its animated points",
+           usd="dftl:rootMesh", scope="curves"),
+]
+
+#: every option by name
+OPTIONS: dict[str, Option] = {o.name: o for o in _RUN + _USD}
+#: options by USD attribute name (``dftl:damping`` -> Option)
+BY_USD: dict[str, Option] = {o.usd: o for o in OPTIONS.values() if o.usd}
+#: options by batch TOML key
+BY_TOML: dict[str, Option] = {o.toml: o for o in OPTIONS.values() if o.toml}
+#: options by Python keyword
+BY_API: dict[str, Option] = {o.api: o for o in OPTIONS.values() if o.api}
+#: the USD attributes that turn features on (those dftl_warp.features.attributes reads)
+FEATURE_ATTRIBUTES = tuple(o.usd for o in _USD if o.usd not in ("dftl:simulate", "dftl:friction"))
+
+
+def add_choice(name: str, value: str) -> None:
+    """Accept ``value`` for the str option ``name`` everywhere (the solver registry calls this for a
+    solver registered beyond :data:`SOLVER_NAMES`)."""
+    option = OPTIONS[name]
+    if value not in option.choices:
+        object.__setattr__(option, "choices", option.choices + (value,))
+
+
+def default(name: str):
+    """The table's default of option ``name``."""
+    return OPTIONS[name].default
+
+
+def usd_attributes(scope: str) -> list[Option]:
+    """The options read as USD attributes on prims of ``scope`` ("curves", "scene", "collider");
+    those of scope "both" count for curves and scene."""
+    return [o for o in OPTIONS.values() if o.usd and (o.scope == scope or (o.scope == "both" and scope in ("curves", "scene")))]
+
+
+# -- front ends ----------------------------------------------------------------------------------
+
+
+def did_you_mean(name: str, known) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known``, or ""."""
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def unknown_message(names, known) -> str:
+    """``unknown attribute dftl:dampng (did you mean dftl:damping?)`` for one or more names."""
+    parts = []
+    for name in names:
+        close = difflib.get_close_matches(name, list(known), n=1)
+        parts.append(name + (f" (did you mean {close[0]}?)" if close else ""))
+    return f"unknown attribute{'s' if len(parts) > 1 else ''} " + ", ".join(parts)
+
+
+def check_api(name: str, value):
+    """``value`` of the Python keyword ``name`` checked (None passes: unset); raises
+    :class:`OptionError` naming the keyword."""
+    if value is None:
+        return None
+    option = BY_API[name]
+    try:
+        return option.check(value)
+    except BadValue as exc:
+        raise OptionError(f"{name} must be {exc.expected}, got {value!r}") from None
+
+
+def check_toml(key: str, value):
+    """``value`` of the batch TOML key ``key`` checked; ValueError in the TOML's words."""
+    option = BY_TOML[key]
+    try:
+        return option.check(value)
+    except BadValue as exc:
+        raise ValueError(f"{key} must be {exc.expected}, got {value!r}") from None
+
+
+def usd_message(exc: BadValue, where: str, attribute: str | None = None) -> str:
+    """``FILE: PRIM: dftl:x = VALUE: problem`` for a bad authored attribute value."""
+    name = attribute or exc.option.usd
+    head = f"{where}: {name} = {exc.value!r}"
+    if exc.kind == "type":
+        if exc.expected == "a finite number":
+            return f"{head}: expected a finite number"
+        kind = exc.option.type
+        return f"{head}: expected a {kind.__name__ if isinstance(kind, type) else exc.expected}"
+    if exc.kind == "choice":
+        choices = exc.option.choices
+        if len(choices) == 2:
+            return f"{head}: choose {choices[0]} or {choices[1]}"
+        return f"{head}: choose one of {', '.join(choices)}"
+    return f"{head}: must be {exc.expected}"
+
+
+def _cli_type(option: Option):
+    """An argparse ``type`` for ``option``: parse the text, then check it against the table."""
+    import argparse
+
+    def parse(text):
+        try:
+            value = option.type(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"not {'an integer' if option.type is int else 'a number'}: {text!r}") from None
+        try:
+            return option.check(value)
+        except BadValue as exc:
+            raise argparse.ArgumentTypeError(f"must be {exc.expected}, got {text}") from None
+
+    parse.__name__ = option.type.__name__
+    return parse
+
+
+def cli_help(option: Option, default_text: str | None = None) -> str:
+    """The flag's help: the table's help, unit and default."""
+    text = option.help
+    if option.range_text:
+        text += f", {option.range_text}"
+    if option.unit:
+        text += f" ({option.unit})"
+    if default_text is None and option.default is not None and option.cli != "--device":
+        default_text = f"{option.default}"
+    if default_text:
+        text += f" (default {default_text})"
+    return text
+
+
+def add_arguments(parser, names, *, choices=None, defaults_from_usd: bool = True) -> None:
+    """Add the table's flags of the options ``names`` to an argparse parser. Every flag defaults to
+    None (unset: a prim's ``dftl:`` attribute, a quality preset or the table's default decides)
+    except those with no other source (``--device``). ``choices`` maps an option name to the
+    choices a higher layer knows live (the solver registry)."""
+    for name in names:
+        o = OPTIONS[name]
+        if choices and name in choices:
+            o = replace(o, choices=tuple(choices[name]))
+        kw: dict = {"dest": o.cli.lstrip("-").replace("-", "_")}
+        if o.metavar:
+            kw["metavar"] = o.metavar
+        if o.repeat:
+            kw["action"] = "append"
+        elif o.choices:
+            kw["choices"] = o.choices
+        elif o.type in (int, float) and (o.low is not None or o.high is not None):
+            kw["type"] = _cli_type(o)
+        elif o.type is int:
+            kw["type"] = int
+        default_text = None
+        if o.usd and defaults_from_usd and o.default is not None:
+            default_text = f"{o.usd}, else {_num(o.default) if isinstance(o.default, float) else o.default}"
+        kw["help"] = cli_help(o, default_text)
+        parser.add_argument(o.cli, **kw)

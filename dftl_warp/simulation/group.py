@@ -1,0 +1,132 @@
+"""A simulation group: prims simulated together, on one device or split over several.
+
+:class:`Group` builds one Model, solver, State and Control per device from the group's strands
+(``options.device``: one name, or a comma list such as ``cuda:0,cuda:1``, or ``cpu,cpu`` in
+tests). On one device these are the plain objects. On several, the strands are cut into
+contiguous runs of about equal particle count (:func:`~dftl_warp.simulation.multi_device.split_strands`)
+and the parts are seen through the composites of :mod:`~dftl_warp.simulation.multi_device`, which
+present the same interface; every part shares the group's world origin, so each strand is
+computed exactly as on one device.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.layout import strand_offsets
+from ..core.model import Model, _world_origin
+from ..errors import UserError
+from ..features import HairHair, find, group_features, hair_hair_extent
+from ..solvers import carries_corrections, make_solver
+from ..usd.scene import transform_points
+from .multi_device import (
+    SplitControl,
+    SplitModel,
+    SplitMonitor,
+    SplitSolver,
+    SplitState,
+    parse_devices,
+    part_features,
+    split_strands,
+)
+from .settings import check_extent, describe_setting
+
+
+class Group:
+    """Prims ``members`` of ``scene`` simulated together with ``settings``, from ``frame``.
+
+    Attributes: ``model``, ``solver``, ``state``, ``control`` (plain on one device, composites
+    over the parts on several), ``devices``, ``point_offsets`` (first point of each member prim,
+    and the total), ``point_ranges`` (points of each part), ``dt`` (substep, s), ``monitor``.
+    """
+
+    def __init__(self, settings, members: list[int], scene, frame: int, options):
+        import warp as wp
+
+        self.settings = settings
+        self.members = members
+        self.curves = curves = [scene.curves[i] for i in members]
+        self.point_offsets = strand_offsets([c.num_points for c in curves], with_end=True)
+        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
+        counts = np.concatenate([c.counts for c in curves])
+        check_extent(points, self.point_offsets, curves, scene.source, options.precision)
+        features, widths = group_features(scene, curves, frame)
+        devices = parse_devices(options.device)
+        split = len(devices) > 1
+        ranges = split_strands(counts, len(devices)) if split else [(0, len(counts))]
+        starts = strand_offsets(counts, with_end=True)
+        self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
+        origin = grid_extent = None
+        if split:
+            # every part shares the group's origin and (hair-hair) grid
+            origin = _world_origin(points)
+            hair_hair = find(features, HairHair)
+            grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
+        extra = {} if options.iterations is None else {"iterations": options.iterations}
+        models, solvers, states, controls = [], [], [], []
+        for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
+            part = part_features(features, s0, s1, len(counts), scene.source, grid_extent) if split else features
+            with wp.ScopedDevice(device):
+                try:
+                    model = Model.from_strands(
+                        points[p0:p1], counts[s0:s1], device=device, precision=options.precision, origin=origin,
+                        widths=None if widths is None else widths[p0:p1], features=part,
+                        corrections=carries_corrections(settings.solver, settings.correction))
+                except ValueError as exc:
+                    raise UserError(f"{scene.source}: {exc}") from None
+                try:
+                    solver = make_solver(model, settings.solver, damping=settings.damping,
+                                         correction=settings.correction, gravity=scene.gravity, **extra)
+                except ValueError as exc:
+                    raise UserError(f"{scene.source}: {exc}") from None
+                models.append(model)
+                solvers.append(solver)
+                states.append(solver.state())
+                controls.append(model.control())
+        self.devices = [str(m.device) for m in models]
+        if split:
+            self.model = SplitModel(models, ranges)
+            self.solver = SplitSolver(solvers)
+            self.state = SplitState(states, models)
+            self.control = SplitControl(controls, ranges)
+        else:
+            self.model, self.solver, self.state, self.control = models[0], solvers[0], states[0], controls[0]
+        #: substep length, s
+        self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
+        self.monitor = None
+        if options.monitor:
+            from .monitor import EnergyMonitor
+
+            setting = describe_setting(scene, members, settings, options)
+            monitors = [EnergyMonitor(s, setting, st) for s, st in zip(solvers, states)]
+            self.monitor = SplitMonitor(monitors) if split else monitors[0]
+        self._parts = list(zip(models, states))
+        #: device buffers of local_samples per part, made on first use
+        self._sample_buffers = None
+
+    @property
+    def num_strands(self) -> int:
+        return self.model.num_strands
+
+    @property
+    def num_points(self) -> int:
+        return int(self.point_offsets[-1])
+
+    def local_samples(self, to_local: np.ndarray, rate: np.ndarray, owned: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Points and velocities (N, 3, float32) in input order and local space, from
+        column-vector world-to-local matrices and frame rates per member prim
+        (:class:`~dftl_warp.output.samples.LocalSamples`; ``owned=False``: views valid until the
+        next call). Every part gathers and transforms its points on its device (all launched
+        first); several parts are concatenated in input order (new arrays, the caller's)."""
+        from ..output.samples import LocalSamples
+
+        if self._sample_buffers is None:
+            member = np.repeat(np.arange(len(self.members)), np.diff(self.point_offsets))
+            self._sample_buffers = [LocalSamples(model, member[p0:p1])
+                                    for (model, _), (p0, p1) in zip(self._parts, self.point_ranges)]
+        for (model, state), buffers in zip(self._parts, self._sample_buffers):
+            buffers.launch(model, state, to_local, rate)
+        if len(self._sample_buffers) == 1:
+            return self._sample_buffers[0].fetch(owned)
+        gathered = [buffers.fetch(owned=False) for buffers in self._sample_buffers]
+        return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])

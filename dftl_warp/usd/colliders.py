@@ -1,0 +1,150 @@
+"""Collider prims (``UsdPhysics.CollisionAPI``: Sphere, Capsule, Cube, Mesh) and the mesh a groom's
+roots are bound to (``dftl:rootMesh``), read into plain :mod:`~dftl_warp.usd.scene` data.
+
+Bad data raises :class:`~dftl_warp.errors.UserError` naming the file, the prim and the index.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UserError
+from .attributes import read_values
+from .sampling import TransformReader, points_sampler
+from .scene import ColliderPrim, MeshSource
+
+
+def _code(time):
+    from pxr import Usd
+
+    return Usd.TimeCode.Default() if time is None else Usd.TimeCode(float(time))
+
+
+def first_bad_row(array: np.ndarray) -> int | None:
+    """Index of the first row of ``array`` (N, 3) with a non-finite entry, or None."""
+    bad = ~np.isfinite(array).all(axis=1)
+    return int(np.flatnonzero(bad)[0]) if bad.any() else None
+
+
+def fmt_point(p) -> str:
+    return "(" + ", ".join(f"{float(v):g}" for v in p) + ")"
+
+
+def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """Triangles (T, 3) of polygon faces split as fans around their first vertex."""
+    starts = np.zeros(counts.size, dtype=np.int64)
+    np.cumsum(counts[:-1], out=starts[1:])
+    ntri = counts - 2
+    face = np.repeat(np.arange(counts.size), ntri)
+    k = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+    first = starts[face]
+    return np.stack([indices[first], indices[first + k + 1], indices[first + k + 2]], axis=1)
+
+
+def _mesh_arrays(mesh, code, where: str):
+    """(points, faceVertexCounts, faceVertexIndices) of a Mesh, checked: finite points, at least
+    one face, faces of >= 3 vertices, indices in range."""
+    pts = np.array(mesh.GetPointsAttr().Get(code) or [], dtype=np.float64).reshape(-1, 3)
+    fvc = np.array(mesh.GetFaceVertexCountsAttr().Get(code) or [], dtype=np.int64).reshape(-1)
+    fvi = np.array(mesh.GetFaceVertexIndicesAttr().Get(code) or [], dtype=np.int64).reshape(-1)
+    bad = first_bad_row(pts)
+    if bad is not None:
+        raise UserError(f"{where}: points[{bad}] = {fmt_point(pts[bad])} is not finite")
+    if pts.shape[0] == 0:
+        raise UserError(f"{where}: the mesh has no points")
+    if fvc.size == 0:
+        raise UserError(f"{where}: the mesh has no faces (faceVertexCounts is empty)")
+    if np.any(fvc < 3):
+        i = int(np.flatnonzero(fvc < 3)[0])
+        raise UserError(f"{where}: faceVertexCounts[{i}] = {int(fvc[i])}: a face needs at least 3 vertices")
+    if int(fvc.sum()) != fvi.size:
+        raise UserError(f"{where}: faceVertexCounts sum to {int(fvc.sum())} but faceVertexIndices has {fvi.size} entries")
+    out = np.flatnonzero((fvi < 0) | (fvi >= pts.shape[0]))
+    if out.size:
+        i = int(out[0])
+        raise UserError(f"{where}: faceVertexIndices[{i}] = {int(fvi[i])} is out of range (0..{pts.shape[0] - 1})")
+    return pts, fvc, fvi
+
+
+def read_root_mesh(prim, where: str, file: str, time, transforms: TransformReader):
+    """The Mesh prim targeted by ``dftl:rootMesh`` on a curves prim, or None."""
+    from pxr import UsdGeom
+
+    rel = prim.GetRelationship("dftl:rootMesh")
+    if not rel:
+        return None
+    targets = rel.GetForwardedTargets()
+    if not targets:
+        return None
+    if len(targets) > 1:
+        raise UserError(f"{where}: dftl:rootMesh has {len(targets)} targets; expected one Mesh")
+    target = prim.GetStage().GetPrimAtPath(targets[0])
+    if not target or not target.IsA(UsdGeom.Mesh):
+        raise UserError(f"{where}: dftl:rootMesh -> {targets[0]}: not a Mesh prim")
+    mesh_where = f"{file}: {target.GetPath()}"
+    mesh = UsdGeom.Mesh(target)
+    try:
+        pts, fvc, fvi = _mesh_arrays(mesh, _code(time), mesh_where)
+    except UserError as exc:
+        raise UserError(f"{exc} (not a valid mesh for dftl:rootMesh)") from None
+    points, deforming = points_sampler(mesh.GetPointsAttr(), pts.shape[0], mesh_where, time, pts)
+    transform, moving = transforms.sampler(target, time)
+    return MeshSource(str(target.GetPath()), fan_triangulate(fvc, fvi), points, transform, bool(deforming or moving))
+
+
+def _friction(prim, where: str):
+    from pxr import UsdPhysics, UsdShade
+
+    value = read_values(prim, where, "collider", 24.0).get("dftl:friction")
+    if value is not None:
+        return float(value)
+    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial("physics")
+    if material and material.GetPrim().HasAPI(UsdPhysics.MaterialAPI):
+        value = UsdPhysics.MaterialAPI(material.GetPrim()).GetDynamicFrictionAttr().Get()
+        if value is not None:
+            return float(value)
+    return None
+
+
+def read_collider_prim(prim, file: str, time, warnings: list, transforms: TransformReader) -> ColliderPrim | None:
+    """One prim with UsdPhysics.CollisionAPI -> ColliderPrim (None: disabled or unsupported)."""
+    from pxr import UsdGeom, UsdPhysics
+
+    where = f"{file}: {prim.GetPath()}"
+    api = UsdPhysics.CollisionAPI(prim)
+    enabled = api.GetCollisionEnabledAttr().Get()
+    if enabled is False:
+        return None
+    code = _code(time)
+
+    def positive(name, value):
+        if value is None or not np.isfinite(value) or value < 0:
+            raise UserError(f"{where}: {name} = {value}: expected a finite number >= 0")
+        return float(value)
+
+    if prim.IsA(UsdGeom.Sphere):
+        c = ColliderPrim(str(prim.GetPath()), "sphere", radius=positive("radius", UsdGeom.Sphere(prim).GetRadiusAttr().Get(code)))
+    elif prim.IsA(UsdGeom.Capsule):
+        cap = UsdGeom.Capsule(prim)
+        c = ColliderPrim(
+            str(prim.GetPath()), "capsule",
+            radius=positive("radius", cap.GetRadiusAttr().Get(code)),
+            height=positive("height", cap.GetHeightAttr().Get(code)),
+            axis=str(cap.GetAxisAttr().Get(code) or "Z"),
+        )
+    elif prim.IsA(UsdGeom.Cube):
+        size = positive("size", UsdGeom.Cube(prim).GetSizeAttr().Get(code))
+        c = ColliderPrim(str(prim.GetPath()), "box", half_extents=np.full(3, 0.5 * size))
+    elif prim.IsA(UsdGeom.Mesh):
+        mesh = UsdGeom.Mesh(prim)
+        pts, fvc, fvi = _mesh_arrays(mesh, code, where)
+        c = ColliderPrim(str(prim.GetPath()), "mesh", mesh_points=pts, triangles=fan_triangulate(fvc, fvi))
+        sampler, deforming = points_sampler(mesh.GetPointsAttr(), pts.shape[0], where, time, pts)
+        if deforming:
+            c.points_sampler = sampler
+    else:
+        warnings.append(f"{where}: collider of type {prim.GetTypeName() or 'untyped'} is not supported; ignored")
+        return None
+    c.friction = _friction(prim, where)
+    c.transform, c.animated = transforms.sampler(prim, time)
+    return c

@@ -1,0 +1,87 @@
+"""Checks of BasisCurves data shared by the simulation's reader and the renderer's: plain numpy,
+no USD objects.
+
+- :func:`check_vertex_counts`: every curve has as many control points as its type, basis and
+  wrap need (a nonperiodic bezier curve 3n + 1, n >= 1; bspline and catmullRom at least 4, or 2
+  when pinned);
+- :func:`curve_spans` and :func:`primvar_count`: how many values each primvar interpolation needs;
+- :func:`check_primvar`: a primvar's (e.g. ``widths``) value count for its interpolation, finite
+  values and, for widths, no negative one.
+
+Messages name the file, the prim and the index: ``FILE: PRIM: widths: 3 values for 'vertex'
+interpolation, expected 5``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UserError
+
+#: control points from one cubic span to the next
+CUBIC_VSTEP = {"bezier": 3, "bspline": 1, "catmullRom": 1}
+
+
+def curve_spans(counts: np.ndarray, curve_type: str, basis: str, wrap: str) -> np.ndarray:
+    """Number of spans (linear segments or cubic pieces) of each curve."""
+    counts = np.asarray(counts, dtype=np.int64)
+    if curve_type == "linear":
+        return counts if wrap == "periodic" else np.maximum(counts - 1, 0)
+    vstep = CUBIC_VSTEP[basis]
+    if wrap == "periodic":
+        return counts // vstep
+    if wrap == "pinned" and basis != "bezier":
+        return np.maximum(counts - 1, 0)
+    return np.maximum((counts - 4) // vstep + 1, 0)
+
+
+def varying_count(counts, curve_type: str, basis: str, wrap: str) -> int:
+    """Values a ``varying`` (or ``faceVarying``) primvar needs: one per span end."""
+    counts = np.asarray(counts, dtype=np.int64)
+    if curve_type != "cubic":
+        return int(counts.sum())
+    spans = curve_spans(counts, curve_type, basis, wrap)
+    return int((spans + (0 if wrap == "periodic" else 1)).sum())
+
+
+def primvar_count(interpolation: str, counts, num_points: int, curve_type: str, basis: str, wrap: str):
+    """Values a primvar of ``interpolation`` needs on these curves (None: unknown interpolation)."""
+    n_curves = int(np.asarray(counts).shape[0])
+    if interpolation in ("varying", "faceVarying"):
+        return varying_count(counts, curve_type, basis, wrap)
+    return {"constant": 1, "uniform": n_curves, "vertex": int(num_points)}.get(interpolation)
+
+
+def check_vertex_counts(counts, curve_type: str, basis: str, wrap: str, where: str) -> None:
+    """UserError naming the first curve whose control point count its cubic basis cannot use."""
+    if curve_type != "cubic" or wrap == "periodic":
+        return
+    counts = np.asarray(counts, dtype=np.int64)
+    if basis == "bezier":
+        bad = (counts < 4) | ((counts - 1) % 3 != 0)
+        need = "3n + 1 (4, 7, 10, ...) control points"
+    else:
+        least = 2 if wrap == "pinned" else 4
+        bad = counts < least
+        need = f"at least {least} control points"
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise UserError(f"{where}: curveVertexCounts[{i}] = {int(counts[i])}: a {wrap} cubic {basis} curve needs {need}")
+
+
+def check_primvar(values, interpolation: str, counts, num_points: int, curve_type: str, basis: str, wrap: str,
+                  name: str, where: str, width: int = 1, nonnegative: bool = False) -> np.ndarray:
+    """``values`` reshaped to (K, width) after checking their count for ``interpolation``, that
+    they are finite and (``nonnegative``, for widths) not negative; UserError otherwise."""
+    values = np.asarray(values, dtype=np.float64).reshape(-1, width)
+    expected = primvar_count(interpolation, counts, num_points, curve_type, basis, wrap)
+    if expected is None:
+        raise UserError(f"{where}: {name}: unknown interpolation {interpolation!r}")
+    if len(values) != expected:
+        raise UserError(f"{where}: {name}: {len(values)} values for {interpolation!r} interpolation, expected {expected}")
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        raise UserError(f"{where}: {name}[{int(np.argmax(bad))}] is not finite")
+    if nonnegative and (values < 0).any():
+        raise UserError(f"{where}: {name}[{int(np.argmax((values < 0).any(axis=1)))}] is negative")
+    return values

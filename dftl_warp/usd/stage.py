@@ -1,0 +1,102 @@
+"""A stage's metadata and gravity, and USD's error messages on one line.
+
+- :func:`read_stage_info`: ``upAxis``, ``metersPerUnit``, ``timeCodesPerSecond`` ... (USD's
+  fallbacks applied); a zero, negative or non-finite ``timeCodesPerSecond`` or ``metersPerUnit``
+  raises :class:`~dftl_warp.errors.UserError` naming the file;
+- :func:`read_gravity`: from the first ``UsdPhysics.Scene`` prim, else 9.81 m/s^2 along -upAxis;
+- :func:`tf_message`: the first message of a ``Tf.ErrorException`` on one line (the reader's and
+  the writer's error messages).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ..errors import UserError
+from .scene import StageInfo
+
+#: standard gravity, m/s^2
+STANDARD_GRAVITY = 9.81
+
+
+def tf_message(exc: Exception) -> str:
+    """The first message of a Tf.ErrorException, on one line, without C++ decorations."""
+    text = str(exc)
+    found = re.findall(r"Error in '[^']*' at line \d+ in file [^:]+ : '(.*?)'\s*(?=\n\tError in|$)", text, re.S)
+    message = found[0] if found else text.strip()
+    message = re.sub(r"pxrInternal_v[0-9_]+?__pxrReserved__(_?)::", "", message)
+    message = re.sub(r"\bSdf_\w+::|\b_pegtl::", "", message)
+    return " ".join(message.split())
+
+
+def read_stage_info(stage, file: str | None = None) -> StageInfo:
+    """Effective stage metadata (USD fallbacks applied) and which fields the root layer authors.
+
+    A ``timeCodesPerSecond`` or ``metersPerUnit`` that is not a positive finite number raises
+    :class:`UserError` naming ``file`` (default: the root layer).
+    """
+    from pxr import UsdGeom
+
+    root = stage.GetRootLayer()
+    authored = tuple(
+        k for k in ("upAxis", "metersPerUnit", "timeCodesPerSecond", "framesPerSecond",
+                    "startTimeCode", "endTimeCode", "defaultPrim")
+        if root.pseudoRoot.HasInfo(k)
+    )
+    has_range = stage.HasAuthoredTimeCodeRange()
+    file = file or root.identifier
+    for name, value in (("timeCodesPerSecond", stage.GetTimeCodesPerSecond()),
+                        ("metersPerUnit", UsdGeom.GetStageMetersPerUnit(stage))):
+        if not (math.isfinite(value) and value > 0):
+            raise UserError(f"{file}: {name} = {value:g}: must be a positive number")
+    if has_range:
+        for name, value in (("startTimeCode", stage.GetStartTimeCode()), ("endTimeCode", stage.GetEndTimeCode())):
+            if not math.isfinite(value):
+                raise UserError(f"{file}: {name} = {value:g}: must be a finite number")
+    return StageInfo(
+        up_axis=str(UsdGeom.GetStageUpAxis(stage)),
+        meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
+        time_codes_per_second=float(stage.GetTimeCodesPerSecond()),
+        frames_per_second=float(stage.GetFramesPerSecond()) if root.HasFramesPerSecond() else None,
+        start_time_code=float(stage.GetStartTimeCode()) if has_range else None,
+        end_time_code=float(stage.GetEndTimeCode()) if has_range else None,
+        default_prim=str(root.defaultPrim or ""),
+        authored=authored,
+    )
+
+
+def up_vector(up_axis: str) -> np.ndarray:
+    return np.array([0.0, 0.0, 1.0]) if up_axis == "Z" else np.array([0.0, 1.0, 0.0])
+
+
+def read_gravity(stage, info: StageInfo, file: str, warnings: list) -> np.ndarray:
+    """Gravity (3,) in stage units/s^2.
+
+    From the first ``UsdPhysics.Scene`` prim: ``gravityDirection`` (a zero vector means -upAxis)
+    times ``gravityMagnitude`` (negative means earth gravity, 9.81 m/s^2 in stage units). Without
+    a physics scene: 9.81 m/s^2 along -upAxis.
+    """
+    from pxr import UsdPhysics
+
+    earth = STANDARD_GRAVITY / info.meters_per_unit
+    default = -up_vector(info.up_axis) * earth + 0.0  # + 0.0: no negative zeros
+    scenes = [p for p in stage.Traverse() if p.IsA(UsdPhysics.Scene)]
+    if not scenes:
+        return default
+    if len(scenes) > 1:
+        warnings.append(f"{file}: {len(scenes)} UsdPhysics.Scene prims; using {scenes[0].GetPath()}")
+    phys = UsdPhysics.Scene(scenes[0])
+    where = f"{file}: {scenes[0].GetPath()}"
+    direction = np.array(phys.GetGravityDirectionAttr().Get() or (0.0, 0.0, 0.0), dtype=np.float64)
+    magnitude = phys.GetGravityMagnitudeAttr().Get()
+    magnitude = float("-inf") if magnitude is None else float(magnitude)
+    if not np.all(np.isfinite(direction)):
+        raise UserError(f"{where}: gravityDirection {tuple(direction)} is not finite")
+    if np.isnan(magnitude) or magnitude == float("inf"):
+        raise UserError(f"{where}: gravityMagnitude {magnitude} is not finite")
+    norm = float(np.linalg.norm(direction))
+    unit = -up_vector(info.up_axis) if norm == 0.0 else direction / norm
+    return unit * (earth if magnitude < 0.0 else magnitude) + 0.0

@@ -1,0 +1,112 @@
+"""Triangle-mesh colliders: a :class:`warp.Mesh` in collider-local coordinates (its id per collider).
+
+The continuous test casts the particle's relative path as a ray (``wp.mesh_query_ray``) and stops
+it at the first front-face crossing; the closest-point query (``wp.mesh_query_point_sign_normal``,
+angle-weighted pseudo-normal sign) reaches the contact distance plus the path plus the mesh's
+``depth_band`` (m). A broad phase first tests the path's box against the mesh's bounds grown by
+that reach. The response is shared (:func:`~dftl_warp.kernels.features.collide.respond_func`).
+"""
+
+
+import functools
+
+import warp as wp
+
+from .collide import ColliderKernel, named_func, respond_func, tiny_length, transform_type
+
+
+@functools.cache
+def collide_mesh_func(scalar):
+    """``collide_mesh(x, x_old, leader, rest, ccd, radius, pose, inv_pose, inv_pose_prev, mesh, lower,
+    upper, depth_band, mu) -> (x, touched)``; ``lower``/``upper``: the mesh's local bounds (m)."""
+    vec3 = wp.types.vector(3, scalar)
+    transform = transform_type(scalar)
+    zero = scalar(0.0)
+    tiny = tiny_length(scalar)
+    respond = respond_func(scalar)
+
+    @wp.func
+    def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
+                     inv_pose: transform, inv_pose_prev: transform, mesh: wp.uint64, lower: vec3, upper: vec3,
+                     depth_band: scalar, mu: scalar):
+        q = wp.transform_point(inv_pose, x)
+        q_old = wp.transform_point(inv_pose_prev, x_old)
+        # broad phase: the path's box against the mesh's box grown by the contact distance
+        reach = radius + depth_band
+        lo = wp.min(q, q_old)
+        hi = wp.max(q, q_old)
+        if (lo[0] > upper[0] + reach or lo[1] > upper[1] + reach or lo[2] > upper[2] + reach
+                or hi[0] < lower[0] - reach or hi[1] < lower[1] - reach or hi[2] < lower[2] - reach):
+            return x, False
+        moved = bool(False)
+        path = q - q_old
+        length = wp.length(path)
+        # the query reaches as far as the path could have crossed the surface (the relative
+        # motion in the collider's frame, so a moving collider is covered too), plus the band
+        if ccd:
+            reach = reach + length
+        query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(reach))
+        if ccd:
+            # distance from q to the surface (at least reach when nothing was found): a path shorter
+            # than it cannot have crossed the surface, so the ray is cast only when it could have
+            clearance = reach
+            if query.result:
+                clearance = wp.length(q - vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v)))
+                if query.sign < wp.float32(0.0):
+                    clearance = zero
+            if length > tiny and length > clearance - radius:
+                direction = path / length
+                hit = wp.mesh_query_ray(mesh, wp.vec3f(q_old), wp.vec3f(direction), wp.float32(length))
+                # a hit on the front of a face: the particle crossed the surface from outside
+                if hit.result and hit.sign > wp.float32(0.0):
+                    q = q_old + scalar(hit.t) * direction + radius * vec3(hit.normal)
+                    moved = True
+                    query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(reach))
+        if not query.result:
+            if moved:
+                return wp.transform_point(pose, q), True
+            return x, False
+        closest = vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v))
+        r = q - closest
+        d = wp.length(r)
+        n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
+        if d > tiny:
+            n = r / d
+        dist = d
+        if query.sign < wp.float32(0.0):
+            dist = -d
+            n = -n
+            if d <= tiny:
+                n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
+        if dist >= radius and not moved:
+            return x, False
+        lead = wp.transform_point(inv_pose, leader)
+        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True
+
+    return collide_mesh
+
+
+def mesh_fields(scalar) -> dict:
+    """Struct fields of mesh colliders, per device collider: the mesh id, its depth band (m) and
+    its local bounds (m)."""
+    vec3 = wp.types.vector(3, scalar)
+    return dict(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar),
+                collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3))
+
+
+@functools.cache
+def _collide_mesh_at(scalar, Features):
+    vec3 = wp.types.vector(3, scalar)
+    one = collide_mesh_func(scalar)
+
+    def collide_mesh_at(f: Features, c: int, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool,
+                        radius: scalar):
+        y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
+                     f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c], f.collider_upper[c],
+                     f.collider_depth_band[c], f.collider_friction[c])
+        return y, hit
+
+    return named_func(collide_mesh_at, "collide_mesh_at", unique=True)
+
+
+MESH = ColliderKernel(flag="meshes", collide=_collide_mesh_at, fields=mesh_fields)
