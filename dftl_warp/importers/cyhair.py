@@ -53,6 +53,11 @@ def read(data: bytes, path: str) -> Groom:
         seg_offset = offset
         offset += 2 * hair_count
     else:
+        # no per-strand array: check the total before allocating one entry per (claimed) strand
+        if hair_count * (d_segments + 1) != point_count:
+            raise buf.error(16, f"d_segments gives {hair_count * (d_segments + 1)} points for {hair_count} strands "
+                                f"but the header says point_count = {point_count}")
+        buf.need(offset, 12 * point_count, f"points array of {point_count} points")
         segments = np.full(hair_count, d_segments, dtype=np.int64)
         seg_offset = 16
     counts = segments + 1
