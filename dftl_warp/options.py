@@ -234,7 +234,7 @@ _USD = [
     Option("friction", float, None,
            "Coulomb friction coefficient (overrides the bound physics material's dynamicFriction)",
            low=0.0, usd="dftl:friction", scope="collider"),
-    # the feature attributes (dftl_warp.features.attributes.ATTRIBUTES; docs/features.md)
+    # the feature attributes (dftl_warp.features.ATTRIBUTES; docs/features.md)
     Option("drag", float, 0.0, "air drag rate: velocities relax toward the air's velocity; 0: no drag",
            unit="1/s", low=0.0, usd="dftl:drag", scope="both"),
     Option("wind", "float3", None, "wind velocity, time-sampled for gusts; needs dftl:drag > 0",
@@ -270,7 +270,7 @@ BY_USD: dict[str, Option] = {o.usd: o for o in OPTIONS.values() if o.usd}
 BY_TOML: dict[str, Option] = {o.toml: o for o in OPTIONS.values() if o.toml}
 #: options by Python keyword
 BY_API: dict[str, Option] = {o.api: o for o in OPTIONS.values() if o.api}
-#: the USD attributes that turn features on (those dftl_warp.features.attributes reads)
+#: the USD attributes that turn features on (those dftl_warp.features reads: features.ATTRIBUTES)
 FEATURE_ATTRIBUTES = tuple(o.usd for o in _USD if o.usd not in ("dftl:simulate", "dftl:friction"))
 
 

@@ -33,6 +33,7 @@ import warp as wp
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402
+from dftl_warp.core.layout import strand_offsets  # noqa: E402
 
 G = (0.0, -9.81, 0.0)
 FPS = 24
@@ -125,7 +126,7 @@ def box_mesh(half):
 
 
 def segment_stretch(x, counts, rest):
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    starts = strand_offsets(counts)
     d = np.linalg.norm(np.diff(x, axis=0), axis=1)
     keep = np.ones(len(d), dtype=bool)
     keep[starts[1:] - 1] = False

@@ -21,6 +21,7 @@ import numpy as np
 import warp as wp  # noqa: E402
 
 import dftl_warp as dw  # noqa: E402
+from dftl_warp.core.layout import strand_offsets  # noqa: E402
 
 
 def main() -> int:
@@ -38,7 +39,7 @@ def main() -> int:
         steps[0] = rng.uniform(-5, 5, 3)
         pts.append(np.cumsum(steps * 0.02, axis=0))
     pts = np.concatenate(pts)
-    roots = pts[np.concatenate([[0], np.cumsum(counts)[:-1]])]
+    roots = pts[strand_offsets(counts)]
     ok = True
     for precision in ("float32", "float64"):
         for k in (2, 3, 8, 32):

@@ -33,11 +33,9 @@ def test_names_of_higher_layers_agree():
 
 
 def _features():
-    """The features' attribute table and mapping (dftl_warp.features, or its older attributes module)."""
+    """The features' attribute table and mapping (dftl_warp.features)."""
     import dftl_warp.features as F
 
-    if not hasattr(F, "ATTRIBUTES"):
-        from dftl_warp.features import attributes as F  # noqa: N812
     return F
 
 

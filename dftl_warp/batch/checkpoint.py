@@ -2,8 +2,9 @@
 
 Files next to ``OUTPUT`` (``out/sh010.usdc``), all hidden and all gone once the job completes:
 
-- ``.sh010.usdc.dftl-partial.usdc``: the frames being written (:class:`~dftl_warp.output.usd.UsdWriter`);
-- ``.sh010.usdc.dftl-checkpoint.usdc``: a copy of the partial file at the last checkpoint;
+- ``.sh010.usdc.dftl-partial.usdc``: the frames being written (the output's
+  :class:`~dftl_warp.output.base.FrameWriter`, :meth:`~dftl_warp.output.base.FrameWriter.partial_path`);
+- ``.sh010.usdc.dftl-checkpoint.usdc``: a copy of the partial file at the last checkpoint (same suffix);
 - ``.sh010.usdc.dftl-checkpoint.npz``: the solver state at that frame
   (:meth:`~dftl_warp.simulation.simulate.Simulation.save_state`), the job's settings hash and state layout;
 - ``.sh010.usdc.dftl-lock``: held (``flock``) while a process works on the job.
@@ -15,8 +16,8 @@ copy is never older than the state (frames past the state's frame are simply wri
 the same values). USD saves a crate file in place, so the live partial file is never trusted
 after an interruption: a resumed job starts from the checkpoint copy.
 
-A job is *complete* when ``OUTPUT`` exists and its ``customLayerData`` records the job's settings
-hash (contents of the input and of every file it depends on, frames and options; see
+A job is *complete* when ``OUTPUT`` exists and its writer's record :data:`LAYER_DATA_KEY` (for USD:
+the layer's ``customLayerData``) holds the job's settings hash (contents of the input and of every file it depends on, frames and options; see
 :func:`settings_hash`). A checkpoint is used
 only when it records the same hash and state layout; otherwise it is discarded and the job starts
 over. Completed jobs are skipped.
@@ -39,7 +40,8 @@ from ..errors import UserError
 
 #: version of the checkpoint and completion records (bump when their meaning changes)
 FORMAT = 1
-#: ``customLayerData`` key of the output layer holding the batch record
+#: name of the output's record (:meth:`~dftl_warp.output.base.FrameWriter.set_record`; USD: the
+#: ``customLayerData`` key) holding the batch record
 LAYER_DATA_KEY = "dftl_warp_batch"
 #: how long a job waits for the lock of its output held by another (e.g. dying) process, s
 LOCK_WAIT_SECONDS = 30.0
@@ -99,13 +101,14 @@ class JobFiles:
 
     @property
     def partial(self) -> Path:
-        from ..output.usd import partial_path
+        from ..output import writer_for
 
-        return partial_path(self.output)
+        return writer_for(self.output).partial_path(self.output)
 
     @property
     def checkpoint_usd(self) -> Path:
-        return self._sibling("dftl-checkpoint.usdc")
+        """The checkpoint copy of the partial file (same suffix as the partial file)."""
+        return self._sibling("dftl-checkpoint" + self.partial.suffix)
 
     @property
     def checkpoint_state(self) -> Path:
@@ -187,20 +190,11 @@ def state_signature(sim) -> str:
 
 
 def completed(output, key: str) -> bool:
-    """Whether ``output`` exists and was written by a job with settings hash ``key``."""
-    from pxr import Sdf, Tf
+    """Whether ``output`` exists and was written by a job with settings hash ``key`` (its
+    writer's record :data:`LAYER_DATA_KEY`)."""
+    from ..output import completed as has_record
 
-    output = Path(output)
-    if not output.is_file():
-        return False
-    try:
-        layer = Sdf.Layer.OpenAsAnonymous(str(output), True)
-    except Tf.ErrorException:
-        return False
-    if layer is None:
-        return False
-    record = dict(layer.customLayerData).get(LAYER_DATA_KEY)
-    return isinstance(record, dict) and record.get("settings_hash") == key
+    return has_record(output, LAYER_DATA_KEY, key)
 
 
 # -- files ------------------------------------------------------------------------------------------
@@ -306,7 +300,7 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
 def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     from ..simulation.simulate import Simulation, SimulationOptions, resolve_frames, run_frames
     from ..usd.read import read_scene
-    from ..output.usd import UsdWriter, check_output_path
+    from ..output import check_output_path, writer_for
     from ..core.devices import init_warp
 
     init_warp()
@@ -330,8 +324,8 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     writer, resumed = _resume(files, key, signature, sim, scene, first, last, note)
     if writer is None:
         remove_job_files(files)
-        writer = UsdWriter.create(job.output, scene, frames=(first, last), keep_partial=True)
-        writer.layer.customLayerData = {LAYER_DATA_KEY: {"settings_hash": key, "format": FORMAT}}
+        writer = writer_for(job.output).create(job.output, scene, frames=(first, last), keep_partial=True)
+        writer.set_record(LAYER_DATA_KEY, {"settings_hash": key, "format": FORMAT})
     result.resumed_from = resumed
     emit({"event": "start", "total": result.total_frames, "first": first, "last": last, "resumed_from": resumed})
     done = 0 if resumed is None else resumed - first + 1
@@ -361,7 +355,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         writer.commit()
     except BaseException:
         writer.keep_partial = False  # the checkpoint, not the partial file, is what resumes
-        if writer.layer is not None:
+        if writer.is_open:
             writer.abort()
         raise
     remove_job_files(files)
@@ -382,8 +376,11 @@ def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
 def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
     """(writer, last frame kept) continuing from the job's checkpoint, or (None, None) to start
     over. The simulation is left at the checkpoint's frame, which is written (again) next."""
-    from ..output.usd import UsdWriter
+    from ..output import writer_for
 
+    cls = writer_for(files.output)
+    if not cls.resumable:
+        return None, None
     if not (files.checkpoint_state.exists() and files.checkpoint_usd.exists()):
         return None, None
     try:
@@ -404,11 +401,11 @@ def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
         return None, None
     atomic_copy(files.checkpoint_usd, files.partial, files.temporary(files.partial))
     try:
-        writer = UsdWriter.reopen(files.output, scene, keep_partial=False)
+        writer = cls.reopen(files.output, scene, keep_partial=False)
     except UserError as exc:
         note(f"checkpoint output unusable ({exc}); starting over")
         return None, None
-    record = dict(writer.layer.customLayerData).get(LAYER_DATA_KEY, {})
+    record = writer.record(LAYER_DATA_KEY) or {}
     have = set(writer.written_time_codes)
     if record.get("settings_hash") != key or not have.issuperset(range(first, frame)):
         writer.abort()

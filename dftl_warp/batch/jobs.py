@@ -131,7 +131,7 @@ def load_jobs(path) -> list[Job]:
 
 
 def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
-    from ..output.usd import OUTPUT_EXTENSIONS
+    from ..output import output_extensions
 
     raw_name = table.get("name")
     output = table.get("output")
@@ -150,8 +150,8 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
         options = {**defaults, **_check_options(table, f"job {k}", allowed_extra=JOB_KEYS)}
         job.input = os.path.abspath(folder / table["input"])
         job.output = os.path.abspath(folder / table["output"])
-        if Path(job.output).suffix.lower() not in OUTPUT_EXTENSIONS:
-            raise ValueError(f"output {table['output']} must end in {', '.join(OUTPUT_EXTENSIONS)}")
+        if Path(job.output).suffix.lower() not in output_extensions():
+            raise ValueError(f"output {table['output']} must end in {', '.join(output_extensions())}")
         if os.path.normcase(job.output) == os.path.normcase(job.input):
             raise ValueError("the output would overwrite the input")
         start, end = options.get("start"), options.get("end")

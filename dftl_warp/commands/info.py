@@ -46,10 +46,9 @@ def feature_summary(scene, precision: str = "float32") -> dict:
     the simulation (by root-binding mesh)."""
     import numpy as np
 
-    from ..features.data import memory_estimate
     from ..core.model import Model
     from ..usd.scene import transform_points
-    from ..features.from_scene import feature_names, group_features
+    from ..features import feature_names, group_features, memory_estimate
 
     groups: dict = {}
     for c in scene.curves:

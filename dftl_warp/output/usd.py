@@ -24,6 +24,9 @@ file. Both kinds run under the output's lock (:mod:`dftl_warp.output.lock`), tak
 ``simulate`` and ``batch``. The output's folder is created when missing.
 
 The layer's start and end time codes are the simulated frames, whatever the input's range.
+Records (:meth:`UsdWriter.set_record`: batch's settings hash) live in the layer's
+``customLayerData``. :class:`UsdWriter` is the :class:`~dftl_warp.output.base.FrameWriter` of
+``.usdc``, ``.usda`` and ``.usd`` outputs.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from .base import FrameWriter, ensure_folder  # noqa: F401  (ensure_folder: re-exported)
 from .paths import check_writable
 
 OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
@@ -74,16 +78,6 @@ def check_output_path(output, input_path=None) -> Path:
     return output
 
 
-def ensure_folder(output) -> Path:
-    """Create the folder of ``output`` if it is missing (a UserError when it cannot be)."""
-    folder = Path(os.fspath(output)).parent
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{output}: cannot create folder {folder}: {exc.strerror or exc}") from None
-    return folder
-
-
 def sublayer_path(input_path: str, output: Path) -> str:
     """Asset path of ``input_path`` as seen from ``output``: relative ("./x.usda", "../x.usda")
     where possible, absolute otherwise."""
@@ -115,13 +109,16 @@ class _Target:
     widths: object
 
 
-class UsdWriter:
+class UsdWriter(FrameWriter):
     """Streams frames of a simulation into a layer that sublayers the input.
 
     Create with :meth:`create` (new output) or :meth:`reopen` (continue a partial file); write
     frames in increasing time code order with :meth:`write_frame`; finish with :meth:`commit` or
     :meth:`abort`. As a context manager it aborts on any exception.
     """
+
+    extensions = OUTPUT_EXTENSIONS
+    resumable = True
 
     def __init__(self, layer, output: Path, targets: list[_Target], *, flush_bytes: int, keep_partial: bool = False):
         self.layer = layer
@@ -197,7 +194,42 @@ class UsdWriter:
             targets.append(t)
         return cls(layer, output, targets, flush_bytes=flush_bytes, keep_partial=keep_partial)
 
+    @classmethod
+    def partial_path(cls, output) -> Path:
+        return partial_path(output)
+
+    @classmethod
+    def check_path(cls, output, input_path=None) -> Path:
+        return check_output_path(output, input_path)
+
+    # -- records ----------------------------------------------------------------------------
+
+    def set_record(self, name: str, record: dict) -> None:
+        """Store ``record`` in the layer's ``customLayerData`` under ``name``."""
+        self.layer.customLayerData = {**dict(self.layer.customLayerData), name: dict(record)}
+
+    def record(self, name: str) -> dict | None:
+        value = dict(self.layer.customLayerData).get(name)
+        return dict(value) if isinstance(value, dict) else None
+
+    @classmethod
+    def read_record(cls, path, name: str) -> dict | None:
+        from pxr import Sdf, Tf
+
+        try:
+            layer = Sdf.Layer.OpenAsAnonymous(str(path), True)
+        except Tf.ErrorException:
+            return None
+        if layer is None:
+            return None
+        value = dict(layer.customLayerData).get(name)
+        return dict(value) if isinstance(value, dict) else None
+
     # -- writing ----------------------------------------------------------------------------
+
+    @property
+    def is_open(self) -> bool:
+        return self.layer is not None
 
     @property
     def written_time_codes(self) -> list[float]:
@@ -303,14 +335,6 @@ class UsdWriter:
 
     def _close(self) -> None:
         self.layer = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        if exc_type is not None and self.layer is not None:
-            self.abort()
-        return False
 
 
 def _rows(array) -> np.ndarray:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from ..core.layout import strand_offsets
 from ..errors import UserError
 from ..kernels.render import tracer as rk
 from .camera import Camera, auto_frame
@@ -102,10 +103,10 @@ class Renderer:
             self._bvh.refit()
             self.bvh_refits += 1
             return
-        starts = np.cumsum(counts) - counts
+        starts = strand_offsets(counts)
         seg_counts = np.maximum(counts - 1, 0)
         seg_strand = np.repeat(np.arange(len(counts)), seg_counts)
-        seg_v0 = starts[seg_strand] + (np.arange(int(seg_counts.sum())) - np.repeat(np.cumsum(seg_counts) - seg_counts, seg_counts))
+        seg_v0 = starts[seg_strand] + (np.arange(int(seg_counts.sum())) - np.repeat(strand_offsets(seg_counts), seg_counts))
         self._n_seg = len(seg_v0)
         hair.count = self._n_seg
         hair.seg_v0 = wp.array(seg_v0.astype(np.int32), dtype=wp.int32, device=dev)

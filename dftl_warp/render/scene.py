@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.layout import strand_offsets
 #: default linear hair colour at the root and at the tip (a mid brown)
 DEFAULT_ROOT_COLOR = (0.045, 0.022, 0.010)
 DEFAULT_TIP_COLOR = (0.30, 0.17, 0.085)
@@ -151,7 +152,7 @@ def root_to_tip(counts) -> np.ndarray:
     """Parameter 0 (root) .. 1 (tip) of every vertex of concatenated strands."""
     counts = np.asarray(counts, dtype=np.int64)
     n = int(counts.sum())
-    starts = np.repeat(np.cumsum(counts) - counts, counts)
+    starts = np.repeat(strand_offsets(counts), counts)
     i = np.arange(n) - starts
     denom = np.repeat(np.maximum(counts - 1, 1), counts)
     return i / denom

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.layout import strand_offsets
 from ..errors import UserError
 from .camera import Camera
 from .scene import BOX, CAPSULE, SPHERE, RenderScene, Shape, default_width, root_to_tip, strand_colors
@@ -352,7 +353,7 @@ def _linear(pts, counts, wrap, w_v, c_v):
     if wrap != "periodic":
         return pts, counts, w_v, (c_v if c_v is not None else np.zeros((len(pts), 3)))
     # close every loop by repeating its first vertex
-    starts = np.cumsum(counts) - counts
+    starts = strand_offsets(counts)
     idx = np.concatenate([np.r_[np.arange(s, s + n), s] if n > 0 else np.zeros(0, int) for s, n in zip(starts, counts)])
     c = c_v if c_v is not None else np.zeros((len(pts), 3))
     return pts[idx], np.where(counts > 0, counts + 1, 0), w_v[idx], c[idx]
@@ -364,7 +365,7 @@ def _cubic(pts, counts, basis, wrap, spans, w_v, w_var, c_v, c_var):
     m, vstep = _BASIS[basis]
     u = np.linspace(0.0, 1.0, CUBIC_STEPS + 1)
     weights = np.stack([np.ones_like(u), u, u * u, u * u * u], axis=1) @ m  # (steps+1, 4)
-    starts = np.cumsum(counts) - counts
+    starts = strand_offsets(counts)
     var_starts = np.cumsum(spans + (0 if wrap == "periodic" else 1)) - (spans + (0 if wrap == "periodic" else 1))
     vertex_data = [pts]
     if w_v is not None:

@@ -48,6 +48,7 @@ import warnings
 import numpy as np
 import warp as wp
 
+from ..core.layout import strand_offsets
 from ..kernels.simulation.energy import available_energy_kernel
 
 
@@ -83,7 +84,7 @@ class EnergyMonitor:
         base, stride, count = model.layout.strand_base, model.layout.strand_stride, model.layout.strand_count
         self._free = np.maximum(count - 1, 0).astype(np.float64)
         strand = np.repeat(np.arange(model.num_strands), count)
-        first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+        first = strand_offsets(count)
         local = np.arange(strand.shape[0]) - np.repeat(first, count)
         lengths = np.bincount(strand, weights=rest[base[strand] + stride[strand] * local], minlength=model.num_strands)
         scale = np.maximum(np.linalg.norm(gravity) * lengths, 0.5 * lengths**2)

@@ -4,7 +4,7 @@
 - :class:`Simulation` steps a scene frame by frame and can export / import its complete state
   (:meth:`Simulation.save_state`, :meth:`Simulation.load_state`), so that a batch or resume
   feature can start at any frame and continue a partial output with
-  :meth:`~dftl_warp.output.usd.UsdWriter.reopen`.
+  :meth:`~dftl_warp.output.base.FrameWriter.reopen`.
 
 Simulation happens in world space, in stage units. Each frame is ``substeps`` solver steps of
 ``dt = 1 / (timeCodesPerSecond * substeps)`` seconds; roots move linearly from where the prim's
@@ -198,7 +198,7 @@ class Simulation:
 
         self.check_energy()  # the frame being left, if nobody looked at it
 
-        from ..features.from_scene import update_frame
+        from ..features import update_frame
 
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
@@ -305,7 +305,8 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
 
 
 def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) -> Summary:
-    """Simulate the hair of the USD stage ``input`` and write ``output``.
+    """Simulate the hair of the USD stage ``input`` and write ``output`` (in the format its
+    extension names: :func:`~dftl_warp.output.base.writer_for`).
 
     Keyword options are the fields of :class:`SimulationOptions` (start, end, substeps, damping,
     correction, solver, precision, device, prims); ``device=None`` picks
@@ -320,7 +321,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) 
     from ..usd.read import read_scene
     from ..output.lock import lock_path, output_lock
     from ..output.progress import progress_bar
-    from ..output.usd import UsdWriter, check_output_path, ensure_folder
+    from ..output import check_output_path, ensure_folder, writer_for
     from ..core.devices import device_line, init_warp, resolve_device
 
     if "device" in options and options["device"] is None:
@@ -344,7 +345,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) 
             bar = progress_bar(last - first + 1, desc="simulating", unit="frame")
             sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
         try:
-            with UsdWriter.create(output, scene, frames=(first, last)) as writer:
+            with writer_for(output).create(output, scene, frames=(first, last)) as writer:
                 times = run_frames(sim, writer, last, progress=bar.update if bar else None)
                 a = time.perf_counter()
                 writer.commit()

@@ -7,6 +7,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
+from ..core.layout import strand_offsets
 from ..core.model import Model
 from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, carries_corrections, make_solver
@@ -71,7 +72,7 @@ def simulate_strands(
     counts = np.asarray(counts, dtype=np.int64).reshape(-1)
     if roots is not None:
         roots = np.asarray(roots, dtype=np.float64).reshape(steps + 1, counts.shape[0], 3)
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        starts = strand_offsets(counts)
         points = points.copy()
         points[starts] = roots[0]
     with wp.ScopedDevice(device):

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.layout import strand_offsets
 
 def pad_strands(points, counts):
     """(N, 3) concatenated points -> (S, n_max, 3) padded array (padding repeats the last vertex)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     counts = np.asarray(counts, dtype=np.int64)
     n_max = int(counts.max()) if counts.size else 0
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    starts = strand_offsets(counts)
     local = np.minimum(np.arange(n_max)[None, :], counts[:, None] - 1)
     return points[starts[:, None] + local]
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from ..core.layout import strand_offsets
 from ..kernels.solvers.reference import rattle_kernel
 from .base import DEFAULT_GRAVITY, Solver, register
 
@@ -48,7 +49,7 @@ class ReferenceSolver(Solver):
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, tolerance: float = 1.0e-14, max_iterations: int = 30,
                  accept: float = 1.0e-10):
         rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
-        starts = np.concatenate([[0], np.cumsum(model.counts)[:-1]]).astype(np.int64)
+        starts = strand_offsets(model.counts)
         free = np.ones(rest.shape[0], dtype=bool)
         free[starts[model.counts > 0]] = False
         if np.any(rest[free] <= 0.0):

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.layout import strand_offsets
 GRAVITY = 9.81
 
 
@@ -107,8 +108,7 @@ def head_roots(roots0: np.ndarray, t: float) -> np.ndarray:
 
 
 def strand_starts(counts) -> np.ndarray:
-    counts = np.asarray(counts, dtype=np.int64)
-    return np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    return strand_offsets(counts)
 
 
 def record(solver, frames: int, frame_dt: float, substeps: int, *, roots=None, velocities=None,

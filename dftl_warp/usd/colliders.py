@@ -1,5 +1,12 @@
-"""Collider prims (``UsdPhysics.CollisionAPI``: Sphere, Capsule, Cube, Mesh) and the mesh a groom's
-roots are bound to (``dftl:rootMesh``), read into plain :mod:`~dftl_warp.usd.scene` data.
+"""Collider prims (``UsdPhysics.CollisionAPI``) and the mesh a groom's roots are bound to
+(``dftl:rootMesh``), read into plain :mod:`~dftl_warp.usd.scene` data.
+
+Sphere, Capsule, Cube and Mesh prims are read and checked here (kinds "sphere", "capsule", "box",
+"mesh": :data:`BUILTIN_KINDS`). A collision prim of any other type whose type name was accepted
+(:func:`accept_collider_type`; the collider shapes of :mod:`dftl_warp.features.colliders` accept
+their ``usd_kind`` when they are registered) is read generically: ``kind`` is its type name and
+``attributes`` its own attributes' values (plain Python and numpy), for the shape's ``from_prim``
+to map. Collision prims of other types are ignored with a warning.
 
 Bad data raises :class:`~dftl_warp.errors.UserError` naming the file, the prim and the index.
 """
@@ -12,6 +19,46 @@ from ..errors import UserError
 from .attributes import read_values
 from .sampling import TransformReader, points_sampler
 from .scene import ColliderPrim, MeshSource
+
+
+#: the ColliderPrim kinds this module reads itself
+BUILTIN_KINDS = ("sphere", "capsule", "box", "mesh")
+
+#: prim type names (``"Cylinder"``) of collision prims read generically
+GENERIC_TYPES: set[str] = set()
+
+
+def accept_collider_type(type_name: str) -> None:
+    """Read collision prims of type ``type_name`` generically (kind = the type name)."""
+    if type_name not in BUILTIN_KINDS:
+        GENERIC_TYPES.add(type_name)
+
+
+def _plain(value):
+    """A USD attribute value as plain data: bool, int, float, str, or a numpy array."""
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    try:
+        array = np.array(value)
+    except (TypeError, ValueError):
+        return str(value)
+    if array.dtype.kind in "iuf":
+        return array.astype(np.int64 if array.dtype.kind in "iu" else np.float64)
+    return array if array.dtype != object else str(value)
+
+
+def generic_attributes(prim, code) -> dict:
+    """The values at ``code`` of ``prim``'s own attributes (names without a namespace: not
+    ``xformOp:*``, ``physics:*``, ``dftl:*``), as plain data."""
+    out = {}
+    for attr in prim.GetAttributes():
+        name = attr.GetName()
+        if ":" in name:
+            continue
+        value = attr.Get(code)
+        if value is not None:
+            out[name] = _plain(value)
+    return out
 
 
 def _code(time):
@@ -142,6 +189,8 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
         sampler, deforming = points_sampler(mesh.GetPointsAttr(), pts.shape[0], where, time, pts)
         if deforming:
             c.points_sampler = sampler
+    elif prim.GetTypeName() in GENERIC_TYPES:
+        c = ColliderPrim(str(prim.GetPath()), str(prim.GetTypeName()), attributes=generic_attributes(prim, code))
     else:
         warnings.append(f"{where}: collider of type {prim.GetTypeName() or 'untyped'} is not supported; ignored")
         return None

@@ -175,7 +175,9 @@ class ColliderPrim:
     """A prim with UsdPhysics.CollisionAPI, in its local space (stage units).
 
     ``kind`` is "sphere" (``radius``), "capsule" (``radius``, ``height`` of the cylinder part,
-    ``axis``), "box" (``half_extents``) or "mesh" (``mesh_points``, ``triangles``).
+    ``axis``), "box" (``half_extents``) or "mesh" (``mesh_points``, ``triangles``); for a prim of
+    another accepted type (:func:`dftl_warp.usd.colliders.accept_collider_type`) it is the prim's
+    type name (``"Cylinder"``) and ``attributes`` holds its attribute values.
     """
 
     path: str
@@ -195,6 +197,8 @@ class ColliderPrim:
     animated: bool = False
     #: local mesh points at a time code, for a mesh whose points are time-sampled (else None)
     points_sampler: Callable[[float], np.ndarray] | None = None
+    #: attribute name -> value (plain data) of a generically read prim (empty for the built-in kinds)
+    attributes: dict = field(default_factory=dict)
 
 
 @dataclass

@@ -1,9 +1,11 @@
 """Colliders: shapes the hair stays outside of (:class:`Colliders` of registered shapes).
 
-Add a collider shape: its host module here (a :class:`ColliderShape` subclass: parameters,
-``size_axis``, ``from_prim`` for USD, optional device data), its kernel module in
+Add a collider shape (three files): its host module here (a :class:`ColliderShape` subclass:
+parameters, ``size_axis``, ``usd_kind`` -- a USD prim type name -- and ``from_prim``, which maps the
+prim's ``attributes`` as the USD reader read them; optional device data), its kernel module in
 ``kernels/features/`` (its signed distance or collide function, as a
-:class:`~dftl_warp.kernels.features.collide.ColliderKernel`), and its line in :data:`SHAPES` below.
+:class:`~dftl_warp.kernels.features.collide.ColliderKernel`), and its import and entry in the
+registration line below. ``tests/test_recipes.py`` adds a toy cylinder this way.
 """
 
 from .analytic import Box, Capsule, Sphere

@@ -15,6 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from ...kernels.features.collide import ColliderKernel, register_collider_kernel
+from ...usd.colliders import accept_collider_type
 from ..base import nonnegative, unit_quaternion, vector
 
 #: name -> (type, where: "scene", "curves" or "both", description)
@@ -33,7 +34,9 @@ class ColliderShape:
 
     Subclasses set ``kind`` (their kernel flag, e.g. ``"spheres"``), ``kernel`` (their
     :class:`~dftl_warp.kernels.features.collide.ColliderKernel`) and ``usd_kind`` (the
-    :class:`~dftl_warp.usd.scene.ColliderPrim` kind they are made from), and implement
+    :class:`~dftl_warp.usd.scene.ColliderPrim` kind they are made from: a built-in kind, or a USD
+    prim type name such as ``"Cylinder"``, whose prims the reader then reads generically into
+    ``prim.attributes``), and implement
     :meth:`size_axis` and :meth:`from_prim`; shapes with data of their own on the device (meshes)
     also :meth:`make_device_data`."""
 
@@ -92,6 +95,8 @@ def register_shape(cls):
     if known is not None and known is not cls:
         raise ValueError(f"collider kind {cls.kind!r} is registered twice")
     register_collider_kernel(cls.kernel)
+    if cls.usd_kind:
+        accept_collider_type(cls.usd_kind)  # the USD reader reads prims of this type for it
     SHAPES[cls.kind] = cls
     return cls
 
