@@ -1,0 +1,307 @@
+"""The elastic-rod solver (``solver="elastic"``, opt-in): inextensible Kirchhoff-type strands with
+bending, twist-coupled material frames and a clamped root, stepped by *scheme K*.
+
+One step (kernel: :mod:`dftl_warp.kernels.solvers.elastic`; rest data: :mod:`.elastic_rest`):
+
+1. frames: one projective-dynamics Gauss-Seidel sweep root -> tip (each frame exactly minimises the
+   bending + twist energy given its neighbours);
+2. velocities: a linearly implicit (backward Euler) solve with implicit bending ``h^2 K`` and the
+   exact linearised inextensibility constraint, a banded 4x4-block KKT system per strand;
+3. follow-the-leader projection of ``x + h v`` (segment lengths exact to round-off), velocities
+   ``(x^{n+1} - x^n)/h`` with DFTL's correction ``s`` (``damping``) in the prior or posterior form.
+
+Statics are exact and independent of the substep count: at a fixed point the KKT system is the
+discrete equilibrium ``f + J^T lambda = 0``. With ``inverse_statics`` (default) the authored shape
+is that equilibrium under the solver's gravity, so a styled groom does not sag.
+
+**The clamp.** The first segment leaves the root along its authored direction: a kinematic *ghost*
+point sits one segment behind the root. By default the ghosts move with the roots' translation
+(``Control.set_root_targets``); :meth:`ElasticSolver.set_clamp_targets` sets them per frame (world
+positions, input strand order), so a caller that moves roots and ghosts by the same rigid transform
+gets a rotating clamp. :attr:`ElasticSolver.authored_clamps` gives the authored ghosts (world).
+
+**Units.** Options are in the units of the model: SI (m, kg, s, Pa) for grooms in metres. For a USD
+stage in stage units of ``u = metersPerUnit`` metres, pass lengths (``radius``) in stage units
+(``r_stage = r_m / u``), ``density`` in kg per stage-unit^3 (``rho_m * u^3``) and the moduli in
+kg / (stage-unit s^2) (``E_Pa * u``), gravity in stage-units/s^2; the motion is then identical.
+
+**State.** :class:`ElasticState` adds to the State, per particle, the tensions of the last step
+(``T``, for the implicit string stiffness), the material frames (unit quaternions x, y, z, w; one
+per bending vertex, identity at rest) and, per device strand, the clamp ghost's last position.
+All of it survives between frames and is cloned/assigned with the State. The factorisation
+scratch (``Di``, ``U`` 4x4 and ``w`` 4 per particle, in the computation precision) is solver-held
+and per step only.
+
+**Twist modulus.** ``twist_modulus`` defaults to :data:`TWIST_G` = 10 x hair's shear modulus
+(0.89 GPa, Robbins 2002): with the physical value the inverse-statics equilibrium of a styled
+helix is a saddle (measured in the prototype, ``/work/scratch/rods2/README.md``); 10x is close to
+the twist-free (Bishop) limit. It is a modelling choice, not measured hair torsion; the couplings
+are also raised automatically where inverse statics needs it (:mod:`.elastic_rest`).
+
+**Precision.** The State is stored in the model's precision; the kernel computes in float64 by
+default (``compute_precision``). In float32 arithmetic the cantilever statics (within 3e-6 L of
+float64) and the zero-gravity curly strand (2e-6 L in 10 s) pass, but a styled strand under gravity
+with inverse statics moves 3e-2 L (its bending forces balance gravity only to float32 round-off);
+with float64 arithmetic and float32 storage it moves 2e-8 L.
+
+Not supported yet: models with features (colliders, binding, hair-hair, air...) are refused.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..core.precision import numpy_type, scalar_type
+from ..core.state import State
+from ..kernels.solvers.elastic import elastic_kernel
+from . import elastic_rest
+from .base import DEFAULT_GRAVITY, Solver, check_gravity, register
+
+#: human hair: Young's modulus (Pa), shear modulus (Pa), density (kg/m^3) (Robbins 2002)
+HAIR_E = 3.89e9
+HAIR_G = 0.89e9
+HAIR_DENSITY = 1320.0
+#: default twist-coupling modulus: 10 x HAIR_G (see the module docstring)
+TWIST_G = 10 * HAIR_G
+#: default hair radius (m) when the model has no widths
+DEFAULT_RADIUS = 40e-6
+
+
+@dataclass(eq=False)
+class ElasticState(State):
+    """A State with the elastic solver's extra arrays: ``tensions`` (per particle, model precision),
+    ``frames`` (per particle, quaternions; the tip's is unused) and ``clamps`` (per device strand,
+    the clamp ghost's position relative to the model origin)."""
+
+    tensions: wp.array | None = None
+    frames: wp.array | None = None
+    clamps: wp.array | None = None
+
+    def clone(self) -> ElasticState:
+        base = State.clone(self)
+        return ElasticState(positions=base.positions, velocities=base.velocities, corrections=base.corrections,
+                            storage=base.storage, tensions=wp.clone(self.tensions), frames=wp.clone(self.frames),
+                            clamps=wp.clone(self.clamps))
+
+    def assign(self, other: State) -> None:
+        State.assign(self, other)
+        if isinstance(other, ElasticState):
+            wp.copy(self.tensions, other.tensions)
+            wp.copy(self.frames, other.frames)
+            wp.copy(self.clamps, other.clamps)
+
+
+@register
+class ElasticSolver(Solver):
+    """Elastic rods, scheme K (see the module docstring).
+
+    Args:
+        model: the :class:`~dftl_warp.core.model.Model` (no features); free particles need non-zero
+            rest lengths.
+        youngs_modulus: E (Pa, or the model's units), default human hair 3.89e9.
+        density: kg/m^3, default 1320.
+        radius: hair radius, one value or one per point (input order); default half the model's
+            ``widths`` where it has them, else 40e-6.
+        twist_modulus: the frame chain's twist modulus (default :data:`TWIST_G`).
+        inverse_statics: the authored shape is the equilibrium under ``gravity`` (default True).
+        damping: DFTL's ``s`` in [0, 1] (default 0: the scheme's velocities need no correction).
+        correction: ``"prior"`` or ``"posterior"``.
+        drag: linear drag (1/s), implicit; 0 by default.
+        gravity: acceleration (3,).
+        compute_precision: ``"float32"``/``"float64"``: the kernel's arithmetic (the State stays in the
+            model's precision); default float64 (see :attr:`compute_precision`'s note in ``__init__``).
+    """
+
+    name = "elastic"
+    options = ("youngs_modulus", "density", "radius", "twist_modulus", "inverse_statics", "damping", "correction",
+               "drag", "compute_precision")
+
+    def __init__(self, model, *, gravity=DEFAULT_GRAVITY, youngs_modulus: float = HAIR_E,
+                 density: float = HAIR_DENSITY, radius=None, twist_modulus: float = TWIST_G,
+                 inverse_statics: bool = True, damping: float = 0.0, correction: str = "prior",
+                 drag: float = 0.0, compute_precision: str | None = None):
+        if model.features or model.feature_flags:
+            names = sorted({type(f).__name__ for f in model.features} | set(model.feature_flags))
+            raise ValueError(f"the elastic solver does not support features yet; this model has: {', '.join(names)}")
+        if correction not in ("prior", "posterior"):
+            raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
+        if not (0.0 <= float(damping) <= 1.0):
+            raise ValueError(f"damping must be in [0, 1], got {damping}")
+        for label, value in (("youngs_modulus", youngs_modulus), ("density", density),
+                             ("twist_modulus", twist_modulus)):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{label} must be a finite number > 0, got {value!r}")
+        if not (np.isfinite(drag) and drag >= 0):
+            raise ValueError(f"drag must be a finite number >= 0 (1/s), got {drag!r}")
+        if model.layout.slot_of_point is None or model.rest_positions is None:
+            raise ValueError("the elastic solver needs a model with host rest positions")
+        super().__init__(model, gravity=gravity)
+        self.gravity64 = check_gravity(gravity)
+        self.damping = float(damping)
+        self.correction = correction
+        self.drag = float(drag)
+        self.youngs_modulus = float(youngs_modulus)
+        self.density = float(density)
+        self.twist_modulus = float(twist_modulus)
+        self.inverse_statics = bool(inverse_statics)
+        if compute_precision not in (None, "float32", "float64"):
+            raise ValueError(f"compute_precision must be float32 or float64, got {compute_precision!r}")
+        # float32 computation passes statics and zero-gravity stillness but not inverse statics under
+        # gravity (a styled helix moves 3e-2 L: the bending forces cancel gravity to float32 round-off);
+        # float64 inside with float32 storage keeps it within 2e-8 L (measured, tests/test_elastic.py)
+        self.compute_precision = compute_precision or "float64"
+        self.real = scalar_type(self.compute_precision)
+        real = self.real
+        vec3r = wp.types.vector(3, real)
+        quatr = wp.types.quaternion(real)
+        dev, lay = model.device, model.layout
+        npts = model.num_points
+        if radius is None:
+            widths = getattr(model, "widths", None)
+            radius = 0.5 * np.asarray(widths, float) if widths is not None else DEFAULT_RADIUS
+        radius = np.broadcast_to(np.asarray(radius, float).reshape(-1) if np.ndim(radius) else float(radius),
+                                 (npts,)).astype(float)
+        if not np.all(np.isfinite(radius) & (radius > 0)):
+            raise ValueError("radius must be finite and > 0")
+        self.radius = radius
+        points = model.rest_positions[lay.slot_of_point].astype(np.float64)   # device coordinates
+        fields, strands, self._groups = elastic_rest.build(
+            points, model.counts, lay.slot_of_point, lay.strand_order, model.num_slots, radius,
+            E=self.youngs_modulus, G=self.twist_modulus, rho=self.density, gravity=self.gravity64,
+            inverse_statics=self.inverse_statics)
+        rt = numpy_type(self.compute_precision)
+        arr = lambda a, dt: wp.array(np.ascontiguousarray(a, dtype=rt), dtype=dt, device=dev)  # noqa: E731
+        self._fields = {k: arr(v, vec3r if k == "curvature" else quatr if k == "rest_rotation" else real)
+                        for k, v in fields.items()}
+        self._clamp_direction = arr(strands["d0"], vec3r)
+        self._curved = wp.array(strands["curved"], dtype=wp.int32, device=dev)
+        st = numpy_type(model.precision)
+        self._rest_ghost = strands["ghost"]                                         # device order, float64
+        self._rest_tension = strands["tension"].astype(st)
+        roots = model.root_rest.numpy().astype(np.float64)
+        self._clamp_offset = wp.array((self._rest_ghost - roots).astype(st), dtype=model.vec3, device=dev)
+        self._clamp_start = wp.clone(self._clamp_offset)
+        self._clamp_end = wp.clone(self._clamp_offset)
+        self._clamp_relative = 1
+        self._gravity_real = vec3r(*self.gravity64)
+        n = model.num_slots
+        self._scratch = [wp.zeros(n, dtype=wp.types.matrix((4, 4), real), device=dev),
+                         wp.zeros(n, dtype=wp.types.matrix((4, 4), real), device=dev),
+                         wp.zeros(n, dtype=wp.types.vector(4, real), device=dev)]
+        self._dummy = wp.zeros(1, dtype=model.vec3, device=dev)
+        self._kernel = elastic_kernel(model.scalar, real, correction)
+
+    # -- the State -------------------------------------------------------------------------------
+
+    @staticmethod
+    def carries(correction: str) -> bool:
+        return correction == "prior"
+
+    @property
+    def carries_corrections(self) -> bool:
+        return self.carries(self.correction)
+
+    def state(self) -> ElasticState:
+        """A rest State: authored positions, zero velocities, inverse-statics tensions, identity
+        frames, the clamp ghosts at their authored places."""
+        m = self.model
+        base = m.state(with_corrections=self.carries_corrections)
+        frames = np.zeros((m.num_slots, 4), dtype=numpy_type(m.precision))
+        frames[:, 3] = 1.0
+        return ElasticState(
+            positions=base.positions, velocities=base.velocities, corrections=base.corrections, storage=base.storage,
+            tensions=wp.array(self._rest_tension, dtype=m.scalar, device=m.device),
+            frames=wp.array(frames, dtype=wp.types.quaternion(m.scalar), device=m.device),
+            clamps=wp.array(self._rest_ghost.astype(numpy_type(m.precision)), dtype=m.vec3, device=m.device))
+
+    @property
+    def authored_clamps(self) -> np.ndarray:
+        """The authored clamp ghosts (S, 3), world coordinates, input strand order."""
+        out = np.zeros((self.model.num_strands, 3))
+        out[self.model.layout.strand_order] = self._rest_ghost
+        return out + self.model.origin
+
+    def set_clamp_targets(self, start=None, end=None) -> None:
+        """Clamp ghosts of the frame: world positions (S, 3) in input strand order at frame start
+        and end (``end`` defaults to ``start``), moving linearly across the frame like the roots.
+        ``start=None`` returns to the default: the authored ghosts moved with the roots' translation."""
+        if start is None:
+            wp.copy(self._clamp_start, self._clamp_offset)
+            self._clamp_relative = 1
+            return
+        m = self.model
+        end = start if end is None else end
+        self._clamp_start.assign(m.roots_to_device(start))
+        self._clamp_end.assign(m.roots_to_device(end))
+        self._clamp_relative = 0
+
+    # -- stepping --------------------------------------------------------------------------------
+
+    def kernels(self) -> list:
+        return [self._kernel]
+
+    def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
+        """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``)."""
+        m = self.model
+        if m.num_strands == 0:
+            return
+        for s in (state_in, state_out):
+            if not isinstance(s, ElasticState) or s.frames is None:
+                raise ValueError("the elastic solver needs its own States (solver.state())")
+            if self.carries_corrections and s.corrections is None:
+                raise ValueError("the prior correction form needs states with corrections (solver.state())")
+        f = self._fields
+        prior = self.carries_corrections
+        wp.launch(
+            self._kernel,
+            dim=m.num_strands,
+            inputs=[
+                m.strand_base, m.strand_stride, m.strand_count,
+                f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],
+                f["rest_rotation"], self._clamp_direction, self._curved,
+                control.root_start, control.root_end, self._clamp_start, self._clamp_end, self._clamp_relative,
+                float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag,
+                state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,
+                state_in.tensions, state_in.frames, state_in.clamps,
+                *self._scratch,
+            ],
+            outputs=[state_out.positions, state_out.velocities, state_out.corrections if prior else self._dummy,
+                     state_out.tensions, state_out.frames, state_out.clamps],
+            device=m.device,
+        )
+
+    # -- diagnostics -----------------------------------------------------------------------------
+
+    def energy(self, state) -> float:
+        """Kinetic + gravitational (relative to the roots) + elastic energy of all strands (J, or
+        the model's units), computed on the host in float64."""
+        m = self.model
+        lay = m.layout
+        x = m.points_from_device(state.positions, relative=False)
+        v = m.points_from_device(state.velocities, relative=False)
+        q = state.frames.numpy()[lay.slot_of_point].astype(np.float64)
+        ghosts = np.zeros((m.num_strands, 3))
+        ghosts[lay.strand_order] = state.clamps.numpy().astype(np.float64)
+        starts = elastic_rest.strand_offsets(m.counts)
+        total = 0.0
+        for n, strands, grp in self._groups:
+            idx = starts[strands][:, None] + np.arange(n)[None]
+            F = elastic_rest.quat_to_mat(q[idx[:, :n - 1]])
+            F[~grp.curved] = np.eye(3)      # straight strands: the frames carry no force (b = 0)
+            e = grp.energy(x[idx], v[idx], F, ghosts[strands], self.gravity64)
+            if not grp.curved.all():         # ... and no twist energy either
+                G = grp.G
+                grp.G = np.where(grp.curved[:, None], G, 0.0)
+                e = grp.energy(x[idx], v[idx], F, ghosts[strands], self.gravity64)
+                grp.G = G
+            total += float(e.sum())
+        return total
+
+    def diagnostics(self, state) -> dict:
+        """The base diagnostics plus ``elastic_energy`` (:meth:`energy`, J)."""
+        out = super().diagnostics(state)
+        out["elastic_energy"] = self.energy(state)
+        return out

@@ -1,0 +1,354 @@
+"""Elastic-rod step kernel (scheme K): one thread per strand, three sweeps per step.
+
+The solver and the formulation are described in :mod:`dftl_warp.solvers.elastic` and
+:mod:`dftl_warp.solvers.elastic_rest`. One step of ``dt = h`` (s) of a strand of ``N + 1``
+particles (root 0 kinematic, a kinematic clamp ghost ``x_{-1}`` behind it):
+
+A. **frames, root -> tip** (curved strands only): one Gauss-Seidel sweep of the projective-dynamics
+   local step, ``F_j = polar(W_j (Dx^n)_j b_j^T + G_j F_{j-1} Qb_j + G_{j+1} F_{j+1} Qb_{j+1}^T)``,
+   ``F_{-1}`` the root frame (the minimal rotation from the authored clamp direction to the current
+   one), polar factor by ``wp.svd3``;
+B. **elimination, tip -> root**: the block-pentadiagonal KKT system (4x4 blocks ``z_k = (v_k, mu_k)``)
+   of the linearly implicit velocity solve with the exact linearised inextensibility constraint,
+   ``[A J^T; J 0] [v; mu] = [M v^n + h f; J_0 v_0]``, ``A = M (1 + h drag) + h^2 K + h^2 K_T``, is
+   factored as a reversed block ``U D U^T``; the forces ``f`` (gravity + bending with the frames of A,
+   the root and ghost at their step-end targets) are built on the way;
+C. **back substitution, root -> tip**, fused with the follow-the-leader projection of
+   ``p_k = x_k + h v_k`` (exact segment lengths), the velocity ``(x^{n+1} - x^n)/h`` in DFTL's
+   prior or posterior form, and the tensions ``T_k = -mu_k / h``.
+
+Precision: ``scalar`` is the storage precision of the State, ``real`` the computation's (the model
+arrays and the scratch are in ``real``). Module options as the DFTL step kernels (no FMA contraction).
+
+Memory traffic per free particle per step (``real`` scalars unless said; ``s`` = storage scalars):
+
+- model (read): length 1 (+1 neighbour, cached), mass 1, bend 1, twist 1, k0 k1 k2 3, curvature 3,
+  rest rotation 4 = 14 (A reads bend, twist, curvature, rest rotation again: +9 on curved strands);
+- state in: positions 3 s (A and B: 2 reads), velocities 3 s, tensions 1 s, frames 4 s (A reads and
+  B re-reads the updated ones), corrections 3 s (prior form);
+- state out: positions 3 s, velocities 3 s, tensions 1 s, frames 4 s, corrections 3 s (prior form);
+- scratch: ``Di`` 16, ``U`` 16, ``w`` 4: written in B, read in C (72 scalars of traffic).
+
+Counted per free particle per step (prior form, curved strand; unique words per sweep): storage
+38 scalars (A: x 3, frames 4 + 4; B: x 3, v 3, T 1, c 3, frames 4; C: x 3, then x v c 9 + T 1
+written), computation 93 scalars (A: 10 model; B: 9 model + 36 scratch written; C: 36 scratch +
+2 model read). Bytes: float32 State with float64 arithmetic (the default) 38 x 4 + 93 x 8 = 896 B;
+float64 1048 B; float32 arithmetic 524 B; bare DFTL prior float32: 76 B. Straight strands skip A
+(-21 scalars); the posterior form carries no c (-6 storage scalars). The scratch dominates; on the
+CPU a strand's 36 x 33 scratch words stay in cache.
+"""
+
+import functools
+
+import warp as wp
+
+from ..core.layout import particle
+
+#: as the DFTL step kernels: no floating-point contraction
+ELASTIC_MODULE_OPTIONS = {"fuse_fp": False}
+
+
+@functools.cache
+def elastic_kernel(scalar, real, correction: str):
+    """The scheme-K step kernel for States stored in ``scalar``, computing in ``real``, with the
+    velocity correction in ``correction`` form (``"prior"`` or ``"posterior"``)."""
+    vec3s = wp.types.vector(3, scalar)
+    quats = wp.types.quaternion(scalar)
+    vec3 = wp.types.vector(3, real)
+    vec4 = wp.types.vector(4, real)
+    mat33 = wp.types.matrix((3, 3), real)
+    mat44 = wp.types.matrix((4, 4), real)
+    quat = wp.types.quaternion(real)
+    prior = correction == "prior"
+
+    @wp.func
+    def ld(v: vec3s):
+        return vec3(real(v[0]), real(v[1]), real(v[2]))
+
+    @wp.func
+    def st(v: vec3):
+        return vec3s(scalar(v[0]), scalar(v[1]), scalar(v[2]))
+
+    @wp.func
+    def ldq(q: quats):
+        return wp.normalize(quat(real(q[0]), real(q[1]), real(q[2]), real(q[3])))
+
+    @wp.func
+    def stq(q: quat):
+        return quats(scalar(q[0]), scalar(q[1]), scalar(q[2]), scalar(q[3]))
+
+    @wp.func
+    def between(a: vec3, b: vec3):
+        """Minimal rotation taking unit ``a`` to the direction of ``b``."""
+        bn = wp.normalize(b)
+        c = wp.cross(a, bn)
+        w = real(1.0) + wp.dot(a, bn)
+        if w < real(1.0e-12):
+            ref = vec3(real(0.0), real(1.0), real(0.0))
+            if wp.abs(a[0]) < real(0.9):
+                ref = vec3(real(1.0), real(0.0), real(0.0))
+            c = wp.cross(a, ref)
+            w = real(0.0)
+        return wp.quat_to_matrix(wp.normalize(quat(c[0], c[1], c[2], w)))
+
+    @wp.func
+    def curv(xm: vec3, x: vec3, xp: vec3, lj: real, lj1: real):
+        """(Dx)_j from x_{j-1}, x_j, x_{j+1} and the segment lengths l_j, l_{j+1}."""
+        al = real(1.0) / lj
+        ga = real(1.0) / lj1
+        return -(al * (x - xm)) + ga * (xp - x)
+
+    @wp.func
+    def block0(a0: real, e: vec3):
+        return mat44(a0, real(0.0), real(0.0), e[0],
+                     real(0.0), a0, real(0.0), e[1],
+                     real(0.0), real(0.0), a0, e[2],
+                     e[0], e[1], e[2], real(0.0))
+
+    @wp.func
+    def block1(a1: real, e: vec3):
+        z = real(0.0)
+        return mat44(a1, z, z, -e[0], z, a1, z, -e[1], z, z, a1, -e[2], z, z, z, z)
+
+    @wp.func
+    def block2(a2: real):
+        z = real(0.0)
+        return mat44(a2, z, z, z, z, a2, z, z, z, z, a2, z, z, z, z, z)
+
+    @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS)
+    def elastic_step(
+        # Model:
+        strand_base: wp.array(dtype=wp.int32),
+        strand_stride: wp.array(dtype=wp.int32),
+        strand_count: wp.array(dtype=wp.int32),
+        length: wp.array(dtype=real),
+        mass: wp.array(dtype=real),
+        bend: wp.array(dtype=real),
+        twist: wp.array(dtype=real),
+        k0: wp.array(dtype=real),
+        k1: wp.array(dtype=real),
+        k2: wp.array(dtype=real),
+        curvature: wp.array(dtype=vec3),
+        rest_rotation: wp.array(dtype=quat),
+        clamp_direction: wp.array(dtype=vec3),
+        curved: wp.array(dtype=wp.int32),
+        # Control (per device strand): roots, clamp ghosts (offsets from the root when relative)
+        root_start: wp.array(dtype=vec3s),
+        root_end: wp.array(dtype=vec3s),
+        clamp_start: wp.array(dtype=vec3s),
+        clamp_end: wp.array(dtype=vec3s),
+        clamp_relative: wp.int32,
+        root_alpha: real,
+        gravity: vec3,
+        dt: real,
+        damping: real,
+        drag: real,
+        # State in:
+        positions_in: wp.array(dtype=vec3s),
+        velocities_in: wp.array(dtype=vec3s),
+        corrections_in: wp.array(dtype=vec3s),
+        tensions_in: wp.array(dtype=scalar),
+        frames_in: wp.array(dtype=quats),
+        clamps_in: wp.array(dtype=vec3s),
+        # Scratch:
+        factor_inv: wp.array(dtype=mat44),
+        factor_up: wp.array(dtype=mat44),
+        factor_rhs: wp.array(dtype=vec4),
+        # State out:
+        positions_out: wp.array(dtype=vec3s),
+        velocities_out: wp.array(dtype=vec3s),
+        corrections_out: wp.array(dtype=vec3s),
+        tensions_out: wp.array(dtype=scalar),
+        frames_out: wp.array(dtype=quats),
+        clamps_out: wp.array(dtype=vec3s),
+    ):
+        s = wp.tid()
+        base = strand_base[s]
+        stride = strand_stride[s]
+        n = strand_count[s]
+        h = dt
+        h2 = h * h
+        zero3 = vec3()
+        k0s = particle(base, stride, 0)
+        root_old = ld(positions_in[k0s])
+        ra = ld(root_start[s])
+        root_new = ra + root_alpha * (ld(root_end[s]) - ra)
+        ghost_old = ld(clamps_in[s])
+        ca = ld(clamp_start[s])
+        ghost_new = root_new + ca
+        if clamp_relative == 0:
+            ghost_new = ca + root_alpha * (ld(clamp_end[s]) - ca)
+        v0 = (root_new - root_old) / h
+        positions_out[k0s] = st(root_new)
+        velocities_out[k0s] = st(v0)
+        tensions_out[k0s] = scalar(0.0)
+        clamps_out[s] = st(ghost_new)
+        if wp.static(prior):
+            corrections_out[k0s] = vec3s()
+        if n < 2:
+            return
+        N = n - 1
+        is_curved = curved[s] != 0
+
+        # ---- A: frames, Gauss-Seidel root -> tip, at x^n (ghost at its old place) ----------------
+        if is_curved:
+            Fprev = between(clamp_direction[s], root_new - ghost_new)
+            xm = ghost_old
+            xj = root_old
+            for j in range(N):
+                kj = particle(base, stride, j)
+                kp = particle(base, stride, j + 1)
+                xp = ld(positions_in[kp])
+                dx = curv(xm, xj, xp, length[kj], length[kp])
+                M = bend[kj] * wp.outer(dx, curvature[kj]) + twist[kj] * (Fprev * wp.quat_to_matrix(rest_rotation[kj]))
+                if j + 1 < N:
+                    Fn = wp.quat_to_matrix(ldq(frames_in[kp]))
+                    M = M + twist[kp] * (Fn * wp.transpose(wp.quat_to_matrix(rest_rotation[kp])))
+                U = mat33()
+                sig = vec3()
+                V = mat33()
+                wp.svd3(M, U, sig, V)
+                F = U * wp.transpose(V)
+                frames_out[kj] = stq(wp.quat_from_matrix(F))
+                Fprev = F
+                xm = xj
+                xj = xp
+        else:
+            for j in range(N):
+                kj = particle(base, stride, j)
+                frames_out[kj] = frames_in[kj]
+
+        # ---- B: forces and elimination, tip -> root -----------------------------------------------
+        D1 = mat44()
+        D2 = mat44()
+        U1k = mat44()
+        U2k = mat44()
+        U2km1 = mat44()
+        w1 = vec4()
+        w2 = vec4()
+        rho_hi = zero3
+        rho_mid = zero3
+        kt_hi = real(0.0)
+        c_hi = vec3s()
+        kk = particle(base, stride, N)
+        xk = ld(positions_in[kk])
+        xk1 = ld(positions_in[particle(base, stride, N - 1)])
+        if N == 1:
+            xk1 = root_new
+        for step in range(N):
+            k = N - step
+            kk = particle(base, stride, k)
+            km = particle(base, stride, k - 1)
+            lk = length[kk]
+            # x_{k-1} for the curvature (root at its target) and x_{k-2} (root / ghost at targets)
+            xk2 = ghost_new
+            if k - 2 == 0:
+                xk2 = root_new
+            elif k - 2 > 0:
+                xk2 = ld(positions_in[particle(base, stride, k - 2)])
+            x_lead = xk1
+            if k - 1 == 0:
+                x_lead = root_old
+            e = (xk - x_lead) / lk
+            # rho_{k-1} = W (Dx - F b)
+            fb_ = curvature[km]
+            if is_curved:
+                fb_ = wp.quat_to_matrix(ldq(frames_out[km])) * curvature[km]
+            rho_lo = bend[km] * (curv(xk2, xk1, xk, length[km], lk) - fb_)
+            ga_lo = real(1.0) / lk
+            al_k = real(0.0)
+            ga_k = real(0.0)
+            al_hi = real(0.0)
+            if k < N:
+                kn = particle(base, stride, k + 1)
+                al_k = real(1.0) / lk
+                ga_k = real(1.0) / length[kn]
+                if k + 1 < N:
+                    al_hi = real(1.0) / length[kn]
+            fb = -(ga_lo * rho_lo - (al_k + ga_k) * rho_mid + al_hi * rho_hi)
+            kt_k = wp.max(real(tensions_in[kk]), real(0.0)) / lk
+            mk = mass[kk]
+            f = mk * gravity + fb
+            if k == 1:
+                f = f + (kt_k * v0) * h
+            vk = ld(velocities_in[kk])
+            rv = mk * vk + h * f
+            if wp.static(prior):
+                xp_ = xk - damping * ld(c_hi)
+                rv = mk * (vk + (xp_ - xk) / h) + h * f
+            rk = vec4(rv[0], rv[1], rv[2], real(0.0))
+            if k == 1:
+                rk[3] = wp.dot(e, v0)
+            a0 = mk * (real(1.0) + h * drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
+            Dk = block0(a0, e) - U1k * D1 * wp.transpose(U1k) - U2k * D2 * wp.transpose(U2k)
+            Di = wp.inverse(Dk)
+            U1new = mat44()
+            U2new = mat44()
+            if k >= 2:
+                a1 = h2 * k1[km] - h2 * kt_k
+                U1new = (block1(a1, e) - U2km1 * D1 * wp.transpose(U1k)) * Di
+            if k >= 3:
+                U2new = block2(h2 * k2[particle(base, stride, k - 2)]) * Di
+            wk = rk - U1k * w1 - U2k * w2
+            factor_inv[kk] = Di
+            factor_up[kk] = U1new
+            factor_rhs[kk] = wk
+            # slide the windows down one particle
+            D2 = D1
+            D1 = Dk
+            U1k = U1new
+            U2k = U2km1
+            U2km1 = U2new
+            w2 = w1
+            w1 = wk
+            rho_hi = rho_mid
+            rho_mid = rho_lo
+            kt_hi = kt_k
+            if wp.static(prior):
+                c_hi = corrections_in[kk]
+            xk = xk1
+            xk1 = xk2
+
+        # ---- C: back substitution root -> tip, follow-the-leader, velocities, tensions ------------
+        z1 = vec4()
+        z2 = vec4()
+        leader = root_new
+        leader_old = root_old
+        kprev = k0s
+        vprev = zero3
+        for k in range(1, n):
+            kk = particle(base, stride, k)
+            Di = factor_inv[kk]
+            zk = Di * factor_rhs[kk]
+            if k >= 2:
+                zk = zk - wp.transpose(factor_up[kk]) * z1
+            if k >= 3:
+                U2 = block2(h2 * k2[particle(base, stride, k - 2)]) * Di
+                zk = zk - wp.transpose(U2) * z2
+            z2 = z1
+            z1 = zk
+            x_old = ld(positions_in[kk])
+            p = x_old + h * vec3(zk[0], zk[1], zk[2])
+            d = p - leader
+            dn = wp.length(d)
+            x = leader + length[kk] * wp.normalize(x_old - leader_old)
+            if dn > real(1.0e-30):
+                x = leader + (length[kk] / dn) * d
+            c = x - p
+            v = (x - x_old) / h
+            positions_out[kk] = st(x)
+            tensions_out[kk] = scalar(-zk[3] / h)
+            if wp.static(prior):
+                corrections_out[kk] = st(c)
+                velocities_out[kk] = st(v)
+            else:
+                if k >= 2:
+                    velocities_out[kprev] = st(vprev - damping * c / h)
+                vprev = v
+                kprev = kk
+            leader = x
+            leader_old = x_old
+        if wp.static(not prior):
+            velocities_out[kprev] = st(vprev)
+
+    return elastic_step
