@@ -189,7 +189,7 @@ def _num(x) -> str:
 # -- the table ------------------------------------------------------------------------------------
 
 #: the solver registry's names (dftl_warp.solvers.SOLVERS; the table is below the registry)
-SOLVER_NAMES = ("dftl", "ftl", "pbd", "reference", "elastic")
+SOLVER_NAMES = ("dftl", "ftl", "pbd", "reference", "elastic", "rattle")
 #: the velocity correction forms (dftl_warp.kernels.solvers.ftl.CORRECTIONS)
 CORRECTION_NAMES = ("prior", "posterior")
 #: the floating-point precisions (dftl_warp.core.precision.PRECISIONS)

@@ -53,6 +53,8 @@ class StudyConfig:
         ("pbd K=1 f64", "pbd", {"iterations": 1}, "float64"),
         ("pbd K=4 f64", "pbd", {"iterations": 4}, "float64"),
         ("pbd K=16 f64", "pbd", {"iterations": 16}, "float64"),
+        ("rattle f32", "rattle", {}, "float32"),
+        ("rattle f64", "rattle", {}, "float64"),
     ])
     energy_seconds: float = 3.0
     energy_substeps: int = 10  # per 1/24 s frame: 1/240 s
@@ -71,6 +73,7 @@ class StudyConfig:
         ("pbd K=4 f32", "pbd", {"iterations": 4}, "float32", [1, 4, 16]),
         ("pbd K=16 f32", "pbd", {"iterations": 16}, "float32", [1, 4, 16]),
         ("reference f64", "reference", {}, "float64", [1, 2, 4, 8, 16, 32]),
+        ("rattle f32", "rattle", {}, "float32", [1, 2, 4, 8, 16, 32]),
     ])
     mode_masses: int = 10
     mode_segment: float = 0.05
@@ -80,6 +83,7 @@ class StudyConfig:
     mode_settings: list = field(default_factory=lambda: [
         ("reference", "reference", {}), ("dftl s=1", "dftl", {"damping": 1.0}), ("ftl (s=0)", "ftl", {}),
         ("pbd K=4", "pbd", {"iterations": 4}), ("pbd K=16", "pbd", {"iterations": 16}),
+        ("rattle", "rattle", {}),
     ])
     map_dampings: list = field(default_factory=lambda: [0.0, 0.5, 0.8, 0.9, 1.0])
     map_dts: list = field(default_factory=lambda: [1 / 24, 1 / 240, 1e-3, 1e-4, 1e-5])
@@ -173,7 +177,7 @@ def energy(cfg: StudyConfig, log=print):
     settings = [("reference", "reference", {}), ("dftl s=1 prior", "dftl", {"damping": 1.0}),
                 ("dftl s=1 posterior", "dftl", {"damping": 1.0, "correction": "posterior"}),
                 ("dftl s=0.9", "dftl", {"damping": 0.9}), ("dftl s=0.8", "dftl", {"damping": 0.8}),
-                ("ftl (s=0)", "ftl", {}), ("pbd K=4", "pbd", {"iterations": 4})]
+                ("ftl (s=0)", "ftl", {}), ("pbd K=4", "pbd", {"iterations": 4}), ("rattle", "rattle", {})]
     rows = []
     scale = (cfg.chain_particles - 1) * sc.GRAVITY * cfg.chain_length
     for label, name, options in settings:

@@ -1,0 +1,152 @@
+"""The production second-order solver: RATTLE with a fixed number of Newton iterations.
+
+Same dynamics as the float64 :class:`~dftl_warp.solvers.reference.ReferenceSolver` (the
+inextensible chain, kinematic roots, unit masses), built for speed instead of certainty: the
+model's precision (float32 by default), a fixed number of Newton iterations per step (no
+data-dependent loop, no step halving), and a follow-the-leader projection after them that keeps
+every length exact to round-off whether Newton converged or not. See
+:mod:`dftl_warp.kernels.solvers.rattle` for the scheme.
+
+Second order and energy-conserving where the Newton iterations converge (RATTLE is symplectic and
+time-reversible: no numerical damping, unlike DFTL). Where they do not (a segment turning by tens of
+degrees in one substep, a teleporting root), the projection acts like one FTL step on that strand:
+first order and dissipative there, never NaN, never stretched. ``diagnostics()`` reports the
+largest residual the projection removed from a converged solve (``constraint_residual``) and how
+many strand-steps dropped a diverged Newton result (``fallbacks``) since the solver was built or
+:meth:`RattleSolver.reset_statistics` was called.
+
+Memory: besides the State, one vec3 and three scalars of scratch per particle (24 bytes in float32)
+and 8 bytes per strand; the scratch is the solver's, so one solver advances one state at a time.
+Features (colliders, hair-hair, shape retention) are not part of this solver: it steps gravity and
+roots only, and refuses a model with features.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from ..core.layout import strand_offsets
+from ..kernels.solvers.rattle import rattle_kernel
+from .base import DEFAULT_GRAVITY, Solver, register
+
+#: Newton iterations per step: 3 bring the relative squared-length residual of a float32 groom at
+#: production substeps (>= 8 per 1/24 s frame) to round-off (docs/accuracy-second-order.md)
+DEFAULT_NEWTON_ITERATIONS = 3
+
+#: relative squared-length residual below which the fixed Newton iterations count as converged
+#: (the projection then removes the rest); above it the step is split in halves
+DEFAULT_ACCEPT = 1.0e-4
+
+#: halvings of a substep at most (a substep is split into at most 2^k pieces where the SHAKE
+#: position equations have no solution along the old segments: a whipping tip, a teleporting root)
+DEFAULT_MAX_HALVINGS = 3
+
+#: relative squared-length residual above which a Newton result is treated as diverged and the
+#: plain prediction is projected instead
+DEFAULT_FALLBACK = 0.25
+
+
+@register
+class RattleSolver(Solver):
+    """RATTLE in the model's precision, ``newton_iterations`` Newton + Thomas solves per step.
+
+    Args:
+        model: the :class:`~dftl_warp.core.model.Model`; free particles need non-zero rest lengths.
+        gravity: acceleration (3,), m/s^2 (stage units/s^2 for USD scenes).
+        newton_iterations: Newton iterations of the position solve per step (fixed; >= 1).
+        fallback: relative squared-length residual above which a Newton result (at the smallest
+            piece) is dropped for the projection of the unconstrained prediction.
+        accept: relative squared-length residual below which the fixed iterations count as
+            converged; above it (and above ``max_halvings`` splits) the step is redone in halves.
+        max_halvings: how many times a substep may be halved (at most ``2^max_halvings`` pieces).
+    """
+
+    name = "rattle"
+    options = ("newton_iterations", "fallback", "accept", "max_halvings")
+
+    def __init__(self, model, *, gravity=DEFAULT_GRAVITY, newton_iterations: int = DEFAULT_NEWTON_ITERATIONS,
+                 fallback: float = DEFAULT_FALLBACK, accept: float = DEFAULT_ACCEPT,
+                 max_halvings: int = DEFAULT_MAX_HALVINGS):
+        if int(newton_iterations) != newton_iterations or int(newton_iterations) < 1:
+            raise ValueError(f"newton_iterations must be an integer >= 1, got {newton_iterations!r}")
+        if not (float(fallback) > 0.0):
+            raise ValueError(f"fallback must be > 0, got {fallback!r}")
+        if model.feature_flags:
+            raise ValueError("the rattle solver steps gravity and roots only; this model has features "
+                             f"({', '.join(sorted(model.feature_flags))}): use --solver dftl")
+        rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
+        starts = strand_offsets(model.counts)
+        free = np.ones(rest.shape[0], dtype=bool)
+        free[starts[model.counts > 0]] = False
+        if np.any(rest[free] <= 0.0):
+            i = int(np.flatnonzero(free & (rest <= 0.0))[0])
+            raise ValueError(f"point {i}: the rattle solver needs non-zero rest lengths")
+        super().__init__(model, gravity=gravity)
+        self.newton_iterations = int(newton_iterations)
+        self.fallback = float(fallback)
+        if not (float(accept) > 0.0):
+            raise ValueError(f"accept must be > 0, got {accept!r}")
+        if int(max_halvings) != max_halvings or not (0 <= int(max_halvings) <= 10):
+            raise ValueError(f"max_halvings must be an integer in [0, 10], got {max_halvings!r}")
+        self.accept = float(accept)
+        self.max_halvings = int(max_halvings)
+        self._kernel = rattle_kernel(model.scalar)
+        n, dev = model.num_slots, model.device
+        self._q = wp.zeros(n, dtype=model.vec3, device=dev)
+        self._lo = wp.zeros(n, dtype=model.vec3, device=dev)
+        self._scalars = [wp.zeros(n, dtype=model.scalar, device=dev) for _ in range(3)]
+        self._residual = wp.zeros(model.num_strands, dtype=model.scalar, device=dev)
+        self._fallbacks = wp.zeros(model.num_strands, dtype=wp.int32, device=dev)
+
+    def kernels(self) -> list:
+        return [self._kernel]
+
+    def _launch(self, state_in, state_out, control, dt, alpha_first, alpha_step, substeps):
+        m = self.model
+        if m.num_strands == 0:
+            return
+        if state_out is not state_in:
+            wp.copy(state_out.positions, state_in.positions)
+            wp.copy(state_out.velocities, state_in.velocities)
+        wp.launch(
+            self._kernel,
+            dim=m.num_strands,
+            inputs=[
+                m.strand_base, m.strand_stride, m.strand_count,
+                control.root_start, control.root_end,
+                alpha_first, alpha_step, int(substeps),
+                m.rest_lengths, self.gravity, dt, self.newton_iterations, self.fallback, self.accept,
+                self.max_halvings,
+                state_out.positions, state_out.velocities,
+                self._q, self._lo, *self._scalars, self._residual, self._fallbacks,
+            ],
+            device=m.device,
+        )
+
+    def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
+        """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``)."""
+        self._launch(state_in, state_out, control, dt, root_alpha, 0.0, 1)
+
+    def substeps(self, state, control, dt: float, substeps: int) -> None:
+        """The frame's substeps in one launch (the substep loop runs inside the kernel)."""
+        real = np.dtype(self.model.precision).type
+        step = float(real(1.0) / real(substeps))
+        self._launch(state, state, control, dt, step, step, substeps)
+
+    def reset_statistics(self) -> None:
+        """Zero the residual and fallback counters that :meth:`diagnostics` reports."""
+        self._residual.zero_()
+        self._fallbacks.zero_()
+
+    def diagnostics(self, state) -> dict:
+        """Energy (J/kg), max stretch, max speed (m/s), the largest relative squared-length residual
+        the projection removed from a converged Newton solve (``constraint_residual``) and the
+        number of strand-steps whose Newton result diverged and was dropped (``fallbacks``)."""
+        out = super().diagnostics(state)
+        if self.model.num_strands:
+            out["constraint_residual"] = float(self._residual.numpy().max())
+            out["fallbacks"] = int(self._fallbacks.numpy().sum())
+        else:
+            out["constraint_residual"], out["fallbacks"] = 0.0, 0
+        return out
