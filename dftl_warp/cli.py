@@ -24,7 +24,7 @@ from .errors import UserError
 
 #: command modules (dftl_warp.commands.<module>), in the order ``--help`` lists them; each module's
 #: ``add_parser`` chooses its subcommand's name (``import_groom`` registers ``import``)
-COMMANDS = ("simulate", "render", "batch", "study", "info", "devices", "import_groom")
+COMMANDS = ("simulate", "render", "batch", "study", "info", "diff", "devices", "import_groom")
 
 #: signals that end a run cleanly (temporary files removed), with exit status 128 + number
 HANDLED_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
@@ -121,6 +121,7 @@ def main(argv=None) -> int:
             init_warp()
             parser = build_parser()
             args = parser.parse_args(argv)  # SystemExit(2) after one line for a bad flag
+            args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line (provenance)
             if not getattr(args, "run", None):
                 parser.print_help()
                 return 0

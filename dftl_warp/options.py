@@ -211,6 +211,9 @@ _RUN = [
            cli="--correction", usd="dftl:correction", scope="curves", toml="correction", api="correction"),
     Option("solver", str, "dftl", "solver", choices=SOLVER_NAMES,
            cli="--solver", usd="dftl:solver", scope="curves", toml="solver", api="solver"),
+    Option("inverse_statics", bool, True,
+           "elastic solver: the authored shape is the equilibrium under gravity (false: it sags "
+           "toward its rest shape)", usd="dftl:inverseStatics", scope="curves"),
     Option("iterations", int, 4, "Gauss-Seidel iterations per step of --solver pbd", low=1,
            cli="--iterations", metavar="K", toml="iterations", api="iterations"),
     Option("precision", str, "float32", "floating-point precision", choices=PRECISION_NAMES,
@@ -407,3 +410,30 @@ def add_arguments(parser, names, *, choices=None, defaults_from_usd: bool = True
             default_text = f"{o.usd}, else {_num(o.default) if isinstance(o.default, float) else o.default}"
         kw["help"] = cli_help(o, default_text)
         parser.add_argument(o.cli, **kw)
+
+
+# -- output options (issue 21: docs/caches.md); appended: they are not SimulationOptions fields, so
+# -- simulate_usd and the batch jobs take them off before making the SimulationOptions
+#: the metrics a ``--check`` gate may name (dftl_warp.output.qc.METRICS)
+QC_METRICS = ("stretch", "penetration", "speed", "energy", "nan")
+_OUTPUT = [
+    Option("no_velocities", bool, False, "write no velocities (points and extent only)",
+           cli="--no-velocities", toml="no_velocities", api="no_velocities"),
+    Option("frame_step", int, 1, "write every Nth frame (every frame is simulated)", low=1,
+           cli="--frame-step", metavar="N", toml="frame_step", api="frame_step"),
+    Option("check", str, None,
+           "QC gates, e.g. 'stretch<1e-3,penetration<0.05': a frame and prim breaking one fails the "
+           "run with exit status 3 and no output (metrics: " + ", ".join(QC_METRICS) + ")",
+           pattern=re.compile(r"^(\s*(" + "|".join(QC_METRICS) + r")\s*<\s*[-+0-9.eE]+\s*)(,\s*(" + "|".join(QC_METRICS)
+                              + r")\s*<\s*[-+0-9.eE]+\s*)*$"),
+           cli="--check", metavar="GATES", toml="check", api="check"),
+    Option("clips", int, None,
+           "write USD value clips of FRAMES frames each (0 or no value: chosen by size), written in parallel",
+           low=0, cli="--clips", metavar="FRAMES", toml="clips", api="clips"),
+]
+for _o in _OUTPUT:
+    OPTIONS[_o.name] = _o
+    BY_TOML[_o.toml] = _o
+    BY_API[_o.api] = _o
+#: the output options' names (not fields of SimulationOptions)
+OUTPUT_OPTIONS = tuple(o.name for o in _OUTPUT)

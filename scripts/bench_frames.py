@@ -30,6 +30,23 @@ from dftl_warp.output.usd import UsdWriter  # noqa: E402
 from make_scenes import make_default  # noqa: E402
 
 
+def dd_bandwidth(workdir: Path, size_mb: int = 1024) -> float:
+    """fsync'd sequential write bandwidth of ``workdir``'s disk, bytes/s (dd conv=fsync)."""
+    import re
+    import subprocess
+
+    target = workdir / "dd.bin"
+    run = subprocess.run(["dd", "if=/dev/zero", f"of={target}", "bs=1M", f"count={size_mb}", "conv=fsync"],
+                         capture_output=True, text=True)
+    target.unlink(missing_ok=True)
+    m = re.search(r"copied, ([0-9.]+) s", run.stderr)
+    return size_mb * (1 << 20) / float(m.group(1)) if m else float("nan")
+
+
+def _tree_bytes(path: Path) -> int:
+    return sum(p.stat().st_size for p in ([path] if path.is_file() else path.rglob("*")) if p.is_file())
+
+
 def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path) -> dict:
     groom = workdir / "groom.usda"
     make_default(groom, strands=strands, vertices=16)
@@ -70,11 +87,20 @@ def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path
     summary = simulate_usd(str(groom), str(workdir / "simulated.usdc"), start=first, end=last,
                            substeps=substeps, device=device)
     t_both = summary.seconds_simulating + summary.seconds_writing
+    clip_frames = max(1, frames // 8)
+    clips = simulate_usd(str(groom), str(workdir / "clips.usdc"), start=first, end=last, substeps=substeps,
+                         device=device, clips=clip_frames)
+    t_clips = clips.seconds_simulating + clips.seconds_writing
+    clip_bytes = _tree_bytes(workdir / "clips_clips") + _tree_bytes(workdir / "clips.usdc")
+    dd = dd_bandwidth(workdir)
     fps = {"simulating alone": (frames - 1) / t_sim, "of which fetching samples alone": (frames - 1) / t_samples,
-           "writing alone": frames / t_write, "simulate": frames / t_both}
+           "writing alone": frames / t_write, "simulate": frames / t_both,
+           f"simulate --clips {clip_frames}": frames / t_clips}
     slower = min(fps["simulating alone"], fps["writing alone"])
     return {"device": device, "strands": summary.strands, "particles": summary.particles, "frames": frames,
-            "substeps": substeps, "fps": fps, "of_slower": fps["simulate"] / slower}
+            "substeps": substeps, "fps": fps, "of_slower": fps["simulate"] / slower,
+            "clips_bytes_per_s": clip_bytes / t_clips, "dd_fsync_bytes_per_s": dd,
+            "clips_of_dd": clip_bytes / t_clips / dd}
 
 
 def main(argv=None):
@@ -104,6 +130,10 @@ def main(argv=None):
              "|---|" + "---|" * len(runs)]
     lines += [f"| {name} | " + " | ".join(f"{r['fps'][name]:.2f}" for r in runs) + " |" for name in names]
     lines += ["| simulate / slower of the two alone | " + " | ".join(f"{100 * r['of_slower']:.0f}%" for r in runs) + " |"]
+    lines += ["| clips written GB/s | " + " | ".join(f"{r['clips_bytes_per_s'] / 1e9:.2f}" for r in runs) + " |"]
+    lines += ["| dd (fsync'd sequential write) GB/s, same run | " + " | ".join(f"{r['dd_fsync_bytes_per_s'] / 1e9:.2f}"
+                                                                       for r in runs) + " |"]
+    lines += ["| clips / dd | " + " | ".join(f"{100 * r['clips_of_dd']:.0f}%" for r in runs) + " |"]
     lines += ["", f"simulate reaches **{100 * res['of_slower_median']:.0f}%** (median) of the slower of simulating "
               "alone and writing alone."]
     md = "\n".join(lines)

@@ -131,36 +131,12 @@ class JobFiles:
 # -- settings ---------------------------------------------------------------------------------------
 
 
-def file_sha256(path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
+# the one input fingerprint (also the provenance record's, dftl_warp.output.provenance)
+from ..output.provenance import file_sha256, input_fingerprint  # noqa: E402,F401  (re-exported)
 
 
-def input_fingerprint(input_path) -> dict:
-    """SHA-256 of the input file and of every file it depends on (sublayers, references,
-    payloads, other assets), by real path; missing dependencies are listed as such."""
-    from pxr import UsdUtils
-
-    files = {os.path.abspath(input_path): file_sha256(input_path)}
-    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # keep USD's warnings off the terminal
-    try:
-        layers, assets, unresolved = UsdUtils.ComputeAllDependencies(os.fspath(input_path))
-    except Exception:  # noqa: BLE001 - the input alone still identifies most changes
-        return files
-    finally:
-        del delegate
-    for path in [layer.realPath for layer in layers if layer.realPath] + list(assets):
-        if os.path.isfile(path):
-            files[os.path.abspath(path)] = file_sha256(path)
-    for path in unresolved:
-        files[str(path)] = "missing"
-    return files
-
-
-def settings_hash(input_path, output, options, first: int, last: int) -> str:
+def settings_hash(input_path, output, options, first: int, last: int, output_options: dict | None = None,
+                  fingerprint: dict | None = None) -> str:
     """Hash of everything the output depends on: the contents of the input and of every file it
     depends on, the input and output paths, the frame range and the simulate options (except the
     device: every device gives the same results). ``options`` is a
@@ -172,11 +148,13 @@ def settings_hash(input_path, output, options, first: int, last: int) -> str:
         "format": FORMAT,
         "dftl_warp": __version__,
         "input": os.path.abspath(input_path),
-        "files": input_fingerprint(input_path),
+        "files": fingerprint if fingerprint is not None else input_fingerprint(input_path),
         "output": os.path.abspath(output),
         "frames": [int(first), int(last)],
         "options": opts,
     }
+    if output_options:  # --frame-step, --no-velocities, --check, --clips (only when set: older hashes hold)
+        record["output_options"] = {k: v for k, v in sorted(output_options.items()) if v is not None}
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
 
@@ -303,13 +281,26 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     from ..output import check_output_path, writer_for
     from ..core.devices import init_warp
 
+    from ..options import OUTPUT_OPTIONS
+    from ..output import provenance
+    from ..output.qc import FrameQC, parse_gates
+
     init_warp()
-    opts = SimulationOptions(**job.options, device=device)
+    options = dict(job.options)
+    out_opts = {k: options.pop(k, None) for k in OUTPUT_OPTIONS}  # --frame-step, --check, ... (docs/caches.md)
+    opts = SimulationOptions(**options, device=device)
+    gates = parse_gates(out_opts["check"])
+    if out_opts["clips"] is not None:  # per-chunk resume of clips is not built yet (docs/caches.md)
+        raise UserError(f"{job.output}: clips are not supported in batch jobs yet; use dftl-warp simulate --clips")
+    step = out_opts["frame_step"] or 1
     check_output_path(job.output, job.input)
     scene = read_scene(job.input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
+    last = first + (last - first) // step * step  # the last frame written
     result.total_frames = last - first + 1
-    key = settings_hash(job.input, job.output, opts, first, last)
+    fingerprint = input_fingerprint(job.input)
+    key = settings_hash(job.input, job.output, opts, first, last,
+                        {k: v for k, v in out_opts.items() if v is not None}, fingerprint=fingerprint)
     if completed(job.output, key):
         remove_job_files(files)  # left over when a run was killed right after its commit
         result.status = "skipped"
@@ -321,11 +312,16 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         result.notes.append(text)
         emit({"event": "note", "text": text})
 
-    writer, resumed = _resume(files, key, signature, sim, scene, first, last, note)
+    writer, resumed = _resume(files, key, signature, sim, scene, first, last, note, step)
     if writer is None:
         remove_job_files(files)
-        writer = writer_for(job.output).create(job.output, scene, frames=(first, last), keep_partial=True)
+        extra = {"velocities": False} if out_opts["no_velocities"] else {}
+        writer = writer_for(job.output).create(job.output, scene, frames=(first, last), keep_partial=True, **extra)
         writer.set_record(LAYER_DATA_KEY, {"settings_hash": key, "format": FORMAT})
+        writer.set_record(provenance.RECORD, provenance.build(
+            sim, job.input, fingerprint=fingerprint, quality=job.options.get("quality"),
+            output_options={"frame_step": step, "velocities": not out_opts["no_velocities"],
+                            "check": out_opts["check"] or "none", "clips": "none"}))
     result.resumed_from = resumed
     emit({"event": "start", "total": result.total_frames, "first": first, "last": last, "resumed_from": resumed})
     done = 0 if resumed is None else resumed - first + 1
@@ -350,7 +346,8 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
             since["frames"], since["time"], since["cost"] = 0, time.monotonic(), time.monotonic() - began
 
     try:
-        run_frames(sim, writer, last, progress=after_frame, write_first=True)
+        run_frames(sim, writer, last, progress=after_frame, write_first=True, frame_step=step, first_frame=first,
+                   qc=FrameQC(sim), gates=gates, velocities=not out_opts["no_velocities"])
         writer.keep_partial = False
         writer.commit()
     except BaseException:
@@ -373,7 +370,7 @@ def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
     atomic_savez(files.checkpoint_state, files.temporary(files.checkpoint_state), state)
 
 
-def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
+def _resume(files: JobFiles, key, signature, sim, scene, first, last, note, step: int = 1):
     """(writer, last frame kept) continuing from the job's checkpoint, or (None, None) to start
     over. The simulation is left at the checkpoint's frame, which is written (again) next."""
     from ..output import writer_for
@@ -407,7 +404,7 @@ def _resume(files: JobFiles, key, signature, sim, scene, first, last, note):
         return None, None
     record = writer.record(LAYER_DATA_KEY) or {}
     have = set(writer.written_time_codes)
-    if record.get("settings_hash") != key or not have.issuperset(range(first, frame)):
+    if record.get("settings_hash") != key or not have.issuperset(range(first, frame, step)):
         writer.abort()
         note("checkpoint output does not match its state; starting over")
         return None, None

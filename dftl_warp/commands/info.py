@@ -71,6 +71,29 @@ def feature_summary(scene, precision: str = "float32") -> dict:
             "feature_bytes_per_strand": per_strand / strands, "fixed_feature_bytes": int(fixed)}
 
 
+def material_summary(scene, curve) -> dict:
+    """A prim's elastic material (stage units), where it came from, and its bending length
+    l_b = (EI / (rho A g))^(1/3) for the prim's mean hair radius, in stage units and metres."""
+    import numpy as np
+
+    from ..features.scene import widths_per_point
+    from ..solvers.elastic_material import default_radius, stage_material
+
+    info = scene.stage
+    mat = stage_material(curve.material, info.meters_per_unit, info.kilograms_per_unit)
+    w = widths_per_point(curve)
+    radius = float(np.mean(0.5 * w[w > 0])) if w is not None and np.any(w > 0) else default_radius(info.meters_per_unit)
+    lb = mat.bending_length(radius, float(np.linalg.norm(scene.gravity)))
+    return {"source": mat.source, "youngs_modulus": mat.youngs_modulus, "density": mat.density,
+            "bend_stiffness": mat.bend_stiffness, "twist_stiffness": mat.twist_stiffness,
+            "youngs_modulus_pa": mat.youngs_modulus * info.kilograms_per_unit / info.meters_per_unit,
+            "density_kg_m3": mat.density * info.kilograms_per_unit / info.meters_per_unit ** 3,
+            "radius": radius, "radius_from_widths": w is not None and bool(np.any(w > 0)),
+            "bending_length": lb, "bending_length_m": lb * info.meters_per_unit,
+            "rest_shape_points": curve.rest_points is not None,
+            "bend_stiffness_scale": curve.bend_scale is not None}
+
+
 def describe(scene) -> dict:
     """A JSON-able description of a :class:`~dftl_warp.usd.scene.Scene`."""
     import numpy as np
@@ -114,6 +137,7 @@ def describe(scene) -> dict:
                 "settings": {k: v for k, v in vars(c.settings).items() if v is not None and k != "simulate"},
                 "feature_attributes": dict(c.features),
                 "root_mesh": c.root_mesh.path if c.root_mesh is not None else None,
+                "material": material_summary(scene, c),
             }
             for c in scene.curves
         ],
@@ -136,8 +160,13 @@ def _bytes(n: float) -> str:
 def run(args) -> int:
     from ..usd.read import read_scene
 
+    from ..output import provenance
+
     scene = read_scene(args.scene, prims=args.prim)
     d = describe(scene)
+    made = provenance.read(args.scene)  # an output of dftl-warp: how it was made
+    if made is not None:
+        d["provenance"] = made
     if args.json:
         print(json.dumps(d, indent=2))
         return 0
@@ -177,6 +206,15 @@ def run(args) -> int:
         if c["root_mesh"]:
             settings += f", roots on {c['root_mesh']}"
         print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}")
+        m = c["material"]
+        ei = "" if m["bend_stiffness"] is None else f", EI {m['bend_stiffness']:.4g}"
+        extras = "".join(t for t, on in ((", restShapePoints", m["rest_shape_points"]),
+                                         (", bendStiffnessScale ramp", m["bend_stiffness_scale"])) if on)
+        radius = f"radius {m['radius'] * d['meters_per_unit'] * 1e6:.3g} um" + (
+            "" if m["radius_from_widths"] else " (no widths: default)")
+        print(f"      material  E {m['youngs_modulus']:.4g} ({m['youngs_modulus_pa']:.4g} Pa), density "
+              f"{m['density']:.4g} ({m['density_kg_m3']:.4g} kg/m^3){ei}; from {m['source']}{extras}")
+        print(f"      bending length {m['bending_length']:.4g} units = {m['bending_length_m']:.4g} m ({radius})")
     print(f"  colliders   {len(d['colliders'])}")
     for c in d["colliders"]:
         friction = "" if c["friction"] is None else f", friction {c['friction']:g}"
@@ -184,4 +222,8 @@ def run(args) -> int:
         print(f"    {c['path']}: {c['kind']}{friction}{extra}")
     for w in d["warnings"]:
         print(f"  warning     {w}")
+    if made is not None:
+        print("  provenance")
+        for line in provenance.lines(made):
+            print("  " + line)
     return 0

@@ -29,11 +29,41 @@ def add_parser(sub):
                    help="output layer (.usdc by default; .usda and .usd allowed)")
     # from the options table (dftl_warp/options.py); the solver names from the live registry
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
+    _add_output_flags(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
     p.set_defaults(run=run)
 
 
+def _add_output_flags(p) -> None:
+    """The output options of the table (issue 21, docs/caches.md): --frame-step and --check as
+    add_arguments makes them, --no-velocities (a switch) and --clips [FRAMES] (optional value)."""
+    from ..options import OPTIONS, _cli_type, add_arguments, cli_help
+
+    add_arguments(p, ("frame_step",))
+    o = OPTIONS["check"]
+    p.add_argument(o.cli, dest="check", default=None, type=_gates, metavar=o.metavar, help=cli_help(o))
+    o = OPTIONS["no_velocities"]
+    p.add_argument(o.cli, dest="no_velocities", action="store_const", const=True, default=None, help=cli_help(o))
+    o = OPTIONS["clips"]
+    p.add_argument(o.cli, dest="clips", nargs="?", const=0, default=None, type=_cli_type(o), metavar=o.metavar,
+                   help=cli_help(o))
+
+
+def _gates(text):
+    import argparse
+
+    from ..errors import UserError
+    from ..output.qc import parse_gates
+
+    try:
+        parse_gates(text)
+    except UserError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def run(args) -> int:
+    from ..output.qc import QCError
     from ..simulation.quality import describe_quality, quality_preset
     from ..simulation.simulate import simulate_usd
 
@@ -42,7 +72,27 @@ def run(args) -> int:
     for name in given:
         if getattr(args, name) is None and name in preset:
             setattr(args, name, preset[name])
-    summary = simulate_usd(
+    try:
+        summary = _simulate(args, simulate_usd, preset, given, describe_quality)
+    except QCError as exc:  # a --check gate broken: one line, exit status 3, no output left
+        print(f"dftl-warp: error: {exc}", file=sys.stderr)
+        return 3
+    if not args.quiet:
+        for w in summary.warnings:
+            print(f"dftl-warp: warning: {w}", file=sys.stderr)
+    s = summary
+    total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
+    print(
+        f"{s.output}: {s.strands} strands, {s.particles} particles in {s.prims} prim(s), "
+        f"{s.frames} frames ({s.first_frame}..{s.last_frame}); "
+        f"loading {s.seconds_loading:.2f} s, simulating {s.seconds_simulating:.2f} s, "
+        f"writing {s.seconds_writing:.2f} s, total {total:.2f} s"
+    )
+    return 0
+
+
+def _simulate(args, simulate_usd, preset, given, describe_quality):
+    return simulate_usd(
         args.input,
         args.output,
         progress=not args.quiet,
@@ -57,16 +107,17 @@ def run(args) -> int:
         iterations=args.iterations,
         device=args.device,
         prims=args.prim,
+        no_velocities=args.no_velocities,
+        frame_step=args.frame_step,
+        check=args.check,
+        clips=args.clips,
+        quality=args.quality,
+        command=_command_line(args),
     )
-    if not args.quiet:
-        for w in summary.warnings:
-            print(f"dftl-warp: warning: {w}", file=sys.stderr)
-    s = summary
-    total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
-    print(
-        f"{s.output}: {s.strands} strands, {s.particles} particles in {s.prims} prim(s), "
-        f"{s.frames} frames ({s.first_frame}..{s.last_frame}); "
-        f"loading {s.seconds_loading:.2f} s, simulating {s.seconds_simulating:.2f} s, "
-        f"writing {s.seconds_writing:.2f} s, total {total:.2f} s"
-    )
-    return 0
+
+
+def _command_line(args) -> str | None:
+    import shlex
+
+    argv = getattr(args, "argv", None)
+    return None if argv is None else shlex.join(["dftl-warp", *argv])

@@ -11,7 +11,9 @@ them knows the file format. A writer's life:
    fixed name :meth:`FrameWriter.reopen` finds again;
 2. ``write_frame(time_code, samples)`` per frame, in increasing time code order (``samples``: one
    ``(points, velocities)`` pair of (N, 3) arrays per ``scene.curves`` prim, local space, stage
-   units and stage units per second); ``flush()`` makes what was written so far durable in the
+   units and stage units per second; ``velocities`` is None for a writer created with
+   ``velocities=False``, see :attr:`FrameWriter.create_options`), then optionally
+   ``write_qc(time_code, qc)`` (the frame's per-prim QC, :mod:`dftl_warp.output.qc`); ``flush()`` makes what was written so far durable in the
    partial file (a batch checkpoint copies it then);
 3. ``commit()`` moves the result onto ``output``; ``abort()`` drops the partial file (kept when
    ``keep_partial``). As a context manager a writer aborts on any exception.
@@ -42,6 +44,9 @@ class FrameWriter:
     #: whether :meth:`reopen` can continue a partial file (batch resume); else a batch job that
     #: was interrupted starts over
     resumable: bool = False
+    #: optional keywords :meth:`create` takes beyond the interface's (``velocities=False``: write
+    #: no velocities; a writer without it cannot honour ``--no-velocities``)
+    create_options: tuple[str, ...] = ()
 
     # -- construction ---------------------------------------------------------------------------
 
@@ -74,6 +79,10 @@ class FrameWriter:
 
     def write_frame(self, time_code: float, samples) -> None:
         raise NotImplementedError
+
+    def write_qc(self, time_code: float, qc: dict) -> None:
+        """Store the frame's QC (prim path -> {metric: value}, :mod:`dftl_warp.output.qc`) with the
+        frame. A format that has no place for it ignores it (this default)."""
 
     def flush(self) -> None:
         """Make the frames written so far durable in the partial file."""

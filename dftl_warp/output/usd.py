@@ -40,6 +40,7 @@ import numpy as np
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder  # noqa: F401  (ensure_folder: re-exported)
 from .paths import check_writable
+from .qc import ATTRIBUTES, QC_ROOT, qc_prim_name
 
 OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
 #: save (and so release) the in-memory samples once this many new bytes have accumulated
@@ -119,6 +120,7 @@ class UsdWriter(FrameWriter):
 
     extensions = OUTPUT_EXTENSIONS
     resumable = True
+    create_options = ("velocities", "flush_bytes")
 
     def __init__(self, layer, output: Path, targets: list[_Target], *, flush_bytes: int, keep_partial: bool = False):
         self.layer = layer
@@ -129,6 +131,8 @@ class UsdWriter(FrameWriter):
         #: leave the partial file on abort (for resumable batch runs)
         self.keep_partial = keep_partial
         self._unsaved = 0
+        #: QC prim name -> {metric: attribute spec path} (made on the first write_qc)
+        self._qc: dict = {}
         self.frames_written = 0
         self.seconds_saving = 0.0
 
@@ -136,12 +140,14 @@ class UsdWriter(FrameWriter):
 
     @classmethod
     def create(cls, output, scene, *, frames: tuple[int, int] | None = None,
-               flush_bytes: int = DEFAULT_FLUSH_BYTES, keep_partial: bool = False) -> UsdWriter:
+               flush_bytes: int = DEFAULT_FLUSH_BYTES, keep_partial: bool = False,
+               velocities: bool = True) -> UsdWriter:
         """A new partial file for ``output``: metadata, sublayer and ``over`` specs, saved once
         (so that an unwritable location fails now, not after the simulation).
 
         ``frames`` (first, last) is authored as the layer's start/end time codes (else the
-        input's). A ``keep_partial`` (resumable) writer streams into :func:`partial_path`, any
+        input's). ``velocities=False`` authors no velocities (``--no-velocities``). A
+        ``keep_partial`` (resumable) writer streams into :func:`partial_path`, any
         other into a :func:`unique_partial_path`. The output's folder is created if missing.
         """
         from pxr import Sdf, Tf
@@ -162,7 +168,7 @@ class UsdWriter(FrameWriter):
             _remove(partial)
             raise UserError(f"{output}: cannot write {partial}")
         try:
-            targets = _author_structure(layer, scene, output, frames)
+            targets = _author_structure(layer, scene, output, frames, velocities=velocities)
             layer.Save()
         except Tf.ErrorException as exc:
             _remove(partial)
@@ -188,11 +194,18 @@ class UsdWriter(FrameWriter):
         targets = []
         for c in scene.curves:
             t = _target(Sdf.Path(c.path), c)
-            for attr in (t.points, t.velocities, t.extent):
+            if not layer.GetAttributeAtPath(t.velocities):  # written with velocities=False
+                t.velocities = None
+            for attr in (t.points, t.extent):
                 if not layer.GetAttributeAtPath(attr):
                     raise UserError(f"{partial}: {c.path}: no {attr.name} spec; not a partial output of this scene")
             targets.append(t)
-        return cls(layer, output, targets, flush_bytes=flush_bytes, keep_partial=keep_partial)
+        writer = cls(layer, output, targets, flush_bytes=flush_bytes, keep_partial=keep_partial)
+        qc_root = layer.GetPrimAtPath(QC_ROOT)
+        for child in (qc_root.nameChildren if qc_root else []):
+            writer._qc[child.name] = {m: child.path.AppendProperty(a) for m, a in ATTRIBUTES.items()
+                                      if child.attributes.get(a) is not None}
+        return writer
 
     @classmethod
     def partial_path(cls, output) -> Path:
@@ -237,6 +250,8 @@ class UsdWriter(FrameWriter):
         common = None
         for t in self.targets:
             for attr in (t.points, t.velocities, t.extent):
+                if attr is None:
+                    continue
                 times = set(self.layer.ListTimeSamplesForPath(attr))
                 common = times if common is None else common & times
         return sorted(common or ())
@@ -263,22 +278,40 @@ class UsdWriter(FrameWriter):
         for t, (points, velocities) in zip(self.targets, samples):
             # FromBuffer converts float64 to float32 while copying (no separate astype pass)
             p = Vt.Vec3fArray.FromBuffer(_rows(points))
-            v = Vt.Vec3fArray.FromBuffer(_rows(velocities))
+            v = None if t.velocities is None or velocities is None else Vt.Vec3fArray.FromBuffer(_rows(velocities))
             if t.widths is not None:
                 e = UsdGeom.Curves.ComputeExtent(p, t.widths)
             else:
                 e = UsdGeom.PointBased.ComputeExtent(p)
             values.append((t, p, v, e))
-            self._unsaved += 24 * len(p)
+            self._unsaved += (24 if v is not None else 12) * len(p)
         time = float(time_code)
         with Sdf.ChangeBlock():
             for t, p, v, e in values:
                 self.layer.SetTimeSample(t.points, time, p)
-                self.layer.SetTimeSample(t.velocities, time, v)
+                if v is not None:
+                    self.layer.SetTimeSample(t.velocities, time, v)
                 self.layer.SetTimeSample(t.extent, time, e)
         self.frames_written += 1
         if self._unsaved >= self.flush_bytes:
             self.flush()
+
+    def write_qc(self, time_code: float, qc: dict) -> None:
+        """Author the frame's QC as time samples on ``/dftl_qc/<prim>`` (:mod:`dftl_warp.output.qc`)."""
+        from pxr import Sdf
+
+        time = float(time_code)
+        with Sdf.ChangeBlock():
+            for prim_path, metrics in qc.items():
+                name = qc_prim_name(prim_path)
+                specs = self._qc.get(name)
+                if specs is None:
+                    specs = self._qc[name] = _author_qc_prim(self.layer, name, prim_path)
+                for metric, value in metrics.items():
+                    if metric not in specs and metric in ATTRIBUTES and value is not None:
+                        specs[metric] = _author_qc_attribute(self.layer.GetPrimAtPath(f"{QC_ROOT}/{name}"), metric)
+                    if metric in specs and value is not None:
+                        self.layer.SetTimeSample(specs[metric], time, int(value) if metric == "nan" else float(value))
 
     def flush(self) -> None:
         """Save the samples written so far: they move from memory to the partial file."""
@@ -374,7 +407,32 @@ def _target(prim_path, curves) -> _Target:
     )
 
 
-def _author_structure(layer, scene, output: Path, frames) -> list[_Target]:
+def _author_qc_prim(layer, name: str, prim_path: str) -> dict:
+    """``def Scope "dftl_qc"`` and its ``def Scope "<name>"`` with the QC attributes (custom)."""
+    from pxr import Sdf
+
+    root = layer.GetPrimAtPath(QC_ROOT)
+    if not root:
+        root = Sdf.PrimSpec(layer.pseudoRoot, QC_ROOT.strip("/"), Sdf.SpecifierDef, "Scope")
+    prim = Sdf.PrimSpec(root, name, Sdf.SpecifierDef, "Scope")
+    label = Sdf.AttributeSpec(prim, "dftl:qc:prim", Sdf.ValueTypeNames.String, Sdf.VariabilityUniform, True)
+    label.default = prim_path
+    specs = {}
+    for metric in ATTRIBUTES:
+        if metric != "penetration":  # only where colliders give it (made on its first value)
+            specs[metric] = _author_qc_attribute(prim, metric)
+    return specs
+
+
+def _author_qc_attribute(prim, metric: str):
+    from pxr import Sdf
+
+    kind = Sdf.ValueTypeNames.Int if metric == "nan" else Sdf.ValueTypeNames.Double
+    Sdf.AttributeSpec(prim, ATTRIBUTES[metric], kind, Sdf.VariabilityVarying, True)
+    return prim.path.AppendProperty(ATTRIBUTES[metric])
+
+
+def _author_structure(layer, scene, output: Path, frames, velocities: bool = True) -> list[_Target]:
     """Metadata, sublayer, and the ``over`` prim and attribute specs (no samples yet)."""
     from pxr import Sdf
 
@@ -406,6 +464,11 @@ def _author_structure(layer, scene, output: Path, frames) -> list[_Target]:
                 ("velocities", Sdf.ValueTypeNames.Vector3fArray),
                 ("extent", Sdf.ValueTypeNames.Float3Array),
             ):
+                if name == "velocities" and not velocities:
+                    continue
                 Sdf.AttributeSpec(prim, name, type_name)
-            targets.append(_target(path, c))
+            t = _target(path, c)
+            if not velocities:
+                t.velocities = None
+            targets.append(t)
     return targets

@@ -63,6 +63,12 @@ class Group:
             hair_hair = find(features, HairHair)
             grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
         extra = {} if options.iterations is None else {"iterations": options.iterations}
+        elastic = settings.solver == "elastic"
+        if elastic:
+            from .elastic_setup import check_single_device, elastic_options
+
+            check_single_device(devices, scene.source)
+            extra, features = elastic_options(scene, curves, frame, features, widths, settings)
         models, solvers, states, controls = [], [], [], []
         for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
             part = part_features(features, s0, s1, len(counts), scene.source, grid_extent) if split else features
@@ -78,7 +84,8 @@ class Group:
                     solver = make_solver(model, settings.solver, damping=settings.damping,
                                          correction=settings.correction, gravity=scene.gravity, **extra)
                 except ValueError as exc:
-                    raise UserError(f"{scene.source}: {exc}") from None
+                    hint = " (run without colliders, wind or hair-hair)" if elastic and "features" in str(exc) else ""
+                    raise UserError(f"{scene.source}: {exc}{hint}") from None
                 models.append(model)
                 solvers.append(solver)
                 states.append(solver.state())
@@ -101,6 +108,12 @@ class Group:
             monitors = [EnergyMonitor(s, setting, st) for s, st in zip(solvers, states)]
             self.monitor = SplitMonitor(monitors) if split else monitors[0]
         self._parts = list(zip(models, states))
+        #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)
+        self.clamps = None
+        if elastic:
+            from .elastic_setup import ClampDriver
+
+            self.clamps = ClampDriver(self, frame)
         #: device buffers of local_samples per part, made on first use
         self._sample_buffers = None
 

@@ -65,6 +65,8 @@ class GroupSettings:
     damping: float
     correction: str
     substeps: int
+    #: elastic solver: the authored shape is the equilibrium under gravity (``dftl:inverseStatics``)
+    inverse_statics: bool = True
 
 
 def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
@@ -90,9 +92,12 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int) -> Grou
 
     return GroupSettings(
         solver=pick(options.solver, s.solver, DEFAULT_SOLVER),
-        damping=float(pick(options.damping, s.damping, DEFAULT_DAMPING)),
+        # the elastic solver's velocities need no correction: its damping defaults to 0 (elastic.py)
+        damping=float(pick(options.damping, s.damping,
+                           0.0 if pick(options.solver, s.solver, DEFAULT_SOLVER) == "elastic" else DEFAULT_DAMPING)),
         correction=pick(options.correction, s.correction, DEFAULT_CORRECTION),
         substeps=int(pick(options.substeps, s.substeps, DEFAULT_SUBSTEPS)),
+        inverse_statics=bool(pick(None, s.inverse_statics, default("inverse_statics"))),
     )
 
 

@@ -47,6 +47,11 @@ from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     resolve_frames,
 )
 
+#: State arrays beyond positions, velocities and corrections that a checkpoint carries (the elastic
+#: solver's ElasticState)
+_EXTRA_STATE = ("tensions", "frames", "clamps")
+
+
 @dataclass
 class Summary:
     """What :func:`simulate_usd` did. Times in seconds."""
@@ -98,7 +103,9 @@ class Simulation:
         # prims are grouped by solver settings and by the mesh their roots are bound to, if any
         by_settings: dict[tuple, list[int]] = {}
         for i, c in enumerate(scene.curves):
-            key = (group_settings(scene, options, i), c.root_mesh.path if c.root_mesh is not None else None)
+            settings = group_settings(scene, options, i)
+            key = (settings, c.root_mesh.path if c.root_mesh is not None else None,
+                   c.material.path if settings.solver == "elastic" and c.material is not None else None)
             by_settings.setdefault(key, []).append(i)
         # one Group per key, on one device or split over the list (simulation.group)
         self.groups = [Group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
@@ -212,6 +219,9 @@ class Simulation:
                     end = self._roots_world(g, nxt)
                     self._end_roots[k] = (nxt, end)
                     g.control.set_root_targets(start, end)
+                    if g.clamps is not None:   # the elastic clamp turns with the roots' transforms
+                        g.solver.set_clamp_targets(g.clamps.world(self._matrix, g.members, self.frame),
+                                                   g.clamps.world(self._matrix, g.members, nxt))
                 update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
                 g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
         self.frame = nxt
@@ -224,6 +234,9 @@ class Simulation:
         """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
         state = {"frame": np.array(self.frame)}
         for k, g in enumerate(self.groups):
+            for name in _EXTRA_STATE:   # the elastic solver's State: tensions, frames, clamp ghosts
+                if getattr(g.state, name, None) is not None:
+                    state[f"group{k}.{name}"] = getattr(g.state, name).numpy()
             if getattr(g.state, "storage", None) is not None:  # interleaved: the fields share one buffer
                 state[f"group{k}.storage"] = g.state.storage.numpy()
                 continue
@@ -238,6 +251,14 @@ class Simulation:
         import warp as wp
 
         for k, g in enumerate(self.groups):
+            for name in _EXTRA_STATE:
+                target = getattr(g.state, name, None)
+                if target is None:
+                    continue
+                key = f"group{k}.{name}"
+                if key not in state or np.asarray(state[key]).shape[0] != target.shape[0]:
+                    raise ValueError(f"saved state has no {key} of {target.shape[0]} entries")
+                target.assign(wp.array(np.asarray(state[key]), dtype=target.dtype, device=target.device))
             storage = getattr(g.state, "storage", None)
             if storage is not None:
                 key = f"group{k}.storage"
@@ -261,7 +282,9 @@ class Simulation:
                 g.control.features.resync()  # colliders start the next frame where it says
 
 
-def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True) -> dict:
+def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True,
+               frame_step: int = 1, first_frame: int | None = None, qc=None, gates=None,
+               velocities: bool = True) -> dict:
     """Write the current frame (if ``write_first``), then advance and write up to ``last_frame``.
 
     Simulating and writing overlap: the next frame's substeps are launched before the current
@@ -269,42 +292,76 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
     ``f + 1`` while the host writes frame ``f``; :meth:`Simulation.samples` then waits for it.
     On the CPU device the two simply alternate.
 
-    ``progress`` (optional) is called with the number of frames done after each one. Returns
-    seconds spent simulating (launching and waiting for results) and writing.
-    """
-    t_sim = t_write = 0.0
-    pending = None  # (time code, samples) fetched but not yet written
+    Every frame is simulated; only frames ``first_frame + k * frame_step`` are fetched and
+    written (``first_frame``: the current frame when None; a resumed batch job passes its
+    first). ``qc`` (a :class:`~dftl_warp.output.qc.FrameQC`) adds each written frame's QC
+    (:meth:`~dftl_warp.output.base.FrameWriter.write_qc`), checked against ``gates``
+    (:func:`~dftl_warp.output.qc.check`: a broken gate raises QCError before the frame is
+    written). ``velocities=False`` passes None velocities (``--no-velocities``).
 
-    def write(frame_and_samples):
+    ``progress`` (optional) is called with the number of frames done after each one. Returns
+    seconds spent simulating (launching and waiting for results), writing and on QC.
+    """
+    t_sim = t_write = t_qc = 0.0
+    pending = None  # (time code, samples, qc) fetched but not yet written
+    step = max(1, int(frame_step))
+    base = sim.frame if first_frame is None else int(first_frame)
+
+    def written(frame):
+        return (frame - base) % step == 0
+
+    def write(item):
         nonlocal t_write
         a = time.perf_counter()
-        writer.write_frame(*frame_and_samples)
+        frame, samples, values = item
+        writer.write_frame(frame, samples)
+        if values is not None:
+            writer.write_qc(frame, values)
         t_write += time.perf_counter() - a
         if progress is not None:
             progress(1)
 
     def fetch():
-        nonlocal t_sim
+        nonlocal t_sim, t_qc
         a = time.perf_counter()
         samples = sim.samples(owned=False)  # written before the next fetch reuses the buffers
-        t_sim += time.perf_counter() - a
-        return sim.frame, samples
+        if not velocities:
+            samples = [(p, None) for p, _ in samples]
+        b = time.perf_counter()
+        t_sim += b - a
+        values = None
+        if qc is not None:
+            values = qc.compute()
+            if gates:
+                from ..output.qc import check
+
+                check(gates, sim.frame, values)
+            t_qc += time.perf_counter() - b
+        return sim.frame, samples, values
 
     if write_first:
-        pending = fetch()
+        if written(sim.frame):
+            pending = fetch()
+        elif progress is not None:
+            progress(1)
     while sim.frame < last_frame:
         a = time.perf_counter()
         sim.advance()
         t_sim += time.perf_counter() - a
         if pending is not None:
             write(pending)
-        pending = fetch()
+            pending = None
+        if written(sim.frame):
+            pending = fetch()
+        elif progress is not None:  # simulated, not written
+            progress(1)
     if pending is not None:
         write(pending)
-    return {"simulating": t_sim, "writing": t_write}
+    return {"simulating": t_sim, "writing": t_write, "qc": t_qc}
 
 
-def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) -> Summary:
+def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: str | None = None,
+                 command: str | None = None, **options) -> Summary:
     """Simulate the hair of the USD stage ``input`` and write ``output`` (in the format its
     extension names: :func:`~dftl_warp.output.base.writer_for`).
 
@@ -317,6 +374,12 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) 
     failure. The output's folder is created if missing. While the frames are written the
     output is locked (:mod:`dftl_warp.output.lock`): a second run on the same output fails at
     once with "OUTPUT: another dftl-warp run is writing it" instead of waiting.
+
+    Output options (docs/caches.md): ``no_velocities``, ``frame_step`` (write every Nth frame),
+    ``check`` (QC gates: a broken one raises :class:`~dftl_warp.output.qc.QCError` and leaves no
+    output), ``clips`` (value clips of that many frames; 0: chosen by size). The output records
+    its provenance (:mod:`dftl_warp.output.provenance`; ``quality`` is the preset named, if any)
+    and each written frame's QC.
     """
     from ..usd.read import read_scene
     from ..output.lock import lock_path, output_lock
@@ -324,15 +387,28 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) 
     from ..output import check_output_path, ensure_folder, writer_for
     from ..core.devices import device_line, init_warp, resolve_device
 
+    from ..options import OUTPUT_OPTIONS, check_api
+    from ..output import provenance
+    from ..output.qc import FrameQC, parse_gates
+
+    parse_gates(options.get("check"))  # a bad gate in the gates' words
+    out_opts = {k: check_api(k, options.pop(k, None)) for k in OUTPUT_OPTIONS}
     if "device" in options and options["device"] is None:
         options = {**options, "device": resolve_device(None)}
     opts = SimulationOptions(**options)
+    gates = parse_gates(out_opts["check"])
     init_warp()
     t0 = time.perf_counter()
     check_output_path(output, input)
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
     sim = Simulation(scene, opts, first)
+    step = out_opts["frame_step"] or 1
+    last_written = first + (last - first) // step * step
+    record = provenance.build(sim, input, quality=quality, command=command, output_options={
+        "frame_step": step, "velocities": not out_opts["no_velocities"], "check": out_opts["check"] or "none",
+        "clips": "none" if out_opts["clips"] is None else out_opts["clips"]})
+    qc = FrameQC(sim)
     t_load = time.perf_counter() - t0
     if progress:
         for line in (*notes, device_line(sim.options.device)):
@@ -342,11 +418,26 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) 
     with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
         bar = None
         if progress:
-            bar = progress_bar(last - first + 1, desc="simulating", unit="frame")
+            bar = progress_bar(last_written - first + 1, desc="simulating", unit="frame")
             sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
         try:
-            with writer_for(output).create(output, scene, frames=(first, last)) as writer:
-                times = run_frames(sim, writer, last, progress=bar.update if bar else None)
+            cls = writer_for(output)
+            extra = {}
+            if out_opts["no_velocities"]:
+                if "velocities" not in cls.create_options:
+                    raise UserError(f"{output}: the {cls.__name__} cannot leave out velocities")
+                extra["velocities"] = False
+            if out_opts["clips"] is not None:
+                from ..output.clips import create_clips
+
+                opened = create_clips(output, scene, frames=(first, last_written), clip_frames=out_opts["clips"],
+                                      **extra)
+            else:
+                opened = cls.create(output, scene, frames=(first, last_written), **extra)
+            with opened as writer:
+                writer.set_record(provenance.RECORD, record)
+                times = run_frames(sim, writer, last_written, progress=bar.update if bar else None, frame_step=step,
+                                   qc=qc, gates=gates, velocities=not out_opts["no_velocities"])
                 a = time.perf_counter()
                 writer.commit()
                 times["writing"] += time.perf_counter() - a
@@ -358,9 +449,9 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), **options) 
         prims=len(scene.curves),
         strands=sim.num_strands,
         particles=sim.num_points,
-        frames=last - first + 1,
+        frames=(last_written - first) // step + 1,
         first_frame=first,
-        last_frame=last,
+        last_frame=last_written,
         colliders=len(scene.colliders),
         seconds_loading=t_load,
         seconds_simulating=times["simulating"],

@@ -113,16 +113,22 @@ class ElasticSolver(Solver):
         gravity: acceleration (3,).
         compute_precision: ``"float32"``/``"float64"``: the kernel's arithmetic (the State stays in the
             model's precision); default float64 (see :attr:`compute_precision`'s note in ``__init__``).
+        stiffness_scale: a factor on the bending stiffness E*I, one value or one per point (input
+            order), >= 0 (a stiffness ramp; ``primvars:dftl:bendStiffnessScale`` in USD); default 1.
+        rest_shape: the rest shape (world positions, (P, 3), input order; ``physics:restShapePoints``
+            in USD); default the model's points. Each strand's rest shape is moved so that its root
+            sits on the model's root; its segment lengths become the strand's lengths.
     """
 
     name = "elastic"
     options = ("youngs_modulus", "density", "radius", "twist_modulus", "inverse_statics", "damping", "correction",
-               "drag", "compute_precision")
+               "drag", "compute_precision", "stiffness_scale", "rest_shape")
 
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, youngs_modulus: float = HAIR_E,
                  density: float = HAIR_DENSITY, radius=None, twist_modulus: float = TWIST_G,
                  inverse_statics: bool = True, damping: float = 0.0, correction: str = "prior",
-                 drag: float = 0.0, compute_precision: str | None = None):
+                 drag: float = 0.0, compute_precision: str | None = None, stiffness_scale=None,
+                 rest_shape=None):
         if model.features or model.feature_flags:
             names = sorted({type(f).__name__ for f in model.features} | set(model.feature_flags))
             raise ValueError(f"the elastic solver does not support features yet; this model has: {', '.join(names)}")
@@ -167,9 +173,23 @@ class ElasticSolver(Solver):
         if not np.all(np.isfinite(radius) & (radius > 0)):
             raise ValueError("radius must be finite and > 0")
         self.radius = radius
+        scale = np.ones(npts) if stiffness_scale is None else np.broadcast_to(
+            np.asarray(stiffness_scale, float).reshape(-1) if np.ndim(stiffness_scale) else float(stiffness_scale),
+            (npts,)).astype(float)
+        if not np.all(np.isfinite(scale) & (scale >= 0)):
+            raise ValueError("stiffness_scale must be finite and >= 0")
+        self.stiffness_scale = scale
         points = model.rest_positions[lay.slot_of_point].astype(np.float64)   # device coordinates
+        if rest_shape is not None:
+            rest = np.asarray(rest_shape, dtype=np.float64).reshape(-1, 3)
+            if rest.shape[0] != npts or not np.isfinite(rest).all():
+                raise ValueError(f"rest_shape must be {npts} finite points (one per model point)")
+            starts = elastic_rest.strand_offsets(model.counts)
+            shift = np.repeat(points[starts] - (rest[starts] - np.asarray(model.origin, float)), model.counts, axis=0)
+            points = rest - np.asarray(model.origin, float) + shift
         fields, strands, self._groups = elastic_rest.build(
             points, model.counts, lay.slot_of_point, lay.strand_order, model.num_slots, radius,
+            stiffness_scale=scale,
             E=self.youngs_modulus, G=self.twist_modulus, rho=self.density, gravity=self.gravity64,
             inverse_statics=self.inverse_statics)
         rt = numpy_type(self.compute_precision)

@@ -99,7 +99,7 @@ def rotation_between(a, b):
 class RodGroup:
     """Rest data of ``S`` strands of ``N + 1`` particles: ``rest`` (S, N+1, 3), ``radius`` (S, N+1)."""
 
-    def __init__(self, rest, radius, *, E, G, rho, gravity, inverse_statics):
+    def __init__(self, rest, radius, *, E, G, rho, gravity, inverse_statics, bend_scale=None):
         rest = np.asarray(rest, float)
         S, n1, _ = rest.shape
         N = n1 - 1
@@ -122,6 +122,8 @@ class RodGroup:
         ell = 0.5 * (l[:, 0:N] + l[:, 1:N + 1])
         ell[:, 0] = 0.5 * l[:, 1]
         self.W = E * np.pi * r[:, :N] ** 4 / 4.0 / ell
+        if bend_scale is not None:                               # a stiffness ramp: a factor on E*I per vertex
+            self.W = self.W * np.broadcast_to(np.asarray(bend_scale, float), (S, n1))[:, :N]
         Gj = G * np.pi * r[:, :N] ** 4 / 2.0 / (2.0 * ell)
         e1 = seg[:, 0] / lseg[:, 0:1]
         self.d0 = e1                                             # authored clamp direction (ghost -> root)
@@ -215,7 +217,7 @@ PARTICLE_FIELDS = {"length": 1, "mass": 1, "bend": 1, "twist": 1, "k0": 1, "k1":
 
 
 def build(points, counts, slot_of_point, strand_order, num_slots, radius, *, E, G, rho, gravity,
-          inverse_statics):
+          inverse_statics, stiffness_scale=None):
     """Slot-ordered model arrays (float64 numpy, :data:`PARTICLE_FIELDS`), per device strand data
     (``ghost``, ``d0``, ``curved``, ``tension``: the inverse-statics tensions per slot) and the
     groups (count, input strand indices, :class:`RodGroup`) for the host-side energy.
@@ -242,7 +244,8 @@ def build(points, counts, slot_of_point, strand_order, num_slots, radius, *, E, 
             s, i = np.argwhere(seg <= 0.0)[0]
             raise ValueError(f"strand {int(strands[s])}, segment {int(i) + 1}: the elastic solver needs "
                              "non-zero rest lengths")
-        grp = RodGroup(rest, radius[idx], E=E, G=G, rho=rho, gravity=gravity, inverse_statics=inverse_statics)
+        grp = RodGroup(rest, radius[idx], E=E, G=G, rho=rho, gravity=gravity, inverse_statics=inverse_statics,
+                       bend_scale=None if stiffness_scale is None else stiffness_scale[idx])
         groups.append((int(n), strands, grp))
         slots = slot_of_point[idx]                                    # (S_g, n)
         N = n - 1

@@ -6,7 +6,9 @@ Sphere, Capsule, Cube and Mesh prims are read and checked here (kinds "sphere", 
 (:func:`accept_collider_type`; the collider shapes of :mod:`dftl_warp.features.colliders` accept
 their ``usd_kind`` when they are registered) is read generically: ``kind`` is its type name and
 ``attributes`` its own attributes' values (plain Python and numpy), for the shape's ``from_prim``
-to map. Collision prims of other types are ignored with a warning.
+to map. Collision prims of other types are ignored with a warning. Mesh colliders honour ``holeIndices``
+(those faces are removed) and ``orientation`` (a ``leftHanded`` mesh's faces are reversed, so
+that the triangles always wind counter-clockwise seen from outside).
 
 Bad data raises :class:`~dftl_warp.errors.UserError` naming the file, the prim and the index.
 """
@@ -86,6 +88,35 @@ def fan_triangulate(counts: np.ndarray, indices: np.ndarray) -> np.ndarray:
     k = np.arange(int(ntri.sum())) - np.repeat(np.cumsum(ntri) - ntri, ntri)
     first = starts[face]
     return np.stack([indices[first], indices[first + k + 1], indices[first + k + 2]], axis=1)
+
+
+def remove_holes(fvc: np.ndarray, fvi: np.ndarray, holes, where: str):
+    """``(faceVertexCounts, faceVertexIndices)`` without the faces listed in ``holes``
+    (``holeIndices``: face indices); an index out of range is an error."""
+    holes = np.asarray(holes if holes is not None else [], dtype=np.int64).reshape(-1)
+    if holes.size == 0:
+        return fvc, fvi
+    bad = np.flatnonzero((holes < 0) | (holes >= fvc.size))
+    if bad.size:
+        i = int(bad[0])
+        raise UserError(f"{where}: holeIndices[{i}] = {int(holes[i])} is out of range (0..{fvc.size - 1})")
+    keep = np.ones(fvc.size, dtype=bool)
+    keep[holes] = False
+    if not keep.any():
+        raise UserError(f"{where}: holeIndices remove every face of the mesh")
+    return fvc[keep], fvi[np.repeat(keep, fvc)]
+
+
+def mesh_triangles(mesh, code, where: str):
+    """(points, triangles) of a Mesh as authored: faces listed in ``holeIndices`` removed, the rest
+    fan-triangulated, and wound counter-clockwise seen from the side the mesh's normals point to
+    (``orientation = "leftHanded"`` faces are reversed, so the inside stays inside)."""
+    pts, fvc, fvi = _mesh_arrays(mesh, code, where)
+    fvc, fvi = remove_holes(fvc, fvi, mesh.GetHoleIndicesAttr().Get(code), where)
+    tris = fan_triangulate(fvc, fvi)
+    if str(mesh.GetOrientationAttr().Get(code) or "rightHanded") == "leftHanded":
+        tris = tris[:, ::-1].copy()
+    return pts, tris
 
 
 def _mesh_arrays(mesh, code, where: str):
@@ -184,8 +215,8 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
         c = ColliderPrim(str(prim.GetPath()), "box", half_extents=np.full(3, 0.5 * size))
     elif prim.IsA(UsdGeom.Mesh):
         mesh = UsdGeom.Mesh(prim)
-        pts, fvc, fvi = _mesh_arrays(mesh, code, where)
-        c = ColliderPrim(str(prim.GetPath()), "mesh", mesh_points=pts, triangles=fan_triangulate(fvc, fvi))
+        pts, tris = mesh_triangles(mesh, code, where)
+        c = ColliderPrim(str(prim.GetPath()), "mesh", mesh_points=pts, triangles=tris)
         sampler, deforming = points_sampler(mesh.GetPointsAttr(), pts.shape[0], where, time, pts)
         if deforming:
             c.points_sampler = sampler

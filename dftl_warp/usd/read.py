@@ -34,6 +34,7 @@ from .colliders import fan_triangulate as _fan_triangulate  # noqa: F401  (old p
 from .colliders import first_bad_row as _first_bad_row
 from .colliders import fmt_point as _fmt_point
 from .colliders import read_collider_prim, read_root_mesh
+from .material import read_bend_scale, read_curve_material, read_rest_points
 from .sampling import TransformReader
 from .scene import CurveSettings, CurvesPrim, Scene
 from .stage import STANDARD_GRAVITY, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
@@ -103,7 +104,7 @@ def _time_code(time):
 
 
 #: the per-prim solver settings among the curves' dftl: attributes (the others turn features on)
-_SETTINGS = ("simulate", "solver", "damping", "correction", "substeps")
+_SETTINGS = ("simulate", "solver", "damping", "correction", "substeps", "inverse_statics")
 
 
 def _split_values(values: dict) -> tuple[CurveSettings, dict]:
@@ -146,7 +147,8 @@ def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where
 
 
 def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 24.0, *,
-                     warnings: list | None = None, transforms: TransformReader | None = None) -> CurvesPrim | None:
+                     warnings: list | None = None, transforms: TransformReader | None = None,
+                     materials_seen: set | None = None) -> CurvesPrim | None:
     """One BasisCurves prim -> CurvesPrim (None for a prim without curves). ``warnings`` collects
     one-line notes (time-sampled points); ``transforms`` reads the prim's transform (default: at
     ``time`` and the prim's authored time samples)."""
@@ -214,6 +216,9 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
 
     widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where)
+    material = read_curve_material(prim, where, file, warnings, set() if materials_seen is None else materials_seen)
+    rest_points = read_rest_points(prim, code, points.shape[0], where, warnings)
+    bend_scale = read_bend_scale(prim, code, counts, points.shape[0], ctype, basis, wrap, where)
     color_pv = UsdGeom.Gprim(prim).GetDisplayColorPrimvar()
     color = color_pv.Get(code) if color_pv and color_pv.HasAuthoredValue() else None
     color = None if color is None else np.array(color, dtype=np.float64).reshape(-1, 3)
@@ -233,6 +238,9 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
         settings=settings,
         features=features,
         root_mesh=root_mesh,
+        material=material,
+        rest_points=rest_points,
+        bend_scale=bend_scale,
     )
 
 
@@ -359,9 +367,10 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
     gravity = read_gravity(stage, info, file, warnings)
     transforms = TransformReader(stage, file, frames)
 
-    curves = []
+    curves, materials_seen = [], set()
     for prim in _select_prims(stage, file, prims, warnings):
-        c = read_curves_prim(prim, file, time, info.time_codes_per_second, warnings=warnings, transforms=transforms)
+        c = read_curves_prim(prim, file, time, info.time_codes_per_second, warnings=warnings, transforms=transforms,
+                             materials_seen=materials_seen)
         if c is None:
             warnings.append(f"{file}: {prim.GetPath()}: no curves; skipped")
         elif not c.settings.simulate:

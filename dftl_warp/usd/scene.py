@@ -81,6 +81,8 @@ class StageInfo:
     up_axis: str = "Y"
     #: metres per stage unit (0.01 when unauthored, as USD specifies)
     meters_per_unit: float = 0.01
+    #: kilograms per stage mass unit (UsdPhysics ``kilogramsPerUnit``; 1 when unauthored)
+    kilograms_per_unit: float = 1.0
     #: time codes per second (the frame rate of the simulation)
     time_codes_per_second: float = 24.0
     #: ``framesPerSecond`` if authored
@@ -103,6 +105,22 @@ class CurveSettings:
     damping: float | None = None
     correction: str | None = None
     substeps: int | None = None
+    inverse_statics: bool | None = None
+
+
+@dataclass
+class CurveMaterial:
+    """A bound curve-deformable physics material (``PhysicsCurvesDeformableMaterialAPI``), in stage
+    units (UsdPhysics: mass in ``kilogramsPerUnit``, length in ``metersPerUnit``); None: not
+    authored. ``bend_stiffness`` is E*I and ``twist_stiffness`` G*J (``physics:curvesBendStiffness``,
+    ``physics:curvesTwistStiffness``)."""
+
+    path: str
+    youngs_modulus: float | None = None
+    poissons_ratio: float | None = None
+    density: float | None = None
+    bend_stiffness: float | None = None
+    twist_stiffness: float | None = None
 
 
 @dataclass
@@ -153,6 +171,12 @@ class CurvesPrim:
     features: dict = field(default_factory=dict)
     #: the mesh the roots are bound to (``dftl:rootMesh``), if any
     root_mesh: MeshSource | None = None
+    #: the bound curve-deformable physics material (elastic solver), if any
+    material: CurveMaterial | None = None
+    #: ``physics:restShapePoints`` (N, 3) local, stage units, if authored (elastic solver)
+    rest_points: np.ndarray | None = None
+    #: ``primvars:dftl:bendStiffnessScale`` per vertex (N,), if authored (elastic solver)
+    bend_scale: np.ndarray | None = None
 
     @property
     def num_strands(self) -> int:

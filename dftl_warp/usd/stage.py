@@ -56,9 +56,15 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
         for name, value in (("startTimeCode", stage.GetStartTimeCode()), ("endTimeCode", stage.GetEndTimeCode())):
             if not math.isfinite(value):
                 raise UserError(f"{file}: {name} = {value:g}: must be a finite number")
+    from pxr import UsdPhysics
+
+    kpu = float(UsdPhysics.GetStageKilogramsPerUnit(stage))
+    if not (math.isfinite(kpu) and kpu > 0):
+        raise UserError(f"{file}: kilogramsPerUnit = {kpu:g}: must be a positive number")
     return StageInfo(
         up_axis=str(UsdGeom.GetStageUpAxis(stage)),
         meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
+        kilograms_per_unit=kpu,
         time_codes_per_second=float(stage.GetTimeCodesPerSecond()),
         frames_per_second=float(stage.GetFramesPerSecond()) if root.HasFramesPerSecond() else None,
         start_time_code=float(stage.GetStartTimeCode()) if has_range else None,

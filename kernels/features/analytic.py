@@ -3,7 +3,13 @@
 - sphere: ``size[0]`` radius, centred on the local origin;
 - capsule: ``size[0]`` radius, ``size[1]`` half height of the core segment, along the unit
   local ``axis``;
-- box: ``size`` half extents, centred.
+- box: ``size`` half extents, centred;
+- ellipsoid: ``size`` semi-axes along the local x, y, z, centred (a non-uniformly scaled USD
+  Sphere). Its signed distance is exact (up to rounding): the closest point solves Eberly's
+  one-dimensional root problem ("Distance from a point to an ellipse, an ellipsoid, or a
+  hyperellipsoid", 2013), here by Newton's method from the left of the root, where the function
+  is convex and decreasing so every iterate stays on the left and converges monotonically, in
+  float64 whatever the step's precision.
 
 Each ``*_sdf_func(scalar)`` returns ``sdf(q, size, axis) -> (d, n)``: the signed distance ``d``
 of point ``q`` (negative inside) and the outward unit normal ``n`` of the closest surface point.
@@ -75,6 +81,60 @@ def box_sdf_func(scalar):
     return box_sdf
 
 
+@functools.cache
+def ellipsoid_sdf_func(scalar):
+    vec3 = wp.types.vector(3, scalar)
+    f64 = wp.float64
+    zero64, one64 = f64(0.0), f64(1.0)
+
+    @wp.func
+    def ellipsoid_sdf(q: vec3, size: vec3, axis: vec3):
+        e = wp.vec3d(f64(size[0]), f64(size[1]), f64(size[2]))
+        em = wp.min(e[0], wp.min(e[1], e[2]))
+        # first octant; a coordinate on a symmetry plane is moved off it by 1e-9 of the smallest
+        # semi-axis (the distance moves by as much at most), which keeps the root off the pole
+        floor = em * f64(1.0e-9)
+        y = wp.vec3d(wp.max(wp.abs(f64(q[0])), floor), wp.max(wp.abs(f64(q[1])), floor),
+                     wp.max(wp.abs(f64(q[2])), floor))
+        z = wp.vec3d(y[0] / e[0], y[1] / e[1], y[2] / e[2])
+        r = wp.vec3d((e[0] / em) * (e[0] / em), (e[1] / em) * (e[1] / em), (e[2] / em) * (e[2] / em))
+        # G(s) = sum (r_i z_i / (s + r_i))^2 - 1 has one root on s > -1: G >= 0 left of it
+        s = wp.max(r[0] * (z[0] - one64), wp.max(r[1] * (z[1] - one64), r[2] * (z[2] - one64)))
+        for _ in range(48):
+            g = -one64
+            dg = zero64
+            for i in range(3):
+                a = r[i] * z[i] / (s + r[i])
+                g = g + a * a
+                dg = dg - f64(2.0) * a * a / (s + r[i])
+            if g <= zero64 or dg >= zero64:
+                break
+            step = g / dg
+            s = s - step
+            if -step <= f64(1.0e-15) * (wp.abs(s) + one64):
+                break
+        x = wp.vec3d(r[0] * y[0] / (s + r[0]), r[1] * y[1] / (s + r[1]), r[2] * y[2] / (s + r[2]))
+        d = wp.length(y - x)
+        if z[0] * z[0] + z[1] * z[1] + z[2] * z[2] < one64:
+            d = -d
+        # the outward normal at the closest point: the gradient of the implicit surface there
+        grad = wp.normalize(wp.vec3d(x[0] / (e[0] * e[0]), x[1] / (e[1] * e[1]), x[2] / (e[2] * e[2])))
+        sx = one64
+        sy = one64
+        sz = one64
+        if q[0] < scalar(0.0):
+            sx = -one64
+        if q[1] < scalar(0.0):
+            sy = -one64
+        if q[2] < scalar(0.0):
+            sz = -one64
+        n = vec3(scalar(sx * grad[0]), scalar(sy * grad[1]), scalar(sz * grad[2]))
+        return scalar(d), n
+
+    return ellipsoid_sdf
+
+
 SPHERE = analytic_collider("spheres", "collide_sphere", sphere_sdf_func)
 CAPSULE = analytic_collider("capsules", "collide_capsule", capsule_sdf_func)
 BOX = analytic_collider("boxes", "collide_box", box_sdf_func)
+ELLIPSOID = analytic_collider("ellipsoids", "collide_ellipsoid", ellipsoid_sdf_func)

@@ -9,6 +9,7 @@ colliders and the order the sweep tests them in.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -25,6 +26,18 @@ ATTRIBUTES = {
 
 #: kernel flag -> shape class, in registration (device) order
 SHAPES: dict = {}
+
+
+class ColliderApproximationWarning(UserWarning):
+    """A collider prim is simulated as an approximation of what was authored (the message names the
+    prim, what is approximated and by how much)."""
+
+
+def warn_approximation(name: str, message: str) -> None:
+    """Warn that collider ``name`` (a prim path) is approximated: ``message`` says how. The USD
+    mapping (:func:`~dftl_warp.features.colliders.usd.from_scene`) collects these into the scene's
+    warnings, once per prim and message."""
+    warnings.warn(f"{name or 'collider'}: {message}", ColliderApproximationWarning, stacklevel=3)
 
 
 @dataclass(frozen=True, eq=False)

@@ -7,10 +7,15 @@ material's), else 0.3.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ...errors import UserError
-from .base import SHAPES, Colliders
+from .base import SHAPES, ColliderApproximationWarning, Colliders, warn_approximation
+
+#: a transform whose normalized axes are further than this from orthogonal has shear
+SHEAR = 1.0e-6
 
 
 def _quat_from_rotation(r: np.ndarray) -> np.ndarray:
@@ -52,6 +57,13 @@ def split_matrix(m: np.ndarray):
 def shape_from_prim(prim, matrix, where: str):
     """The collider shape of ``prim`` under the 4x4 row-vector ``matrix``."""
     position, rotation, scale = split_matrix(matrix)
+    lin = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    axes = lin / np.linalg.norm(lin, axis=1)[:, None]
+    shear = float(np.abs(axes @ axes.T - np.eye(3)).max())
+    if shear > SHEAR:
+        warn_approximation(prim.path, (
+            f"its transform has shear (axes up to {np.degrees(np.arcsin(min(shear, 1.0))):.3g} degrees from "
+            f"orthogonal), dropped: simulated under the nearest rotation and the axes' scales"))
     friction = 0.3 if prim.friction is None else prim.friction
     common = dict(position=position, rotation=rotation, friction=friction, name=prim.path)
     for cls in SHAPES.values():
@@ -65,7 +77,19 @@ def from_scene(scene, frame) -> list:
     if not scene.colliders:
         return []
     where = scene.source
-    shapes = [shape_from_prim(c, c.transform(frame), f"{where}: {c.path}") for c in scene.colliders]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ColliderApproximationWarning)
+        shapes = [shape_from_prim(c, c.transform(frame), f"{where}: {c.path}") for c in scene.colliders]
+    notes = getattr(scene, "warnings", None)
+    for w in caught:
+        if not issubclass(w.category, ColliderApproximationWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            continue
+        message = f"{where}: {w.message}"
+        if notes is None:
+            warnings.warn(message, ColliderApproximationWarning, stacklevel=2)
+        elif message not in notes:  # once per prim and message (every group reads the colliders)
+            notes.append(message)
     iterations = int(scene.features.get("dftl:collisionIterations", 2))
     if iterations < 1:
         raise UserError(f"{where}: dftl:collisionIterations = {iterations}: must be >= 1")

@@ -1,0 +1,141 @@
+"""``dftl-warp diff A B``: how far two caches' points are apart, per frame and prim (docs/caches.md).
+
+For every BasisCurves prim the two stages share and every time code both sample: the max and RMS
+distance between corresponding points (stage units, the prims' local space) and the same
+relative to the length of the point's strand (in A at that frame). The first frame whose max
+difference exceeds ``--tolerance`` (stage units; ``--relative``: a share of the strand length) is
+named. Exit status 0 when every frame is within tolerance, 1 otherwise, 2 for bad input
+(unreadable file, no shared prims, different point counts: one line).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+
+def add_parser(sub):
+    p = sub.add_parser(
+        "diff",
+        help="compare two caches per frame and prim: max and RMS point difference; exit 1 beyond --tolerance",
+        description="Compare the time-sampled points of the BasisCurves prims of A and B, frame by frame. "
+                    "Exit status 0 when within --tolerance, 1 otherwise, 2 for bad input.",
+    )
+    p.add_argument("a", metavar="A", help="USD stage (a dftl-warp output or any stage with BasisCurves)")
+    p.add_argument("b", metavar="B", help="USD stage to compare with A")
+    p.add_argument("--tolerance", type=float, default=0.0, metavar="T",
+                   help="largest point difference allowed (stage units; default 0: bitwise equal points)")
+    p.add_argument("--relative", action="store_true",
+                   help="--tolerance is a share of the strand length, not stage units")
+    p.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    p.set_defaults(run=run)
+
+
+def _open(path):
+    from pxr import Tf, Usd, UsdGeom
+
+    from ..errors import UserError
+
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Tf.ErrorException:
+        stage = None
+    if stage is None:
+        raise UserError(f"{path}: cannot open as a USD stage")
+    return stage, {str(p.GetPath()): UsdGeom.BasisCurves(p) for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)}
+
+
+def _strand_lengths(points, counts):
+    import numpy as np
+
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    keep = np.ones(len(seg), dtype=bool)
+    keep[(starts[1:] - 1)] = False  # segments across strands
+    cums = np.concatenate([[0.0], np.cumsum(np.where(keep, seg, 0.0))])
+    ends = starts + counts - 1
+    return cums[ends] - cums[starts]
+
+
+def compare(a_path, b_path) -> dict:
+    """Per prim and frame: ``max``, ``rms`` (stage units) and ``max_relative``, ``rms_relative``
+    (per point, divided by its strand's length in A)."""
+    import numpy as np
+
+    from ..errors import UserError
+
+    (stage_a, a), (stage_b, b) = _open(a_path), _open(b_path)  # the stages stay open while compared
+    shared = [p for p in a if p in b]
+    if not shared:
+        raise UserError(f"{a_path}, {b_path}: no BasisCurves prim in common")
+    prims = {}
+    for path in shared:
+        pa, pb = a[path].GetPointsAttr(), b[path].GetPointsAttr()
+        counts = np.asarray(a[path].GetCurveVertexCountsAttr().Get(), dtype=np.int64)
+        times = sorted(set(pa.GetTimeSamples()) & set(pb.GetTimeSamples())) or [None]
+        rows = []
+        for t in times:
+            from pxr import Usd
+
+            code = Usd.TimeCode.Default() if t is None else Usd.TimeCode(t)
+            xa = np.asarray(pa.Get(code), dtype=np.float64)
+            xb = np.asarray(pb.Get(code), dtype=np.float64)
+            if xa.shape != xb.shape:
+                raise UserError(f"{path}: {xa.shape[0]} points in A, {xb.shape[0]} in B at time {t}")
+            d = np.linalg.norm(xa - xb, axis=1) if xa.size else np.zeros(0)
+            lengths = np.repeat(_strand_lengths(xa, counts), counts) if counts.sum() == len(xa) and len(xa) else \
+                np.ones(len(xa))
+            rel = d / np.where(lengths > 0, lengths, 1.0)
+            nan = not (np.isfinite(d).all())
+            rows.append({"time": t, "max": float("nan") if nan else float(d.max(initial=0.0)),
+                         "rms": float(math.sqrt(np.mean(d * d))) if d.size else 0.0,
+                         "max_relative": float("nan") if nan else float(rel.max(initial=0.0)),
+                         "rms_relative": float(math.sqrt(np.mean(rel * rel))) if rel.size else 0.0})
+        prims[path] = rows
+    return {"a": str(a_path), "b": str(b_path), "prims": prims,
+            "only_in_a": [p for p in a if p not in b], "only_in_b": [p for p in b if p not in a]}
+
+
+def first_beyond(result: dict, tolerance: float, relative: bool = False):
+    """(time, prim, value) of the earliest frame whose max difference exceeds ``tolerance``, or None."""
+    key = "max_relative" if relative else "max"
+    worst = None
+    for path, rows in result["prims"].items():
+        for r in rows:
+            v = r[key]
+            if not v <= tolerance:
+                t = -math.inf if r["time"] is None else r["time"]
+                if worst is None or t < worst[0]:
+                    worst = (t, path, v)
+                break
+    return worst
+
+
+def run(args) -> int:
+    from ..errors import UserError
+
+    if not math.isfinite(args.tolerance) or args.tolerance < 0:
+        raise UserError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
+    result = compare(args.a, args.b)
+    beyond = first_beyond(result, args.tolerance, args.relative)
+    result["tolerance"] = args.tolerance
+    result["relative"] = args.relative
+    result["first_beyond"] = None if beyond is None else {"time": beyond[0], "prim": beyond[1], "value": beyond[2]}
+    result["within_tolerance"] = beyond is None
+    if args.json:
+        print(json.dumps(result, indent=1))
+    else:
+        print(f"{'frame':>8} {'prim':<32} {'max':>12} {'rms':>12} {'max/length':>12} {'rms/length':>12}")
+        for path, rows in result["prims"].items():
+            for r in rows:
+                t = "-" if r["time"] is None else f"{r['time']:g}"
+                print(f"{t:>8} {path:<32} {r['max']:>12.4g} {r['rms']:>12.4g} {r['max_relative']:>12.4g} "
+                      f"{r['rms_relative']:>12.4g}")
+        unit = "of the strand length" if args.relative else "stage units"
+        if beyond is None:
+            print(f"within tolerance {args.tolerance:g} {unit}")
+        else:
+            print(f"first difference beyond {args.tolerance:g} {unit}: frame {beyond[0]:g}, {beyond[1]} "
+                  f"({beyond[2]:.4g})", file=sys.stdout)
+    return 0 if beyond is None else 1

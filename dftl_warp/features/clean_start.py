@@ -1,0 +1,154 @@
+"""Clean starts: hair that starts inside a collider is moved out before the first frame, and the
+groom can settle at the first frame's pose (a preroll) before the shot.
+
+- :func:`measure_start`: how many particles (roots excluded) start inside a collider and how deep
+  (:class:`StartReport`, with its one-line :meth:`StartReport.line`);
+- :func:`resolve_start`: moves them out along the shortest path (the collider's outward normal:
+  the gradient of its signed distance), then re-projects each strand to its rest lengths from the
+  root, as follow-the-leader does, colliding again after each projection; a few rounds. Mesh
+  colliders are queried here to any depth (the step's ``depth_band`` does not apply);
+- :func:`preroll`: ``seconds`` of simulation with the roots and colliders held where the control
+  puts them (the caller sets the first frame's pose, start = end), velocities damped every frame
+  and zeroed at the end, so the shot starts settled and at rest.
+
+Every registered collider shape is covered: the kernels (``kernels/features/clean_start.py``)
+reuse the shapes' collide functions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from ..kernels.features.clean_start import penetration_kernel, resolve_kernel, scale_velocities_kernel
+from ..kernels.features.collide import collider_flags
+from ..kernels.features.step import feature_struct
+
+
+@dataclass
+class StartReport:
+    """Particles (roots excluded) of a state against the colliders: ``inside`` below a collider's
+    surface, ``touching`` within the contact distance (hair radius; ``inside`` included);
+    ``max_depth`` below the surface (m, or stage units), also in hair radii (``max_depth_radii``,
+    0 when the hair has no width); ``max_penetration``: beyond the contact distance (m)."""
+
+    particles: int
+    inside: int
+    touching: int
+    max_depth: float
+    max_depth_radii: float
+    max_penetration: float
+    max_penetration_radii: float
+
+    def line(self, units: str = "m") -> str:
+        if self.inside == 0:
+            return f"clean start: no particle starts inside a collider ({self.particles} checked)"
+        radii = f" ({self.max_depth_radii:.3g} hair radii)" if self.max_depth_radii > 0 else ""
+        return (f"clean start: {self.inside} of {self.particles} particles started inside a collider, up to "
+                f"{self.max_depth:.3g} {units} deep{radii}; moved out along the shortest path")
+
+
+def _flags(model) -> frozenset:
+    return frozenset(model.feature_flags) & frozenset(collider_flags())
+
+
+def _struct(model, control):
+    """The colliders' step struct at the frame's start pose, meshes queried to any depth."""
+    flags = _flags(model)
+    Features = feature_struct(model.scalar, flags)
+    st = Features()
+    cc = control.features.colliders
+    cc.advance(0.0)
+    cc.advance(0.0)   # the current and previous substep poses both at the frame's start
+    cc.fill_struct(st)
+    keep = None
+    meshes = cc.kind_data.get("meshes")
+    if meshes is not None:
+        span = float(np.linalg.norm(meshes.upper.numpy() - meshes.lower.numpy(), axis=1).max())
+        keep = wp.full(meshes.depth_band.shape[0], 2.0 * span + 1.0, dtype=model.scalar, device=model.device)
+        st.collider_depth_band = keep
+    return Features, flags, st, keep
+
+
+def _head(model):
+    return [model.strand_base, model.strand_stride, model.strand_count]
+
+
+def measure_start(model, state, control) -> StartReport:
+    """How many particles of ``state`` are inside the colliders at ``control``'s frame-start pose."""
+    if control.features is None or control.features.colliders is None:
+        return StartReport(model.num_points - model.num_strands, 0, 0, 0.0, 0.0, 0.0, 0.0)
+    Features, flags, st, keep = _struct(model, control)
+    counts = model.strand_count.numpy()
+    shape = (model.num_strands, int(counts.max()))
+    pen = wp.zeros(shape, dtype=model.scalar, device=model.device)
+    rad = wp.zeros(shape, dtype=model.scalar, device=model.device)
+    wp.launch(penetration_kernel(model.scalar, Features, flags), dim=shape, device=model.device,
+              inputs=[*_head(model), st, state.positions, pen, rad])
+    pen, rad = pen.numpy().astype(np.float64)[:, 1:], rad.numpy().astype(np.float64)[:, 1:]
+    valid = np.arange(1, shape[1])[None, :] < counts[:, None]
+    inside = valid & (pen > rad)
+    touching = valid & (pen > 0)
+    depth = np.where(inside, pen - rad, 0.0)
+    excess = np.where(touching, pen, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth_r = np.where(inside & (rad > 0), depth / rad, 0.0)
+        excess_r = np.where(touching & (rad > 0), excess / rad, 0.0)
+    return StartReport(int(valid.sum()), int(inside.sum()), int(touching.sum()), float(depth.max(initial=0.0)),
+                       float(depth_r.max(initial=0.0)), float(excess.max(initial=0.0)),
+                       float(excess_r.max(initial=0.0)))
+
+
+def resolve_start(model, state, control, *, iterations: int = 4, rounds: int = 8,
+                  tolerance: float = 1.0e-3) -> StartReport:
+    """Move the particles of ``state`` that are inside the colliders (at ``control``'s frame-start
+    pose) out along the shortest path and back onto their rest lengths from the root; up to
+    ``rounds`` sweeps, until no particle penetrates the contact distance by more than
+    ``tolerance`` hair radii. Returns the report of the state as it was (before)."""
+    before = measure_start(model, state, control)
+    if before.touching == 0:
+        return before
+    Features, flags, st, keep = _struct(model, control)
+    kernel = resolve_kernel(model.scalar, Features, flags)
+    for _ in range(rounds):
+        wp.launch(kernel, dim=model.num_strands, device=model.device,
+                  inputs=[*_head(model), model.rest_lengths, st, int(iterations), state.positions])
+        after = measure_start(model, state, control)
+        if after.touching == 0 or after.max_penetration_radii <= tolerance:
+            break
+    return before
+
+
+def damp_velocities(model, state, factor: float) -> None:
+    """Multiply every particle's velocity by ``factor``."""
+    wp.launch(scale_velocities_kernel(model.scalar), dim=model.num_strands, device=model.device,
+              inputs=[*_head(model), float(factor), state.velocities])
+
+
+def preroll(solver, state, control, seconds: float, frame_dt: float, substeps: int, *,
+            settle_rate: float = 6.0, resolve: bool = True) -> int:
+    """Settle ``state`` for ``seconds`` with the roots and colliders held where ``control`` puts them
+    (the caller sets the first frame's pose with start = end): frames of ``frame_dt`` seconds in
+    ``substeps`` substeps, velocities multiplied by ``exp(-settle_rate frame_dt)`` after each frame
+    and zeroed at the end (the corrections too). With ``resolve``, particles inside a collider are
+    moved out first (:func:`resolve_start`). Returns the frames run."""
+    model = solver.model
+    if resolve:
+        resolve_start(model, state, control)
+    frames = int(math.ceil(float(seconds) / float(frame_dt) - 1e-9)) if seconds > 0 else 0
+    factor = math.exp(-float(settle_rate) * float(frame_dt))
+    for _ in range(frames):
+        solver.advance(state, control, frame_dt / substeps, substeps)
+        damp_velocities(model, state, factor)
+    if frames:
+        state.write("velocities", None, zero=True)
+        if state.corrections is not None:
+            state.write("corrections", None, zero=True)
+        if resolve:
+            resolve_start(model, state, control)
+        if control.features is not None:
+            control.features.resync()
+    return frames

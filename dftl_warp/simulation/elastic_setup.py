@@ -1,0 +1,102 @@
+"""What a simulation group passes to the elastic solver (``solver = "elastic"``), from the Scene's
+plain data, all in stage units (:mod:`dftl_warp.solvers.elastic_material` converts the defaults):
+
+- the material of the group's prims (one per group: the simulation groups prims by bound material);
+- the radius: half the widths per point (the solver's 40 um, in stage units, where a prim has none);
+- the stiffness scale per point: ``primvars:dftl:bendStiffnessScale`` times what an authored
+  ``physics:curvesBendStiffness`` (E*I) needs;
+- the rest shape: ``physics:restShapePoints`` through the prim's transform, where authored;
+- ``dftl:inverseStatics``; a uniform ``dftl:drag`` (without wind) becomes the solver's implicit drag.
+
+And the clamp (:class:`ClampDriver`): each strand's authored ghost point in its prim's local space,
+moved every frame by the same matrices as the roots.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UserError
+from ..features import Drag, find
+from ..solvers.elastic_material import default_radius, stage_material
+from ..usd.scene import transform_points
+
+
+def material_key(curve):
+    """The part of a prim's grouping key its material decides (prims of one group share one)."""
+    return None if curve.material is None else curve.material.path
+
+
+def _note(scene, text: str) -> None:
+    line = f"{scene.source}: {text}"
+    if line not in scene.warnings:
+        scene.warnings.append(line)
+
+
+def elastic_options(scene, curves, frame, features, widths, settings) -> tuple[dict, list]:
+    """(make_solver keywords, the features left for the Model) of a group of ``curves``."""
+    info = scene.stage
+    mat = stage_material(curves[0].material, info.meters_per_unit, info.kilograms_per_unit)
+    for note in mat.notes:
+        _note(scene, note)
+    r0 = default_radius(info.meters_per_unit)
+    radius, scale, rest, any_rest = [], [], [], False
+    offset = 0
+    for c in curves:
+        n = c.num_points
+        w = None if widths is None else widths[offset:offset + n]
+        offset += n
+        if w is None or not np.any(w > 0):
+            _note(scene, f"{c.path}: no widths: the elastic solver uses a 40 um hair radius")
+            r = np.full(n, r0)
+        else:
+            if c.widths is not None and c.widths.size not in (1, c.num_points, c.num_strands):
+                _note(scene, f"{c.path}: {c.widths_interpolation} widths on cubic curves: the elastic solver "
+                             "uses their mean")
+            if np.any(w <= 0):
+                _note(scene, f"{c.path}: zero widths: the elastic solver uses a 40 um hair radius there")
+            r = np.where(w > 0, 0.5 * w, r0)
+        radius.append(r)
+        s = mat.bend_scale(r) * (1.0 if c.bend_scale is None else c.bend_scale)
+        scale.append(np.broadcast_to(s, (n,)))
+        m = c.transform(frame)
+        if c.rest_points is not None:
+            any_rest = True
+            rest.append(transform_points(m, c.rest_points))
+        else:
+            rest.append(transform_points(m, c.points))
+    kwargs = dict(youngs_modulus=mat.youngs_modulus, density=mat.density, radius=np.concatenate(radius),
+                  twist_modulus=mat.twist_modulus(np.concatenate(radius)),
+                  stiffness_scale=np.concatenate(scale), inverse_statics=settings.inverse_statics)
+    if any_rest:
+        kwargs["rest_shape"] = np.concatenate(rest)
+    drag = find(features, Drag)
+    if drag is not None and len(features) == 1:
+        rate = np.unique(np.asarray(drag.rate, float))
+        if rate.size == 1:
+            kwargs["drag"] = float(rate[0])
+            features = []
+    return kwargs, features
+
+
+def check_single_device(devices, source: str) -> None:
+    if len(devices) > 1:
+        raise UserError(f"{source}: the elastic solver runs on one device for now; give --device with one "
+                        f"device (not {','.join(devices)})")
+
+
+class ClampDriver:
+    """Moves a group's clamp ghosts with its prims' transforms (a rotating clamp)."""
+
+    def __init__(self, group, frame: int):
+        solver, curves = group.solver, group.curves
+        ghosts = solver.authored_clamps                    # world, input strand order, at ``frame``
+        self.local, k = [], 0
+        for c in curves:
+            g = ghosts[k:k + c.num_strands]
+            k += c.num_strands
+            self.local.append(transform_points(np.linalg.inv(c.transform(frame)), g))
+
+    def world(self, matrix_of, members, frame: int) -> np.ndarray:
+        """Ghosts (S, 3) world at ``frame``; ``matrix_of(index, frame)`` gives a prim's matrix."""
+        return np.concatenate([transform_points(matrix_of(i, frame), g) for i, g in zip(members, self.local)])

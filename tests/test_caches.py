@@ -1,0 +1,235 @@
+"""Caches for pipelines (issue 21, docs/caches.md): output options, provenance, per-frame QC and
+``--check``, ``dftl-warp diff``, value clips. CPU, small grooms."""
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom
+from usd_stages import add_curves, chain, new_stage
+
+from dftl_warp import cli
+from dftl_warp.output import provenance
+from dftl_warp.output.qc import ATTRIBUTES, QCError, parse_gates
+from dftl_warp.simulation.simulate import simulate_usd
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def groom(path, strands=4, vertices=6, end=8):
+    stage = new_stage(path, end=end)
+    pts = np.concatenate([chain(vertices, 0.1, origin=(0.0, 0.0, 0.2 * s)) for s in range(strands)])
+    add_curves(stage, "/World/Hair", pts, [vertices] * strands)
+    add_curves(stage, "/World/Fur", pts + 5.0, [vertices] * strands)
+    stage.Save()
+    return Path(path)
+
+
+def points(path, prim="/World/Hair"):
+    stage = Usd.Stage.Open(str(path))
+    attr = UsdGeom.BasisCurves(stage.GetPrimAtPath(prim)).GetPointsAttr()
+    return {t: np.asarray(attr.Get(t)) for t in attr.GetTimeSamples()}
+
+
+# -- 1. output options ----------------------------------------------------------------------------
+
+
+def test_frame_step_and_no_velocities_through_cli_api_and_same_points(tmp_path):
+    src = groom(tmp_path / "in.usda")
+    simulate_usd(src, tmp_path / "all.usdc", device="cpu")
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "step.usdc"), "--frame-step", "3",
+                     "--no-velocities", "--quiet", "--device", "cpu"]) == 0
+    every, step = points(tmp_path / "all.usdc"), points(tmp_path / "step.usdc")
+    assert sorted(step) == [1.0, 4.0, 7.0]  # every 3rd frame written, every frame simulated
+    for t in step:
+        assert np.array_equal(step[t], every[t])
+    layer = Sdf.Layer.FindOrOpen(str(tmp_path / "step.usdc"))
+    assert not layer.GetAttributeAtPath("/World/Hair.velocities")
+    assert (layer.startTimeCode, layer.endTimeCode) == (1.0, 7.0)
+    # the API checks them against the options table
+    with pytest.raises(ValueError, match="frame_step must be >= 1"):
+        simulate_usd(src, tmp_path / "x.usdc", frame_step=0)
+
+
+def test_output_options_in_the_batch_toml(tmp_path):
+    from dftl_warp.batch.checkpoint import run_job
+    from dftl_warp.batch.jobs import load_jobs
+
+    src = groom(tmp_path / "in.usda")
+    (tmp_path / "jobs.toml").write_text('[[job]]\ninput = "in.usda"\noutput = "o.usdc"\nframe_step = 2\n'
+                                        'no_velocities = true\n[[job]]\ninput = "in.usda"\noutput = "p.usdc"\n'
+                                        'frame_step = 0\n')
+    jobs = load_jobs(tmp_path / "jobs.toml")
+    assert "frame_step must be >= 1" in jobs[1].error
+    result = run_job(jobs[0], "cpu")
+    assert result.status == "done", result.error
+    assert sorted(points(tmp_path / "o.usdc")) == [1.0, 3.0, 5.0, 7.0]
+    assert not Sdf.Layer.FindOrOpen(str(tmp_path / "o.usdc")).GetAttributeAtPath("/World/Hair.velocities")
+    assert src.exists()
+
+
+# -- 2. provenance --------------------------------------------------------------------------------
+
+
+def test_provenance_record_and_info(tmp_path, capsys):
+    from dftl_warp.batch.checkpoint import input_fingerprint
+
+    src = groom(tmp_path / "in.usda")
+    out = tmp_path / "o.usdc"
+    assert cli.main(["simulate", str(src), "-o", str(out), "--quiet", "--device", "cpu", "--substeps", "3",
+                     "--damping", "0.5", "--quality", "draft"]) == 0
+    record = provenance.read(out)
+    assert record["version"] == __import__("dftl_warp").__version__
+    assert "--substeps 3" in record["command"] and record["date"].startswith("20")
+    assert record["device"] == {"cpu": record["device"]["cpu"]}
+    assert record["input"]["path"] == str(src.resolve())
+    assert record["input"]["sha256"] == input_fingerprint(src)[str(src.resolve())]
+    group = record["groups"]["group0"]
+    assert group["substeps"] == 3 and group["damping"] == 0.5 and group["quality"] == "draft"
+    for key in ("solver", "correction", "precision", "tolerance", "features", "prims"):
+        assert key in group
+    assert record["output"]["frame_step"] == 1
+    capsys.readouterr()
+    assert cli.main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "provenance" in text and record["input"]["sha256"] in text and "substeps" in text
+    assert cli.main(["info", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["provenance"]["groups"]["group0"]["substeps"] == 3
+
+
+# -- 3. QC ----------------------------------------------------------------------------------------
+
+
+def test_qc_time_samples_per_prim(tmp_path):
+    src = groom(tmp_path / "in.usda")
+    out = tmp_path / "o.usdc"
+    simulate_usd(src, out, device="cpu", frame_step=2)
+    stage = Usd.Stage.Open(str(out))
+    for prim in ("/World/Hair", "/World/Fur"):
+        qc = stage.GetPrimAtPath("/dftl_qc/" + prim.strip("/").replace("/", "_"))
+        assert qc.GetAttribute("dftl:qc:prim").Get() == prim
+        stretch = qc.GetAttribute(ATTRIBUTES["stretch"])
+        assert stretch.GetTimeSamples() == [1.0, 3.0, 5.0, 7.0]
+        assert 0 <= stretch.Get(7) < 1e-3
+        assert qc.GetAttribute(ATTRIBUTES["speed"]).Get(1) == 0.0  # at rest
+        assert qc.GetAttribute(ATTRIBUTES["speed"]).Get(7) > 0.1  # falling
+        assert qc.GetAttribute(ATTRIBUTES["nan"]).Get(7) == 0
+        assert np.isfinite(qc.GetAttribute(ATTRIBUTES["energy"]).Get(7))
+        assert not qc.GetAttribute(ATTRIBUTES["penetration"])  # no colliders: omitted
+    # energy per unit mass: kinetic - g.x summed over the free particles, by hand at rest
+    pts = points(out)[1.0].reshape(4, 6, 3)[:, 1:]
+    assert stage.GetPrimAtPath("/dftl_qc/World_Hair").GetAttribute(ATTRIBUTES["energy"]).Get(1) == \
+        pytest.approx(9.80665 * pts[..., 1].sum(), rel=1e-5)
+
+
+def test_check_gate_fails_with_status_3_naming_frame_and_prim_and_leaves_no_output(tmp_path, capsys):
+    src = groom(tmp_path / "in.usda")
+    out = tmp_path / "o.usdc"
+    code = cli.main(["simulate", str(src), "-o", str(out), "--quiet", "--device", "cpu",
+                     "--check", "stretch<1, speed<0.2"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 3 and len(err) == 1
+    assert "speed<0.2 broken at frame 2 by /World/Hair" in err[0]
+    assert not out.exists() and not list(tmp_path.glob(".o.usdc*"))
+    assert cli.main(["simulate", str(src), "-o", str(out), "--quiet", "--device", "cpu",
+                     "--check", "stretch<1e-3,penetration<0.05,nan<1"]) == 0
+    assert out.exists()
+    assert parse_gates("stretch<1e-3, penetration<0.05") == {"stretch": 1e-3, "penetration": 0.05}
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["simulate", str(src), "-o", str(out), "--check", "wobble<1"])
+    assert exc.value.code == 2 and "METRIC<LIMIT" in capsys.readouterr().err
+
+
+def test_batch_reports_a_broken_gate(tmp_path):
+    from dftl_warp.batch.checkpoint import run_job
+    from dftl_warp.batch.jobs import load_jobs
+
+    groom(tmp_path / "in.usda")
+    (tmp_path / "jobs.toml").write_text('[[job]]\ninput = "in.usda"\noutput = "o.usdc"\ncheck = "speed<0.2"\n')
+    result = run_job(load_jobs(tmp_path / "jobs.toml")[0], "cpu")
+    assert result.status == "failed" and "speed<0.2 broken at frame 2 by /World/Hair" in result.error
+    assert not (tmp_path / "o.usdc").exists()
+
+
+def test_qc_costs_little_on_the_cpu(tmp_path):
+    """The QC kernel against the frame it measures (default scene, 3000 strands x 16)."""
+    from dftl_warp.output.qc import FrameQC
+    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
+    from dftl_warp.usd.read import read_scene
+
+    scene = read_scene(str(ROOT / "scenes" / "default.usda"))
+    sim = Simulation(scene, SimulationOptions(device="cpu"), 1)
+    qc = FrameQC(sim)
+    sim.advance(), sim.samples(), qc.compute()  # compile
+    a = time.perf_counter()
+    for _ in range(5):
+        sim.advance()
+        sim.samples()
+    frame = (time.perf_counter() - a) / 5
+    a = time.perf_counter()
+    for _ in range(5):
+        qc.compute()
+    cost = (time.perf_counter() - a) / 5
+    print(f"QC {cost * 1e3:.2f} ms per frame against {frame * 1e3:.1f} ms per frame ({100 * cost / frame:.1f}%)")
+    assert cost < 0.1 * frame
+
+
+# -- 4. diff --------------------------------------------------------------------------------------
+
+
+def test_diff_command(tmp_path, capsys):
+    src = groom(tmp_path / "in.usda")
+    simulate_usd(src, tmp_path / "a.usdc", device="cpu")
+    simulate_usd(src, tmp_path / "b.usdc", device="cpu")
+    simulate_usd(src, tmp_path / "c.usdc", device="cpu", damping=0.5)
+    capsys.readouterr()
+    assert cli.main(["diff", str(tmp_path / "a.usdc"), str(tmp_path / "b.usdc")]) == 0
+    assert "within tolerance" in capsys.readouterr().out
+    assert cli.main(["diff", str(tmp_path / "a.usdc"), str(tmp_path / "c.usdc"), "--tolerance", "1e-6"]) == 1
+    out = capsys.readouterr().out
+    assert "first difference beyond 1e-06 stage units: frame 2, /World/Hair" in out
+    assert cli.main(["diff", str(tmp_path / "a.usdc"), str(tmp_path / "c.usdc"), "--json"]) == 1
+    d = json.loads(capsys.readouterr().out)
+    row = d["prims"]["/World/Fur"][-1]
+    a, c = points(tmp_path / "a.usdc", "/World/Fur")[8.0], points(tmp_path / "c.usdc", "/World/Fur")[8.0]
+    dist = np.linalg.norm(a.astype(float) - c.astype(float), axis=1)
+    assert row["max"] == pytest.approx(dist.max()) and row["rms"] == pytest.approx(np.sqrt((dist ** 2).mean()))
+    assert row["max_relative"] == pytest.approx(dist.max() / 0.5, rel=1e-3)  # strands 5 x 0.1 long
+    assert d["first_beyond"]["time"] == 2.0
+    assert cli.main(["diff", str(tmp_path / "a.usdc"), str(tmp_path / "c.usdc"), "--tolerance", "1",
+                     "--relative"]) == 0
+    capsys.readouterr()
+    assert cli.main(["diff", str(tmp_path / "a.usdc"), str(tmp_path / "nothing.usdc")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+# -- 5. value clips -------------------------------------------------------------------------------
+
+
+def test_clips_compose_bitwise_to_the_single_layer_output_and_validate(tmp_path):
+    from test_usd_write import _errors
+
+    src = ROOT / "scenes" / "default.usda"
+    simulate_usd(src, tmp_path / "single.usdc", end=8, device="cpu")
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "clips.usdc"), "--end", "8", "--clips", "3",
+                     "--quiet", "--device", "cpu"]) == 0
+    folder = tmp_path / "clips_clips"
+    assert sorted(p.name for p in folder.iterdir()) == ["clip.0000.usdc", "clip.0001.usdc", "clip.0002.usdc",
+                                                       "topology.usdc"]
+    a, b = Usd.Stage.Open(str(tmp_path / "single.usdc")), Usd.Stage.Open(str(tmp_path / "clips.usdc"))
+    prim = "/World/Head/Hair"
+    assert Usd.ClipsAPI(b.GetPrimAtPath(prim)).GetClipAssetPaths("default")
+    for name in ("points", "velocities", "extent"):
+        x, y = a.GetPrimAtPath(prim).GetAttribute(name), b.GetPrimAtPath(prim).GetAttribute(name)
+        assert x.GetTimeSamples() == y.GetTimeSamples() == [float(t) for t in range(1, 9)]
+        for t in [*range(0, 10), 2.5, 3.5]:
+            assert np.array_equal(np.asarray(x.Get(t)), np.asarray(y.Get(t))), (name, t)
+    assert provenance.read(tmp_path / "clips.usdc")["output"]["clips"] == 3
+    assert _errors(tmp_path / "clips.usdc") == set()
+    assert not list(tmp_path.glob(".*"))  # no partial files left
