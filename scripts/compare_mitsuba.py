@@ -110,7 +110,7 @@ def main(argv=None) -> int:
     if not args.input:
         make_groom_stage(path, args.strands, args.width)
     stage = usd_scene.open_stage(path)
-    scene = usd_scene.read_scene(stage, args.frame, str(path))
+    scene = usd_scene.read_render_scene(stage, args.frame, str(path))
     renderer = Renderer(width, height, spp=args.spp)
     camera = usd_scene.read_camera(stage, args.camera, args.frame) if args.camera else renderer.default_camera(scene)
 

@@ -38,7 +38,7 @@ def make_stage(width=0.02, projection="perspective", interpolation="constant", w
 
 
 def render(stage, spp=64, policy="expandAperture", width=W, height=H):
-    scene = usd_scene.read_scene(stage, None, "test.usda")
+    scene = usd_scene.read_render_scene(stage, None, "test.usda")
     cam = usd_scene.read_camera(stage, "/cam", None, "test.usda")
     return Renderer(width, height, spp=spp, conform=policy).render(scene, cam)
 
@@ -128,7 +128,7 @@ def test_empty_stage_renders_transparent():
     stage = new_stage()
     add_camera(stage)
     stage.DefinePrim("/world", "Xform")
-    scene = usd_scene.read_scene(stage, None, "empty.usda")
+    scene = usd_scene.read_render_scene(stage, None, "empty.usda")
     assert scene.is_empty()
     img = Renderer(64, 48, spp=4).render(scene, usd_scene.read_camera(stage, "/cam"))
     assert img.shape == (48, 64, 4)

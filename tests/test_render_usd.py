@@ -21,7 +21,7 @@ TWO = [np.array([[0, 0, 0], [0, 1, 0], [0, 2, 0]], float), np.array([[1, 0, 0], 
 def test_width_interpolations(interp, widths, radii):
     stage = new_stage()
     add_curves(stage, "/c", TWO, widths=widths, interpolation=interp)
-    scene = usd_scene.read_scene(stage)
+    scene = usd_scene.read_render_scene(stage)
     assert scene.curve_vertex_counts.tolist() == [3, 2]
     assert scene.radii == pytest.approx(radii)
 
@@ -35,7 +35,7 @@ def test_primvar_widths_and_indexed_display_color():
     col = pv.CreatePrimvar("displayColor", Sdf_type("Color3fArray"), UsdGeom.Tokens.vertex)
     col.Set(Vt.Vec3fArray([(1, 0, 0), (0, 1, 0)]))
     col.SetIndices(Vt.IntArray([0, 1, 1, 0, 0]))
-    scene = usd_scene.read_scene(stage)
+    scene = usd_scene.read_render_scene(stage)
     assert scene.radii == pytest.approx([0.25, 0.25, 0.25, 0.125, 0.125])
     assert scene.colors.tolist() == [[1, 0, 0], [0, 1, 0], [0, 1, 0], [1, 0, 0], [1, 0, 0]]
 
@@ -43,14 +43,14 @@ def test_primvar_widths_and_indexed_display_color():
 def test_constant_and_uniform_colors_get_a_root_to_tip_ramp():
     stage = new_stage()
     add_curves(stage, "/c", TWO, colors=[(0.5, 0.4, 0.2), (0.1, 0.2, 0.3)], color_interpolation="uniform")
-    scene = usd_scene.read_scene(stage)
+    scene = usd_scene.read_render_scene(stage)
     assert scene.colors[0] == pytest.approx(np.array([0.5, 0.4, 0.2]) * ROOT_DARKENING)
     assert scene.colors[2] == pytest.approx([0.5, 0.4, 0.2])
     assert scene.colors[4] == pytest.approx([0.1, 0.2, 0.3])
     # without displayColor: the default ramp, dark at the root
     stage = new_stage()
     add_curves(stage, "/c", TWO)
-    cols = usd_scene.read_scene(stage).colors
+    cols = usd_scene.read_render_scene(stage).colors
     assert cols[0].sum() < cols[2].sum()
 
 
@@ -60,7 +60,7 @@ def test_transforms_move_points_and_scale_widths():
     x.AddTranslateOp().Set(Gf.Vec3d(10, 0, 0))
     x.AddScaleOp().Set(Gf.Vec3f(2, 2, 2))
     add_curves(stage, "/groom/c", TWO, widths=[0.1])
-    scene = usd_scene.read_scene(stage)
+    scene = usd_scene.read_render_scene(stage)
     assert scene.points[1] == pytest.approx([10, 2, 0])
     assert scene.radii == pytest.approx([0.1] * 5)
 
@@ -70,7 +70,7 @@ def test_invisible_and_guide_prims_are_skipped():
     add_curves(stage, "/a", TWO)
     UsdGeom.Imageable(add_curves(stage, "/b", TWO).GetPrim()).CreateVisibilityAttr("invisible")
     UsdGeom.Imageable(add_curves(stage, "/g", TWO).GetPrim()).CreatePurposeAttr("guide")
-    assert usd_scene.read_scene(stage).strand_count == 2
+    assert usd_scene.read_render_scene(stage).strand_count == 2
 
 
 @pytest.mark.parametrize("basis,wrap,n", [("bspline", "nonperiodic", 6), ("catmullRom", "pinned", 5),
@@ -82,7 +82,7 @@ def test_cubic_curves_are_evaluated(basis, wrap, n):
     c = add_curves(stage, "/c", [cv], widths=[0.01], curve_type="cubic")
     c.CreateBasisAttr(basis)
     c.CreateWrapAttr(wrap)
-    scene = usd_scene.read_scene(stage)
+    scene = usd_scene.read_render_scene(stage)
     pts = scene.points
     assert scene.curve_vertex_counts[0] == len(pts) > n
     # all evaluated points lie near the control polygon's arc (unit circle, radius within 30 %)
@@ -99,9 +99,9 @@ def test_animated_frames_refit_the_bvh_and_match_fresh_renders():
     for f in (1, 2, 3):
         add_curves(stage, "/hair", [s + [0.05 * f, 0.02 * f * s[:, 1].sum(), 0] for s in base], widths=[0.02], time=f)
     renderer = Renderer(64, 48, spp=4)
-    images = [renderer.render(usd_scene.read_scene(stage, f), usd_scene.read_camera(stage, "/cam", f)) for f in (1, 2, 3)]
+    images = [renderer.render(usd_scene.read_render_scene(stage, f), usd_scene.read_camera(stage, "/cam", f)) for f in (1, 2, 3)]
     assert renderer.bvh_builds == 1 and renderer.bvh_refits == 2
-    fresh = Renderer(64, 48, spp=4).render(usd_scene.read_scene(stage, 3), usd_scene.read_camera(stage, "/cam", 3))
+    fresh = Renderer(64, 48, spp=4).render(usd_scene.read_render_scene(stage, 3), usd_scene.read_camera(stage, "/cam", 3))
     assert np.array_equal(images[2], fresh)
     assert not np.array_equal(images[0][..., 3], images[2][..., 3])
 
@@ -118,7 +118,7 @@ def test_bad_curves_raise_user_errors(mutate, match):
     stage = new_stage()
     mutate(add_curves(stage, "/c", TWO))
     with pytest.raises(UserError, match=r"^hair\.usda: " + match):
-        usd_scene.read_scene(stage, None, "hair.usda")
+        usd_scene.read_render_scene(stage, None, "hair.usda")
 
 
 def test_bad_mesh_and_camera_raise_user_errors():
@@ -128,7 +128,7 @@ def test_bad_mesh_and_camera_raise_user_errors():
     m.CreateFaceVertexCountsAttr(Vt.IntArray([3]))
     m.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 7]))
     with pytest.raises(UserError, match=r"^s\.usda: /m: faceVertexIndices\[2\] = 7 is not a point index"):
-        usd_scene.read_scene(stage, None, "s.usda")
+        usd_scene.read_render_scene(stage, None, "s.usda")
     add_camera(stage, "/cam")
     with pytest.raises(UserError, match=r"^s\.usda: /m: no UsdGeom.Camera prim at this path \(cameras: /cam\)"):
         usd_scene.read_camera(stage, "/m", None, "s.usda")
@@ -141,7 +141,7 @@ def test_cpu_row_bands_on_threads_match_one_launch():
     add_camera(stage, translate=(0, 0.5, 3))
     add_curves(stage, "/hair", [np.array([[x, 0, 0], [x + 0.2, 1.0, 0.1]]) for x in np.linspace(-0.6, 0.6, 15)],
                widths=[0.02])
-    scene, cam = usd_scene.read_scene(stage), usd_scene.read_camera(stage, "/cam")
+    scene, cam = usd_scene.read_render_scene(stage), usd_scene.read_camera(stage, "/cam")
     one = Renderer(50, 37, spp=3, threads=1).render(scene, cam)
     many = Renderer(50, 37, spp=3, threads=3).render(scene, cam)
     assert one[..., 3].sum() > 10

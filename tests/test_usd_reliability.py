@@ -187,7 +187,7 @@ def test_widths_render_refuses_are_refused_by_simulate(tmp_path, capsys, author,
     line = assert_one_line_error(capsys, tmp_path / "in.usda", message)
     assert line.startswith(f"dftl-warp: error: {tmp_path / 'in.usda'}: /World/Hair: ")
     with pytest.raises(UserError, match=r"/World/Hair: (primvars:)?widths"):  # the renderer agrees
-        usd_scene.read_scene(Usd.Stage.Open(str(tmp_path / "in.usda")), None, "in.usda")
+        usd_scene.read_render_scene(Usd.Stage.Open(str(tmp_path / "in.usda")), None, "in.usda")
 
 
 def test_widths_render_accepts_are_read(tmp_path):

@@ -131,7 +131,7 @@ def run(args) -> int:
         cam_path = found[0] if found else "auto"
 
     def read(t):
-        scene = usd_scene.read_scene(stage, t, source)
+        scene = usd_scene.read_render_scene(stage, t, source)
         if usd_scene.is_empty(scene):
             at = "" if t is None else f" at frame {t:g}"
             raise UserError(f"{source}: nothing to render{at}: no visible BasisCurves, Sphere, Capsule, "

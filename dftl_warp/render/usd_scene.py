@@ -22,6 +22,7 @@ import numpy as np
 
 from ..core.layout import strand_offsets
 from ..errors import UserError
+from ..usd.scene import transform_points
 from .camera import Camera
 from .scene import BOX, CAPSULE, SPHERE, RenderScene, Shape, default_width, root_to_tip, strand_colors
 
@@ -154,10 +155,12 @@ def _drawn_prims(stage, time):
 
 
 def _world(prim, time) -> np.ndarray:
-    """Local-to-world transform of ``prim`` at ``time`` for column vectors."""
+    """Local-to-world transform of ``prim`` at ``time`` as USD gives it: a 4x4 matrix for row
+    vectors, the convention of :func:`dftl_warp.usd.scene.transform_points` (the tracer's shapes
+    and cameras take its transpose, for column vectors)."""
     from pxr import UsdGeom
 
-    return np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64).T
+    return np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
 
 
 def _finite(values, source, prim, name):
@@ -166,14 +169,14 @@ def _finite(values, source, prim, name):
         raise UserError(f"{source}: {prim.GetPath()}: {name}[{int(np.argmax(bad))}] is not finite")
 
 
-def read_scene(stage, time=None, source: str | None = None) -> RenderScene:
+def read_render_scene(stage, time=None, source: str | None = None) -> RenderScene:
     """Everything drawn at ``time`` (a number, a Usd.TimeCode or None = default). Data USD
     itself refuses (a bad xformOp, a value of the wrong type) is a UserError too."""
     from pxr import Tf
 
     source = source or stage_source(stage)
     try:
-        return _read_scene(stage, time, source)
+        return _read_render_scene(stage, time, source)
     except Tf.ErrorException as exc:
         raise UserError(f"{source}: {_usd_message(exc)}") from None
 
@@ -187,7 +190,7 @@ def _usd_message(exc) -> str:
     return re.sub(r"^Error in '.*?' at line \d+ in file \S+ : ", "", text).strip("'")
 
 
-def _read_scene(stage, time, source) -> RenderScene:
+def _read_render_scene(stage, time, source) -> RenderScene:
     from pxr import UsdGeom
 
     time = _time(time)
@@ -202,16 +205,16 @@ def _read_scene(stage, time, source) -> RenderScene:
                 strands.append(s)
         elif prim.IsA(UsdGeom.Sphere):
             r = UsdGeom.Sphere(prim).GetRadiusAttr().Get(time)
-            shapes.append(Shape(SPHERE, _world(prim, time), (float(r), 0.0, 0.0), str(prim.GetPath())))
+            shapes.append(Shape(SPHERE, _world(prim, time).T, (float(r), 0.0, 0.0), str(prim.GetPath())))
         elif prim.IsA(UsdGeom.Capsule):
             c = UsdGeom.Capsule(prim)
             axis = "XYZ".index(str(c.GetAxisAttr().Get(time)))
-            shapes.append(Shape(CAPSULE, _world(prim, time),
+            shapes.append(Shape(CAPSULE, _world(prim, time).T,
                                 (float(c.GetRadiusAttr().Get(time)), 0.5 * float(c.GetHeightAttr().Get(time)), float(axis)),
                                 str(prim.GetPath())))
         elif prim.IsA(UsdGeom.Cube):
             h = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get(time))
-            shapes.append(Shape(BOX, _world(prim, time), (h, h, h), str(prim.GetPath())))
+            shapes.append(Shape(BOX, _world(prim, time).T, (h, h, h), str(prim.GetPath())))
         elif prim.IsA(UsdGeom.Mesh):
             m = _read_mesh(prim, time, source)
             if m is not None:
@@ -332,7 +335,7 @@ def _read_curves(prim, time, source):
         out_pts, out_counts, out_w, out_c = _linear(pts, counts, wrap, w_v, c_v)
     else:
         out_pts, out_counts, out_w, out_c = _cubic(pts, counts, basis, wrap, spans, w_v, w_var, c_v, c_var)
-    out_pts = out_pts @ world[:3, :3].T + world[:3, 3]
+    out_pts = transform_points(world, out_pts)
     scale = abs(np.linalg.det(world[:3, :3])) ** (1.0 / 3.0)
     radii = 0.5 * out_w.reshape(-1) * scale
     if ramp:
@@ -443,7 +446,7 @@ def _read_mesh(prim, time, source):
     s = starts[face]
     tris = np.stack([fvi[s], fvi[s + k + 1], fvi[s + k + 2]], axis=1)
     world = _world(prim, time)
-    return pts @ world[:3, :3].T + world[:3, 3], tris
+    return transform_points(world, pts), tris
 
 
 def cameras(stage):
@@ -482,7 +485,7 @@ def _read_camera(stage, path, time, source) -> Camera:
     clip = cam.GetClippingRangeAttr().Get(time)
     near, far = (float(clip[0]), float(clip[1])) if clip is not None else (1.0, 1.0e6)
     result = Camera(
-        world_from_camera=_world(prim, time),
+        world_from_camera=_world(prim, time).T,
         focal_length=get(cam.GetFocalLengthAttr(), 50.0),
         horizontal_aperture=get(cam.GetHorizontalApertureAttr(), 20.955),
         vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
