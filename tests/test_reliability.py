@@ -438,3 +438,32 @@ def test_sigterm_to_a_batch_keeps_its_checkpoints(tmp_path):
     assert rerun.returncode == 0 and "resumed after frame" in rerun.stderr, rerun.stderr
     assert hidden_files(out) == [] and (out / "a.usdc").exists()
     del stage
+
+
+# -- 5. authored normals --------------------------------------------------------------------------
+
+
+def test_authored_normals_are_blocked_in_the_output_and_warned_about(tmp_path, capsys):
+    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+    stage = Usd.Stage.CreateNew(str(tmp_path / "in.usda"))
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(3)
+    curves = UsdGeom.BasisCurves.Define(stage, "/Hair")
+    curves.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 0, 0), Gf.Vec3f(1, 0, 0), Gf.Vec3f(2, 0, 0)]))
+    curves.CreateCurveVertexCountsAttr([3])
+    curves.CreateTypeAttr("linear")
+    curves.CreateNormalsAttr(Vt.Vec3fArray([Gf.Vec3f(0, 1, 0)] * 3))
+    UsdGeom.PrimvarsAPI(curves).CreatePrimvar("normals", Sdf.ValueTypeNames.Normal3fArray, UsdGeom.Tokens.vertex).Set(
+        Vt.Vec3fArray([Gf.Vec3f(0, 0, 1)] * 3))
+    stage.Save()
+    out = tmp_path / "out.usda"
+    assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(out), "--device", "cpu"]) == 0
+    err = capsys.readouterr().err
+    assert "normals and primvars:normals describe the authored shape" in err
+    result = Usd.Stage.Open(str(out))
+    prim = result.GetPrimAtPath("/Hair")
+    assert prim.GetAttribute("normals").Get(3) is None and not prim.GetAttribute("normals").HasAuthoredValue()
+    assert prim.GetAttribute("primvars:normals").Get(3) is None
+    # the points moved: the blocked normals are not left behind at rest
+    assert not np.allclose(np.array(prim.GetAttribute("points").Get(3)), [[0, 0, 0], [1, 0, 0], [2, 0, 0]])

@@ -467,6 +467,10 @@ def _author_structure(layer, scene, output: Path, frames, velocities: bool = Tru
                 if name == "velocities" and not velocities:
                     continue
                 Sdf.AttributeSpec(prim, name, type_name)
+            for name in c.normals:
+                # authored normals describe the rest shape: blocked (the reader warned)
+                spec = Sdf.AttributeSpec(prim, name, Sdf.ValueTypeNames.Normal3fArray)
+                spec.default = Sdf.ValueBlock()
             t = _target(path, c)
             if not velocities:
                 t.velocities = None

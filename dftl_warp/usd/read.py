@@ -34,6 +34,7 @@ from .colliders import fan_triangulate as _fan_triangulate  # noqa: F401  (old p
 from .colliders import first_bad_row as _first_bad_row
 from .colliders import fmt_point as _fmt_point
 from .colliders import read_collider_prim, read_root_mesh
+from .guides import check_guides, read_guide_paths
 from .material import read_bend_scale, read_curve_material, read_rest_points
 from .sampling import TransformReader
 from .scene import CurveSettings, CurvesPrim, Scene
@@ -219,6 +220,11 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     material = read_curve_material(prim, where, file, warnings, set() if materials_seen is None else materials_seen)
     rest_points = read_rest_points(prim, code, points.shape[0], where, warnings)
     bend_scale = read_bend_scale(prim, code, counts, points.shape[0], ctype, basis, wrap, where)
+    normals = tuple(name for name in ("normals", "primvars:normals")
+                    if prim.GetAttribute(name) and prim.GetAttribute(name).HasAuthoredValue())
+    if normals:
+        warnings.append(f"{where}: {' and '.join(normals)} describe the authored shape and would stay at rest "
+                        f"while the points move: the output blocks them (renderers compute curve normals)")
     color_pv = UsdGeom.Gprim(prim).GetDisplayColorPrimvar()
     color = color_pv.Get(code) if color_pv and color_pv.HasAuthoredValue() else None
     color = None if color is None else np.array(color, dtype=np.float64).reshape(-1, 3)
@@ -241,6 +247,8 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
         material=material,
         rest_points=rest_points,
         bend_scale=bend_scale,
+        normals=normals,
+        guides=read_guide_paths(prim, file),
     )
 
 
@@ -318,6 +326,25 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
     return found
 
 
+# -- guides (issue 22) ------------------------------------------------------------------------------
+
+
+def _add_guide_prims(stage, file, curves, time, tcps, warnings, transforms, materials_seen) -> None:
+    """Read the guide prims that render prims name (``rel dftl:guides``) but the selection left
+    out, and check the render prims against their guides (:mod:`dftl_warp.usd.guides`)."""
+    have = {c.path for c in curves}
+    for c in list(curves):
+        for g in c.guides:
+            if g in have:
+                continue
+            have.add(g)
+            guide = read_curves_prim(stage.GetPrimAtPath(g), file, time, tcps, warnings=warnings,
+                                     transforms=transforms, materials_seen=materials_seen)
+            if guide is not None and guide.settings.simulate:
+                curves.append(guide)
+    check_guides(curves, file)
+
+
 # -- the scene -----------------------------------------------------------------------------------
 
 
@@ -379,6 +406,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
             curves.append(c)
     if not curves:
         raise UserError(f"{file}: no curves to simulate (every selected BasisCurves prim is empty or has dftl:simulate = false)")
+    _add_guide_prims(stage, file, curves, time, info.time_codes_per_second, warnings, transforms, materials_seen)
 
     scene_prims = [p for p in stage.Traverse() if p.IsA(UsdPhysics.Scene)]
     holder = scene_prims[0] if scene_prims else stage.GetDefaultPrim()

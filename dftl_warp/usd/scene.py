@@ -177,6 +177,12 @@ class CurvesPrim:
     rest_points: np.ndarray | None = None
     #: ``primvars:dftl:bendStiffnessScale`` per vertex (N,), if authored (elastic solver)
     bend_scale: np.ndarray | None = None
+    #: the authored normal attributes (``normals``, ``primvars:normals``): they describe the rest
+    #: shape, so the output blocks them rather than leave them behind the moving points
+    normals: tuple = ()
+    #: ``rel dftl:guides``: paths of the guide BasisCurves prims this render prim follows (docs/guides.md);
+    #: empty: the prim is simulated
+    guides: tuple = ()
 
     @property
     def num_strands(self) -> int:
