@@ -6,11 +6,11 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo test install bench clean
 
+# setuptools warns about any editable install whose package maps a folder elsewhere (kernels/ is
+# installed as dftl_warp.kernels): nothing to act on, so that warning is not shown
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	# setuptools warns about any editable install whose package maps a folder elsewhere (kernels/ is
-	# installed as dftl_warp.kernels): nothing to act on, so it is not shown
 	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install -q -e '.[dev]'
 	touch $(STAMP)
 
