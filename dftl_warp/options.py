@@ -408,7 +408,7 @@ def add_arguments(parser, names, *, choices=None, defaults_from_usd: bool = True
         default_text = None
         if o.usd and defaults_from_usd and o.default is not None:
             default_text = f"{o.usd}, else {_num(o.default) if isinstance(o.default, float) else o.default}"
-        kw["help"] = cli_help(o, default_text)
+        kw["help"] = cli_help(o, default_text).replace("%", "%%")  # argparse formats help with %
         parser.add_argument(o.cli, **kw)
 
 
@@ -430,6 +430,9 @@ _OUTPUT = [
     Option("clips", int, None,
            "write USD value clips of FRAMES frames each (0 or no value: chosen by size), written in parallel",
            low=0, cli="--clips", metavar="FRAMES", toml="clips", api="clips"),
+    Option("no_clips", bool, False,
+           "write one layer, never value clips (without --clips, large outputs are written as clips: docs/caches.md)",
+           cli="--no-clips", toml="no_clips", api="no_clips"),
 ]
 for _o in _OUTPUT:
     OPTIONS[_o.name] = _o
@@ -437,3 +440,56 @@ for _o in _OUTPUT:
     BY_API[_o.api] = _o
 #: the output options' names (not fields of SimulationOptions)
 OUTPUT_OPTIONS = tuple(o.name for o in _OUTPUT)
+
+# -- clean starts (issue 20: docs/features.md); appended: run options, fields of SimulationOptions
+_CLEAN_START = [
+    Option("preroll", float, 0.0,
+           "settle the groom at the first frame's pose for this long before the shot (hair inside a "
+           "collider is moved out first; the preroll goes on, up to 4x as long, until the groom is "
+           "settled); 0: no preroll", unit="s", low=0.0,
+           cli="--preroll", metavar="SECONDS", toml="preroll", api="preroll"),
+]
+for _o in _CLEAN_START:
+    OPTIONS[_o.name] = _o
+    BY_TOML[_o.toml] = _o
+    BY_API[_o.api] = _o
+
+
+# -- --tolerance (issue 19: dftl_warp/simulation/tolerance.py); appended: not a SimulationOptions field, so
+# -- simulate_usd takes it off and hands it to the Simulation. Not a USD attribute, not (yet) a batch key.
+_TOLERANCE = Option(
+    "tolerance", float, None,
+    "target accuracy: the RMS position error the run may make (stage units); substeps per frame (and the "
+    "solver, where --solver is unset) are chosen from a step-doubling estimate on a sample of strands "
+    "(overrides --substeps)", unit="stage units", low=0.0, low_open=True,
+    cli="--tolerance", metavar="LENGTH", api="tolerance")
+OPTIONS[_TOLERANCE.name] = _TOLERANCE
+BY_API[_TOLERANCE.api] = _TOLERANCE
+
+
+# -- guides and render strands (issue 22: docs/guides.md); appended: not SimulationOptions fields, so
+# -- simulate_usd takes them off and hands them to the Simulation. dftl:guides is read by dftl_warp.usd.guides.
+_GUIDES = [
+    Option("guides", str, None,
+           "pick N guide strands (an integer, a fraction such as 0.1, or a percentage such as 10%) from each "
+           "BasisCurves prim without dftl:guides, simulate only those and deform the rest from them",
+           pattern=re.compile(r"^(\d+|\d*\.\d+|\d+(\.\d+)?%|\d*\.\d+%)$"),
+           cli="--guides", metavar="N|FRACTION", api="guides"),
+    Option("guide_method", str, "kmeans", "how --guides picks the guides", choices=("kmeans", "fps"),
+           cli="--guide-method", metavar="METHOD", api="guide_method"),
+    Option("guides_output", str, "curves",
+           "what is written for guide-driven render curves: curves (the deformed curves as time samples) or "
+           "binding (the guides only, plus the binding as primvars for render-time deformation)",
+           choices=("curves", "binding"), cli="--guides-output", metavar="WHAT", api="guides_output"),
+    Option("guidesRel", "rel", None,
+           "the guide BasisCurves prim(s) that drive this render prim: it is deformed from them, not simulated",
+           usd="dftl:guides", scope="curves"),
+]
+for _o in _GUIDES:
+    OPTIONS[_o.name] = _o
+    if _o.api:
+        BY_API[_o.api] = _o
+    if _o.usd:
+        BY_USD[_o.usd] = _o
+#: the guide options' Python keywords (not fields of SimulationOptions)
+GUIDE_OPTIONS = ("guides", "guide_method", "guides_output")

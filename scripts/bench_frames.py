@@ -85,7 +85,7 @@ def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path
     del recorded
 
     summary = simulate_usd(str(groom), str(workdir / "simulated.usdc"), start=first, end=last,
-                           substeps=substeps, device=device)
+                           substeps=substeps, device=device, no_clips=True)  # one layer (no automatic clips)
     t_both = summary.seconds_simulating + summary.seconds_writing
     clip_frames = max(1, frames // 8)
     clips = simulate_usd(str(groom), str(workdir / "clips.usdc"), start=first, end=last, substeps=substeps,

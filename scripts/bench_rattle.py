@@ -11,6 +11,11 @@ synchronized) over the frames after the first (which includes compilation and gr
     python scripts/bench_rattle.py --device cuda:0 --strands 100000 --out out/bench_rattle
     python scripts/bench_rattle.py --device cpu --strands 200 --frames 4 --out /tmp/br   # smoke
 
+``--on-chip both`` (the default) runs every rattle setting twice: with the on-chip kernel
+(``kernels/solvers/rattle_fused.py``, strands of <= 32 vertices in thread-local storage) and with the
+global-memory kernel, and reports the largest position difference between the two
+(``vs_global``, stage units; 0 where bitwise equal). ``on``/``off``/``auto`` run one variant.
+
 Prints a markdown table and writes ``bench_rattle.json`` and ``bench_rattle.md`` into ``--out``.
 """
 
@@ -54,6 +59,8 @@ def main(argv=None) -> int:
     p.add_argument("--length", type=float, default=0.2)
     p.add_argument("--reference-substeps", type=int, default=64)
     p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--on-chip", choices=["both", "on", "off", "auto"], default="both",
+                   help="rattle kernel: both variants (default), on chip, global memory, or the solver's choice")
     a = p.parse_args(argv)
 
     import warp as wp
@@ -80,31 +87,44 @@ def main(argv=None) -> int:
 
     started = time.perf_counter()
     ref, ref_ms, _ = run("reference", "float64", a.reference_substeps, {})
+    variants = {"both": [("global", False), ("on chip", True)], "on": [("on chip", True)],
+                "off": [("global", False)], "auto": [(None, None)]}[a.on_chip]
     rows = []
     for label, solver, precision, options, substeps in SETTINGS:
         for k in substeps:
-            x, ms, extra = run(solver, precision, k, options)
-            rows.append({"setting": label, "solver": solver, "precision": precision, "options": options,
-                         "substeps": k, "ms_per_frame": ms, "error": trajectory_error(x, ref, a.length),
-                         "max_stretch": float(max_stretch(x, counts, rest).max()),
-                         "fallbacks": extra.get("fallbacks"), "finite": bool(np.isfinite(x).all())})
-            r = rows[-1]
-            print(f"{label:26s} x{k:<4d} {ms:9.3f} ms/frame  error {r['error']:.2e}  stretch {r['max_stretch']:.1e}",
-                  file=sys.stderr, flush=True)
+            runs = variants if solver == "rattle" else [(None, None)]
+            global_x = None
+            for variant, on_chip in runs:
+                opts = dict(options) if on_chip is None else {**options, "on_chip": on_chip}
+                name = label if variant is None else f"{label}, {variant}"
+                x, ms, extra = run(solver, precision, k, opts)
+                rows.append({"setting": name, "solver": solver, "precision": precision, "options": opts,
+                             "substeps": k, "ms_per_frame": ms, "error": trajectory_error(x, ref, a.length),
+                             "max_stretch": float(max_stretch(x, counts, rest).max()),
+                             "fallbacks": extra.get("fallbacks"), "finite": bool(np.isfinite(x).all())})
+                if on_chip is False:
+                    global_x = x
+                elif on_chip and global_x is not None:
+                    rows[-1]["vs_global"] = float(np.abs(x - global_x).max())
+                r = rows[-1]
+                diff = f"  vs global {r['vs_global']:.1e}" if "vs_global" in r else ""
+                print(f"{name:36s} x{k:<4d} {ms:9.3f} ms/frame  error {r['error']:.2e}  "
+                      f"stretch {r['max_stretch']:.1e}{diff}", file=sys.stderr, flush=True)
     device = wp.get_device(a.device)
     meta = {"date": datetime.date.today().isoformat(), "device": a.device, "device_name": device.name,
             "host": platform.node(), "platform": platform.platform(), "warp": wp.config.version,
             "strands": a.strands, "particles": a.particles, "frames": a.frames, "length": a.length,
-            "reference_substeps": a.reference_substeps, "reference_ms_per_frame": ref_ms,
+            "reference_substeps": a.reference_substeps, "on_chip": a.on_chip, "reference_ms_per_frame": ref_ms,
             "seconds": time.perf_counter() - started,
             "command": "python scripts/bench_rattle.py " + " ".join(sys.argv[1:] if argv is None else argv)}
     lines = [f"{a.strands} strands x {a.particles}, released at 45 degrees, {a.frames} frames at 24 fps, "
              f"{meta['device_name']} ({a.device}), {meta['date']}; error against the float64 reference at "
              f"{a.reference_substeps} substeps.", "",
-             "| solver | substeps | ms/frame | error | max stretch |", "|---|---:|---:|---:|---:|"]
+             "| solver | substeps | ms/frame | error | max stretch | vs global |", "|---|---:|---:|---:|---:|---:|"]
     for r in rows:
+        diff = f"{r['vs_global']:.1e}" if "vs_global" in r else ""
         lines.append(f"| {r['setting']} | {r['substeps']} | {r['ms_per_frame']:.3g} | {r['error']:.3g} "
-                     f"| {r['max_stretch']:.1e} |")
+                     f"| {r['max_stretch']:.1e} | {diff} |")
     table = "\n".join(lines)
     print(table)
     a.out.mkdir(parents=True, exist_ok=True)

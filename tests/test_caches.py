@@ -233,3 +233,99 @@ def test_clips_compose_bitwise_to_the_single_layer_output_and_validate(tmp_path)
     assert provenance.read(tmp_path / "clips.usdc")["output"]["clips"] == 3
     assert _errors(tmp_path / "clips.usdc") == set()
     assert not list(tmp_path.glob(".*"))  # no partial files left
+
+
+_KILLED_JOB = """
+import os, signal, sys
+from dftl_warp.batch.checkpoint import CheckpointPolicy, run_job
+from dftl_warp.batch.jobs import Job
+
+def progress(event):  # SIGKILL itself half-way, past a few finished chunks
+    if event["event"] == "frames" and event["done"] >= int(sys.argv[3]):
+        os.kill(os.getpid(), signal.SIGKILL)
+
+job = Job(index=1, name="clips", input=sys.argv[1], output=sys.argv[2], options={"clips": 3, "end": 16})
+run_job(job, "cpu", CheckpointPolicy(every_seconds=0), progress)
+"""
+
+
+def test_batch_clips_resume_per_chunk_after_sigkill_to_identical_output(tmp_path):
+    from batch_stages import hidden_files, layer_content
+    from dftl_warp.batch.checkpoint import JobFiles, run_job
+    from dftl_warp.batch.jobs import Job
+
+    src = groom(tmp_path / "in.usda", end=16)
+    out = {}
+    for name in ("ref", "killed"):
+        (tmp_path / name).mkdir()
+        out[name] = tmp_path / name / "shot.usdc"
+    make = lambda o: Job(index=1, name="clips", input=str(src), output=str(o), options={"clips": 3, "end": 16})  # noqa: E731
+    assert run_job(make(out["ref"]), "cpu").status == "done"
+    killed = subprocess.run([sys.executable, "-c", _KILLED_JOB, str(src), str(out["killed"]), "11"],
+                            cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert killed.returncode == -9, killed.stderr
+    files = JobFiles(out["killed"])
+    assert not out["killed"].exists() and files.checkpoint_state.exists()
+    chunks = tmp_path / "killed" / ".shot_clips.dftl-partial"
+    assert len(list(chunks.glob("clip.*.usdc"))) >= 3  # chunks 0..2 whole (frames 1-9), checkpointed at 10
+    again = run_job(make(out["killed"]), "cpu")
+    assert again.status == "done", again.error
+    assert again.resumed_from == 9 and again.frames == 7  # from the last complete chunk (frames 1-9)
+    assert layer_content(out["killed"]) == layer_content(out["ref"])
+    ref_clips, new_clips = (sorted((o.parent / "shot_clips").iterdir()) for o in (out["ref"], out["killed"]))
+    assert [p.name for p in ref_clips] == [p.name for p in new_clips]
+    for a, b in zip(ref_clips, new_clips):
+        assert layer_content(a) == layer_content(b), a.name
+    for prim in ("/World/Hair", "/World/Fur"):
+        ref, new = points(out["ref"], prim), points(out["killed"], prim)
+        assert sorted(ref) == sorted(new) == [float(t) for t in range(1, 17)]
+        assert all(np.array_equal(ref[t], new[t]) for t in ref)
+    assert hidden_files(tmp_path / "killed") == [] and "dftl_warp_clips" not in Sdf.Layer.FindOrOpen(
+        str(out["killed"])).customLayerData
+
+
+def test_clips_are_chosen_automatically_above_the_measured_size(tmp_path):
+    from types import SimpleNamespace
+
+    from dftl_warp.output.clips import AUTO_MIN_FRAMES, AUTO_MIN_POINTS, auto_clips
+
+    big = SimpleNamespace(curves=[SimpleNamespace(num_points=AUTO_MIN_POINTS)])
+    small = SimpleNamespace(curves=[SimpleNamespace(num_points=AUTO_MIN_POINTS - 1)])
+    assert auto_clips(big, AUTO_MIN_FRAMES, "a.usdc") == 2  # 8 chunks at least
+    assert auto_clips(big, 240, "a.usd") == 30
+    assert auto_clips(big, AUTO_MIN_FRAMES - 1, "a.usdc") is None
+    assert auto_clips(small, 1000, "a.usdc") is None
+    assert auto_clips(big, 1000, "a.usda") is None  # clips are crate layers
+
+
+def test_a_failing_clip_writer_is_one_line_exit_2_and_no_output(tmp_path, capsys, monkeypatch):
+    from dftl_warp.output import clips
+
+    def broken(path, *args):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(clips, "_author_clip", broken)
+    src = groom(tmp_path / "in.usda")
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "o.usdc"), "--clips", "2", "--quiet",
+                     "--device", "cpu"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "No space left on device" in err[0] and "clip.0000.usdc" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.usda"]
+
+
+def test_automatic_clips_and_no_clips(tmp_path, monkeypatch):
+    from dftl_warp.output import clips
+
+    monkeypatch.setattr(clips, "AUTO_MIN_POINTS", 10)  # this groom (48 points) counts as large
+    monkeypatch.setattr(clips, "AUTO_MIN_FRAMES", 4)
+    src = groom(tmp_path / "in.usda")
+    simulate_usd(src, tmp_path / "one.usdc", device="cpu", no_clips=True)
+    simulate_usd(src, tmp_path / "auto.usdc", device="cpu")
+    assert not (tmp_path / "one_clips").exists()
+    assert sorted(p.name for p in (tmp_path / "auto_clips").iterdir()) == [  # 8 frames, 8 chunks at least
+        *(f"clip.{i:04d}.usdc" for i in range(8)), "topology.usdc"]
+    assert provenance.read(tmp_path / "auto.usdc")["output"]["clips"] == 1
+    one, auto = points(tmp_path / "one.usdc"), points(tmp_path / "auto.usdc")
+    assert sorted(one) == sorted(auto) and all(np.array_equal(one[t], auto[t]) for t in one)
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usdc"), "--clips", "2", "--no-clips",
+                     "--quiet", "--device", "cpu"]) == 2

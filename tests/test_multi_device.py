@@ -220,7 +220,9 @@ def test_split_hair_hair_grid_equals_single_device_grid(tmp_path):
     for step in steps:
         got = {name: a.numpy() for name, a in step.grid.items()}
         assert got["lower"].tobytes() == want["lower"].tobytes()
-        np.testing.assert_allclose(got["density"], want["density"], rtol=0, atol=1e-12)
-        np.testing.assert_allclose(got["momentum"], want["momentum"], rtol=0, atol=1e-12)
+        # sums of the same splats in another order: within a few units in the last place of the sum
+        # (the hair that starts inside the ball is pushed out first, which changes the values)
+        np.testing.assert_allclose(got["density"], want["density"], rtol=1e-14, atol=1e-12)
+        np.testing.assert_allclose(got["momentum"], want["momentum"], rtol=1e-14, atol=1e-12)
         # each part alone splats only its own strands
         assert step.model.num_points < one.model.num_points

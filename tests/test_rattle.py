@@ -106,3 +106,57 @@ def test_options_are_checked():
         make_solver(model, "rattle", newton_iterations=0)
     with pytest.raises(ValueError):
         make_solver(model, "rattle", max_halvings=-1)
+
+
+def mixed_groom(counts, seed=0, segment=0.01):
+    """Strands of the given vertex counts, random directions, roots scattered about the origin."""
+    rng = np.random.default_rng(seed)
+    pts = []
+    for c in counts:
+        d = rng.normal(size=(c, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        chain = np.vstack([np.zeros(3), np.cumsum(d[:-1] * segment, axis=0)])
+        pts.append(rng.normal(size=3) * 0.05 + chain)
+    return np.vstack(pts)
+
+
+#: lengths on every side of the on-chip capacities (8/16/24/32), a lone root and a two-particle
+#: strand, and one longer than 32 (the global-memory kernel) between them
+MIXED_COUNTS = [5, 8, 32, 12, 40, 1, 2, 17, 24, 32, 9, 3]
+
+
+@pytest.mark.parametrize("precision", PRECISIONS)
+@pytest.mark.parametrize("substeps", [1, 2, 8])
+def test_on_chip_equals_global_memory_kernel(precision, substeps):
+    """The on-chip kernel (strands <= 32 vertices in thread-local storage) repeats the global-memory
+    kernel's arithmetic: bitwise the same positions, velocities and statistics on the CPU, on a
+    mixed groom with moving roots (the head turns), substeps halved where the whip demands."""
+    counts = MIXED_COUNTS if precision == "float32" else [5, 12, 40, 1, 2, 9, 3]  # fewer compiles
+    pts = mixed_groom(counts)
+    roots0 = pts[sc.strand_starts(counts)]
+    out = []
+    for on_chip in (False, True):
+        s, x, v = _run(pts, counts, "rattle", precision, 4, 1 / 24, substeps, options={"on_chip": on_chip},
+                       roots=lambda t: sc.head_roots(roots0, 3.0 * t))
+        assert s.on_chip is on_chip
+        out.append((x, v, s.diagnostics(s.state())))
+    (xg, vg, dg), (xc, vc, dc) = out
+    assert np.isfinite(xc).all() and np.isfinite(vc).all()
+    assert np.array_equal(xg, xc), np.abs(xg - xc).max()
+    assert np.array_equal(vg, vc), np.abs(vg - vc).max()
+    assert dg["constraint_residual"] == dc["constraint_residual"] and dg["fallbacks"] == dc["fallbacks"]
+
+
+def test_on_chip_runs():
+    """Consecutive strands share a run per capacity; longer strands (and on_chip off) take the
+    global-memory kernel (None); the on-chip default is CUDA only."""
+    import warp as wp
+
+    from dftl_warp.solvers.rattle import rattle_runs
+
+    runs = rattle_runs([5, 8, 9, 40, 33, 32, 1], wp.float64, True)
+    assert [(r[0] is None, r[1], r[2]) for r in runs] == [(False, 0, 2), (False, 2, 1), (True, 3, 2), (False, 5, 1),
+                                                           (False, 6, 1)]
+    assert rattle_runs([5, 40], wp.float64, False)[0][0] is None and len(rattle_runs([5, 40], wp.float64, False)) == 1
+    model = Model.from_strands(swinging_strand(), [8], device="cpu")
+    assert make_solver(model, "rattle").on_chip is False

@@ -467,3 +467,14 @@ def test_authored_normals_are_blocked_in_the_output_and_warned_about(tmp_path, c
     assert prim.GetAttribute("primvars:normals").Get(3) is None
     # the points moved: the blocked normals are not left behind at rest
     assert not np.allclose(np.array(prim.GetAttribute("points").Get(3)), [[0, 0, 0], [1, 0, 0], [2, 0, 0]])
+
+
+def test_every_command_prints_its_help(capsys):
+    # argparse formats help text with %: an option's help with a bare % once broke --help
+    commands = next(a for a in cli.build_parser()._actions if a.dest == "command").choices
+    assert {"simulate", "render", "batch", "study", "info", "import", "diff"} <= set(commands)
+    for name in commands:
+        with pytest.raises(SystemExit) as exc:
+            cli.main([name, "--help"])
+        assert exc.value.code == 0, name
+        assert "usage" in capsys.readouterr().out

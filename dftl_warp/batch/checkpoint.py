@@ -229,6 +229,9 @@ def remove_job_files(files: JobFiles) -> None:
     leftovers = files.output.parent.glob(glob.escape(f".{files.output.name}.dftl-partial") + "*")
     for path in [files.partial, *files.checkpoint_files(), *leftovers]:
         _remove(path)
+    from ..output.clips import clips_partial_folder
+
+    shutil.rmtree(clips_partial_folder(files.output), ignore_errors=True)  # a clips job's chunks
 
 
 def job_lock(path: Path, wait: float | None = None):
@@ -290,13 +293,17 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     out_opts = {k: options.pop(k, None) for k in OUTPUT_OPTIONS}  # --frame-step, --check, ... (docs/caches.md)
     opts = SimulationOptions(**options, device=device)
     gates = parse_gates(out_opts["check"])
-    if out_opts["clips"] is not None:  # per-chunk resume of clips is not built yet (docs/caches.md)
-        raise UserError(f"{job.output}: clips are not supported in batch jobs yet; use dftl-warp simulate --clips")
     step = out_opts["frame_step"] or 1
     check_output_path(job.output, job.input)
     scene = read_scene(job.input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
     last = first + (last - first) // step * step  # the last frame written
+    if out_opts["no_clips"] and out_opts["clips"] is not None:
+        raise UserError(f"{job.output}: clips and no_clips contradict each other")
+    if out_opts["clips"] is None and not out_opts["no_clips"]:  # large outputs: clips (docs/caches.md)
+        from ..output.clips import auto_clips
+
+        out_opts["clips"] = auto_clips(scene, (last - first) // step + 1, job.output)
     result.total_frames = last - first + 1
     fingerprint = input_fingerprint(job.input)
     key = settings_hash(job.input, job.output, opts, first, last,
@@ -312,22 +319,35 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         result.notes.append(text)
         emit({"event": "note", "text": text})
 
-    writer, resumed = _resume(files, key, signature, sim, scene, first, last, note, step)
+    clip_frames = None
+    if out_opts["clips"] is not None:  # value clips: resumable per finished chunk (docs/caches.md)
+        from ..output.clips import auto_clip_frames
+
+        clip_frames = out_opts["clips"] or auto_clip_frames(scene, not out_opts["no_velocities"])
+    writer, resumed = _resume(files, key, signature, sim, scene, first, last, note, step, clip_frames)
     if writer is None:
         remove_job_files(files)
         extra = {"velocities": False} if out_opts["no_velocities"] else {}
-        writer = writer_for(job.output).create(job.output, scene, frames=(first, last), keep_partial=True, **extra)
+        if clip_frames is not None:
+            from ..output.clips import create_clips
+
+            writer = create_clips(job.output, scene, frames=(first, last), clip_frames=clip_frames, keep_partial=True,
+                                  step=step, **extra)
+        else:
+            writer = writer_for(job.output).create(job.output, scene, frames=(first, last), keep_partial=True, **extra)
         writer.set_record(LAYER_DATA_KEY, {"settings_hash": key, "format": FORMAT})
         writer.set_record(provenance.RECORD, provenance.build(
             sim, job.input, fingerprint=fingerprint, quality=job.options.get("quality"),
             output_options={"frame_step": step, "velocities": not out_opts["no_velocities"],
-                            "check": out_opts["check"] or "none", "clips": "none"}))
+                            "check": out_opts["check"] or "none",
+                            "clips": "none" if out_opts["clips"] is None else out_opts["clips"]}))
     result.resumed_from = resumed
     emit({"event": "start", "total": result.total_frames, "first": first, "last": last, "resumed_from": resumed})
     done = 0 if resumed is None else resumed - first + 1
     # the frame loop may run a frame ahead of the writer (simulate.run_frames): a checkpoint
     # saves the state at sim.frame, and a resumed run writes that frame again before going on
-    since = {"frames": 0, "time": time.monotonic(), "cost": 0.0}
+    since = {"frames": 0, "time": time.monotonic(), "cost": 0.0,
+             "chunks": getattr(writer, "chunks_handed_over", 0)}
 
     def after_frame(_n):
         nonlocal done
@@ -336,6 +356,11 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         emit({"event": "frames", "done": done})
         since["frames"] += 1
         if sim.frame >= last:
+            return
+        if clip_frames is not None:  # clips: a checkpoint per finished chunk, and only then
+            if writer.at_chunk_boundary and writer.chunks_handed_over > since["chunks"]:
+                _checkpoint(files, writer, sim, key, signature)
+                since["chunks"] = writer.chunks_handed_over
             return
         due_frames = policy.every_frames and since["frames"] >= policy.every_frames
         wait = max(policy.every_seconds, since["cost"] / policy.max_overhead if policy.max_overhead > 0 else 0.0)
@@ -370,12 +395,14 @@ def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
     atomic_savez(files.checkpoint_state, files.temporary(files.checkpoint_state), state)
 
 
-def _resume(files: JobFiles, key, signature, sim, scene, first, last, note, step: int = 1):
+def _resume(files: JobFiles, key, signature, sim, scene, first, last, note, step: int = 1, clip_frames=None):
     """(writer, last frame kept) continuing from the job's checkpoint, or (None, None) to start
-    over. The simulation is left at the checkpoint's frame, which is written (again) next."""
+    over. The simulation is left at the checkpoint's frame, which is written (again) next.
+    ``clip_frames``: a value-clips job (its finished chunks are kept, the others dropped)."""
     from ..output import writer_for
+    from ..output.clips import ClipsWriter
 
-    cls = writer_for(files.output)
+    cls = writer_for(files.output) if clip_frames is None else ClipsWriter
     if not cls.resumable:
         return None, None
     if not (files.checkpoint_state.exists() and files.checkpoint_usd.exists()):
@@ -398,7 +425,11 @@ def _resume(files: JobFiles, key, signature, sim, scene, first, last, note, step
         return None, None
     atomic_copy(files.checkpoint_usd, files.partial, files.temporary(files.partial))
     try:
-        writer = cls.reopen(files.output, scene, keep_partial=False)
+        if clip_frames is None:
+            writer = cls.reopen(files.output, scene, keep_partial=False)
+        else:
+            writer = cls.reopen(files.output, scene, keep_partial=False, frames=(first, last),
+                                clip_frames=clip_frames, step=step)
     except UserError as exc:
         note(f"checkpoint output unusable ({exc}); starting over")
         return None, None

@@ -7,7 +7,7 @@ import sys
 
 #: the options table's entries offered as flags, in the order ``--help`` lists them
 FLAGS = ("start", "end", "substeps", "damping", "correction", "solver", "iterations", "precision",
-         "quality", "device", "prims")
+         "quality", "device", "prims", "preroll", "tolerance")
 
 
 def add_parser(sub):
@@ -30,6 +30,7 @@ def add_parser(sub):
     # from the options table (dftl_warp/options.py); the solver names from the live registry
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
     _add_output_flags(p)
+    add_arguments(p, ("guides", "guide_method", "guides_output"))   # issue 22: docs/guides.md
     p.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
     p.set_defaults(run=run)
 
@@ -47,6 +48,8 @@ def _add_output_flags(p) -> None:
     o = OPTIONS["clips"]
     p.add_argument(o.cli, dest="clips", nargs="?", const=0, default=None, type=_cli_type(o), metavar=o.metavar,
                    help=cli_help(o))
+    o = OPTIONS["no_clips"]
+    p.add_argument(o.cli, dest="no_clips", action="store_const", const=True, default=None, help=cli_help(o))
 
 
 def _gates(text):
@@ -81,6 +84,8 @@ def run(args) -> int:
         for w in summary.warnings:
             print(f"dftl-warp: warning: {w}", file=sys.stderr)
     s = summary
+    for line in getattr(s, "tolerance", ()):   # --tolerance: what it chose
+        print(f"dftl-warp: {line}", file=sys.stderr)
     total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
     print(
         f"{s.output}: {s.strands} strands, {s.particles} particles in {s.prims} prim(s), "
@@ -107,12 +112,18 @@ def _simulate(args, simulate_usd, preset, given, describe_quality):
         iterations=args.iterations,
         device=args.device,
         prims=args.prim,
+        preroll=args.preroll,
         no_velocities=args.no_velocities,
         frame_step=args.frame_step,
         check=args.check,
         clips=args.clips,
+        no_clips=args.no_clips,
         quality=args.quality,
         command=_command_line(args),
+        tolerance=args.tolerance,
+        guides=args.guides,
+        guide_method=args.guide_method,
+        guides_output=args.guides_output,
     )
 
 

@@ -8,8 +8,9 @@ groom can settle at the first frame's pose (a preroll) before the shot.
   root, as follow-the-leader does, colliding again after each projection; a few rounds. Mesh
   colliders are queried here to any depth (the step's ``depth_band`` does not apply);
 - :func:`preroll`: ``seconds`` of simulation with the roots and colliders held where the control
-  puts them (the caller sets the first frame's pose, start = end), velocities damped every frame
-  and zeroed at the end, so the shot starts settled and at rest.
+  puts them (the caller sets the first frame's pose, start = end), velocities damped every frame,
+  going on (up to 4x ``seconds``) until no particle moves more than the settling tolerance over a
+  frame, then zeroed, so the shot starts settled and at rest (:class:`PrerollReport`).
 
 Every registered collider shape is covered: the kernels (``kernels/features/clean_start.py``)
 reuse the shapes' collide functions.
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..kernels.features.clean_start import penetration_kernel, resolve_kernel, scale_velocities_kernel
+from ..kernels.features.clean_start import motion_kernel, penetration_kernel, resolve_kernel, scale_velocities_kernel
 from ..kernels.features.collide import collider_flags
 from ..kernels.features.step import feature_struct
 
@@ -103,13 +104,15 @@ def measure_start(model, state, control) -> StartReport:
 
 
 def resolve_start(model, state, control, *, iterations: int = 4, rounds: int = 8,
-                  tolerance: float = 1.0e-3) -> StartReport:
+                  tolerance: float = 1.0e-3, inside_only: bool = False) -> StartReport:
     """Move the particles of ``state`` that are inside the colliders (at ``control``'s frame-start
     pose) out along the shortest path and back onto their rest lengths from the root; up to
     ``rounds`` sweeps, until no particle penetrates the contact distance by more than
-    ``tolerance`` hair radii. Returns the report of the state as it was (before)."""
+    ``tolerance`` hair radii. Returns the report of the state as it was (before). With
+    ``inside_only``, a state with no particle inside a collider (only within the contact distance:
+    resting on it, which the step's own contact handles) is left as it is."""
     before = measure_start(model, state, control)
-    if before.touching == 0:
+    if before.touching == 0 or (inside_only and before.inside == 0):
         return before
     Features, flags, st, keep = _struct(model, control)
     kernel = resolve_kernel(model.scalar, Features, flags)
@@ -128,22 +131,80 @@ def damp_velocities(model, state, factor: float) -> None:
               inputs=[*_head(model), float(factor), state.velocities])
 
 
+@dataclass
+class PrerollReport:
+    """What :func:`preroll` did: ``frames`` of ``frame_dt`` (``seconds`` in all), whether the groom
+    ``settled`` (no particle moved more than ``tolerance`` over the last frame), and that frame's
+    largest motion ``motion`` (m, or stage units)."""
+
+    frames: int
+    seconds: float
+    settled: bool
+    motion: float
+    tolerance: float
+
+    def line(self, units: str = "m") -> str:
+        if self.frames == 0:
+            return "preroll: none"
+        state = "settled" if self.settled else "NOT settled"
+        return (f"preroll: {self.seconds:.3g} s ({self.frames} frames) at the first frame's pose, {state}: "
+                f"largest motion over the last frame {self.motion:.3g} {units} (tolerance {self.tolerance:.3g})")
+
+
+def settle_tolerance(model) -> float:
+    """Largest motion per frame of a settled groom: the mean hair radius (motion below the contact
+    distance, the scale of the contacts' own jitter, is not visible as a pop), else a thousandth of
+    the mean strand length for hair without width."""
+    data = getattr(model.feature_data, "collider_data", None)
+    radius = None if data is None else data.arrays.get("particle_radius")
+    if radius is not None:
+        r = radius.numpy().astype(np.float64)
+        if r.size and float(r.max()) > 0:
+            return float(r[r > 0].mean())
+    lengths = model.rest_lengths.numpy().astype(np.float64)
+    return 1.0e-3 * float(lengths.sum()) / max(model.num_strands, 1)
+
+
+def largest_motion(model, state, previous, largest) -> float:
+    """Largest distance any particle moved since ``previous`` (then updated to the state)."""
+    largest.zero_()
+    wp.launch(motion_kernel(model.scalar), dim=model.num_strands, device=model.device,
+              inputs=[*_head(model), state.positions, previous, largest])
+    return float(largest.numpy()[0])
+
+
 def preroll(solver, state, control, seconds: float, frame_dt: float, substeps: int, *,
-            settle_rate: float = 6.0, resolve: bool = True) -> int:
-    """Settle ``state`` for ``seconds`` with the roots and colliders held where ``control`` puts them
-    (the caller sets the first frame's pose with start = end): frames of ``frame_dt`` seconds in
-    ``substeps`` substeps, velocities multiplied by ``exp(-settle_rate frame_dt)`` after each frame
-    and zeroed at the end (the corrections too). With ``resolve``, particles inside a collider are
-    moved out first (:func:`resolve_start`). Returns the frames run."""
+            settle_rate: float = 2.0, resolve: bool = True, tolerance: float | None = None,
+            longest: float = 4.0) -> PrerollReport:
+    """Settle ``state`` with the roots and colliders held where ``control`` puts them (the caller
+    sets the first frame's pose with start = end): frames of ``frame_dt`` seconds in ``substeps``
+    substeps, velocities multiplied by ``exp(-settle_rate frame_dt)`` after each frame, for
+    ``seconds``, then on, up to ``longest`` x ``seconds``, until no particle moves more than
+    ``tolerance`` (default :func:`settle_tolerance`) over a frame: a groom draping over a lumpy
+    head keeps sliding for seconds, and a fixed preroll that stops while it slides leaves the
+    shot to finish the slide (a pop). Velocities (and the corrections) are zeroed at the end.
+    With ``resolve``, particles inside a collider are moved out first (:func:`resolve_start`)."""
     model = solver.model
     if resolve:
         resolve_start(model, state, control)
+    tol = settle_tolerance(model) if tolerance is None else float(tolerance)
     frames = int(math.ceil(float(seconds) / float(frame_dt) - 1e-9)) if seconds > 0 else 0
+    most = int(math.ceil(float(longest) * frames)) if frames else 0
     factor = math.exp(-float(settle_rate) * float(frame_dt))
-    for _ in range(frames):
+    previous = wp.clone(state.positions)
+    largest = wp.zeros(1, dtype=wp.float32, device=model.device)
+    motion, done = 0.0, 0
+    while done < most:
         solver.advance(state, control, frame_dt / substeps, substeps)
         damp_velocities(model, state, factor)
-    if frames:
+        done += 1
+        if done >= frames:
+            motion = largest_motion(model, state, previous, largest)
+            if motion <= tol:
+                break
+        else:
+            wp.copy(previous, state.positions)
+    if done:
         state.write("velocities", None, zero=True)
         if state.corrections is not None:
             state.write("corrections", None, zero=True)
@@ -151,4 +212,4 @@ def preroll(solver, state, control, seconds: float, frame_dt: float, substeps: i
             resolve_start(model, state, control)
         if control.features is not None:
             control.features.resync()
-    return frames
+    return PrerollReport(done, done * float(frame_dt), done > 0 and motion <= tol, motion, tol)

@@ -10,14 +10,20 @@ consumer therefore sees one animated stage. Next to it, in ``shot_clips/``:
   (``manifestAssetPath``);
 - ``clip.NNNN.usdc``: the time samples of chunk NNNN.
 
-Frames are gathered per chunk; a full chunk is handed to a pool of writer threads, each of which
-authors and saves its own crate layer while the frame loop goes on. Everything is written under
-hidden partial names and moved into place by :meth:`ClipsWriter.commit` (the output layer last),
-so an interrupted run leaves no output. Records and QC live in the output layer.
+Frames are gathered per chunk; a chunk is handed to a pool of writer threads as soon as its last
+frame is written, and each thread authors and saves its own crate layer while the frame loop goes
+on. Threads, not processes: authoring and saving a crate layer release the interpreter lock for
+most of their time, and processes were slower here (``scripts/bench_crate_gil.py``,
+docs/caches.md). Everything is written under hidden partial names and moved into place by
+:meth:`ClipsWriter.commit` (the output layer last), so an interrupted run leaves no output.
+Records and QC live in the output layer. A writer failure is one :class:`UserError` line naming
+the chunk. ``batch`` resumes per finished chunk (:class:`ClipsWriter`, :meth:`ClipsWriter.reopen`).
+Without ``--clips``, :func:`auto_clips` chooses clips above a measured size.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 from concurrent.futures import ThreadPoolExecutor
@@ -37,8 +43,42 @@ AUTO_CLIP_BYTES = 256 << 20
 WRITERS = 4
 
 
+#: the output layer's record of the finished chunks (batch resume; removed at commit)
+CHUNKS_RECORD = "dftl_warp_clips"
+
+
 def clips_folder(output: Path) -> Path:
     return output.with_name(output.stem + "_clips")
+
+
+def clips_partial_folder(output: Path) -> Path:
+    """The hidden folder the chunks are written into before :meth:`ClipsWriter.commit`."""
+    output = Path(output)
+    return output.with_name(f".{clips_folder(output).name}.dftl-partial")
+
+
+def _clip_name(index: int) -> str:
+    return f"clip.{index:04d}.usdc"
+
+
+#: automatic clips (no ``--clips``): at least this many points per frame and this many written
+#: frames, below which one layer was as fast or faster (docs/caches.md, measured)
+AUTO_MIN_POINTS = 150_000
+AUTO_MIN_FRAMES = 16
+#: automatic clips: at least this many chunks (so that the writers overlap)
+AUTO_MIN_CHUNKS = 8
+
+
+def auto_clips(scene, frames_written: int, output) -> int | None:
+    """Clip length (frames) chosen for an output given no ``--clips``, or None for one layer:
+    clips when a frame has :data:`AUTO_MIN_POINTS` points or more and :data:`AUTO_MIN_FRAMES`
+    frames or more are written, to a crate output (``.usdc``/``.usd``)."""
+    if Path(os.fspath(output)).suffix.lower() not in (".usdc", ".usd"):
+        return None
+    points = sum(c.num_points for c in scene.curves)
+    if points < AUTO_MIN_POINTS or frames_written < AUTO_MIN_FRAMES:
+        return None
+    return max(1, min(auto_clip_frames(scene), -(-frames_written // AUTO_MIN_CHUNKS)))
 
 
 def auto_clip_frames(scene, velocities: bool = True) -> int:
@@ -48,9 +88,28 @@ def auto_clip_frames(scene, velocities: bool = True) -> int:
 
 
 def _write_clip(path: Path, scene_paths, frames, velocities: bool) -> None:
+    """:func:`_author_clip`; any failure becomes a one-line UserError naming the chunk."""
+    from pxr import Tf
+
+    try:
+        _author_clip(path, scene_paths, frames, velocities)
+    except UserError:
+        raise
+    except Tf.ErrorException as exc:
+        from .usd import _tf_error
+
+        raise UserError(f"{path}: cannot write the clip: {_tf_error(exc)}") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write the clip: {exc.strerror or exc}") from None
+
+
+def _author_clip(path: Path, scene_paths, frames, velocities: bool) -> None:
     """One crate layer with the samples of ``frames``: [(time, [(points, velocities), ...])]."""
     from pxr import Sdf, UsdGeom, Vt
 
+    final, path = Path(path), Path(path).with_name("." + Path(path).name + ".tmp.usdc")
+    with contextlib.suppress(FileNotFoundError):
+        path.unlink()
     layer = Sdf.Layer.CreateNew(str(path))
     with Sdf.ChangeBlock():
         specs = []
@@ -72,36 +131,87 @@ def _write_clip(path: Path, scene_paths, frames, velocities: bool) -> None:
                 if velocities and v is not None:
                     layer.SetTimeSample(path_.AppendProperty("velocities"), time, Vt.Vec3fArray.FromNumpy(v))
     if not layer.Save():
-        raise UserError(f"cannot write {path}")
+        raise UserError(f"cannot write {final}")
+    del layer
+    os.replace(path, final)  # whole or absent under its own name (batch resume keeps whole chunks)
 
 
 class ClipsWriter(FrameWriter):
-    """The :class:`FrameWriter` of a value-clips output (made by :func:`create_clips`)."""
+    """The :class:`FrameWriter` of a value-clips output (made by :func:`create_clips`).
 
-    resumable = False
+    Resumable per chunk (batch): a chunk's layer is saved under a hidden name and renamed into the
+    partial folder once whole; :meth:`flush` waits for every handed-over chunk and records the
+    finished chunks (index and time codes) in the output layer's record :data:`CHUNKS_RECORD`,
+    so a checkpoint copy of the output layer names exactly the chunks that are complete on disk.
+    :meth:`reopen` keeps those and drops any other chunk file.
+    """
 
-    def __init__(self, output: Path, scene, frames, clip_frames: int, velocities: bool):
+    resumable = True
+
+    def __init__(self, output: Path, scene, frames, clip_frames: int, velocities: bool, *, top=None,
+                 keep_partial: bool = False, chunks=None, step: int = 1):
         self.output = output
         self.scene = scene
         self.first, self.last = frames
         self.clip_frames = int(clip_frames)
         self.velocities = velocities
+        self.step = max(1, int(step))
+        self.keep_partial = keep_partial
+        #: a resumable (batch) writer keeps its chunk folder on abort: the checkpoint names chunks in it
+        self.keep_chunks = keep_partial
         self.folder = clips_folder(output)
-        self.partial_folder = output.with_name(f".{self.folder.name}.dftl-partial")
-        shutil.rmtree(self.partial_folder, ignore_errors=True)
-        self.partial_folder.mkdir()
-        # the output layer: metadata, sublayers, over specs, records and QC (a UsdWriter's layer)
-        self.top = UsdWriter.create(output, scene, frames=frames, velocities=velocities)
+        self.partial_folder = clips_partial_folder(output)
+        if top is None:
+            shutil.rmtree(self.partial_folder, ignore_errors=True)
+            self.partial_folder.mkdir()
+            # the output layer: metadata, sublayers, over specs, records and QC (a UsdWriter's layer)
+            top = UsdWriter.create(output, scene, frames=frames, velocities=velocities, keep_partial=keep_partial)
+        self.top = top
         self.targets = [(c.path, t.widths) for c, t in zip(scene.curves, self.top.targets)]
         self._chunk: list = []
         self._chunk_index = None
-        self._clips: list[tuple[int, int, int]] = []  # (index, first time, last time)
+        #: finished or handed-over chunks: (index, [time codes])
+        self._clips: list[tuple[int, list[float]]] = list(chunks or [])
         self._pool = ThreadPoolExecutor(WRITERS, thread_name_prefix="dftl-clip")
         self._futures = []
-        self._written: list[float] = []
+        self._written: list[float] = [t for _, times in self._clips for t in times]
 
-    def _clip_name(self, index: int) -> str:
-        return f"clip.{index:04d}.usdc"
+    @classmethod
+    def partial_path(cls, output) -> Path:
+        return UsdWriter.partial_path(output)
+
+    @classmethod
+    def reopen(cls, output, scene, *, keep_partial: bool = True, frames=None, clip_frames: int = 0,
+               step: int = 1):
+        """Continue the partial output of ``output``: its output layer (:meth:`UsdWriter.reopen`)
+        and the chunks its record names; other chunk files in the partial folder are dropped."""
+        import json
+
+        output = Path(os.fspath(output))
+        folder = clips_partial_folder(output)
+        if not folder.is_dir():
+            raise UserError(f"{output}: no partial clips folder {folder} to continue")
+        top = UsdWriter.reopen(output, scene, keep_partial=keep_partial)
+        record = top.record(CHUNKS_RECORD) or {}
+        try:
+            chunks = [(int(i), [float(t) for t in times]) for i, times in json.loads(record.get("chunks", "[]"))]
+        except (TypeError, ValueError):
+            raise UserError(f"{output}: unreadable clips record in the partial output") from None
+        if int(record.get("clip_frames", -1)) != int(clip_frames):
+            raise UserError(f"{output}: the partial output has clips of other lengths")
+        keep = {_clip_name(i) for i, _ in chunks}
+        for path in folder.iterdir():
+            if path.name not in keep:
+                path.unlink()
+        missing = sorted(keep - {p.name for p in folder.iterdir()})
+        if missing:
+            raise UserError(f"{output}: the partial clips folder lacks {missing[0]}")
+        first, last = frames if frames is not None else (None, None)
+        velocities = any(t.velocities is not None for t in top.targets)
+        writer = cls(output, scene, (first, last), clip_frames, velocities, top=top, keep_partial=keep_partial,
+                     chunks=chunks, step=step)
+        writer.keep_chunks = True  # still the checkpoint's chunks until commit
+        return writer
 
     def write_frame(self, time_code: float, samples) -> None:
         index = (int(round(time_code)) - self.first) // self.clip_frames
@@ -109,23 +219,44 @@ class ClipsWriter(FrameWriter):
             self._submit()
         self._chunk_index = index
         owned = [(np.array(p, dtype=np.float32, copy=True).reshape(-1, 3),
-                  None if v is None else np.array(v, dtype=np.float32, copy=True).reshape(-1, 3)) for p, v in samples]
+                  None if v is None or not self.velocities else np.array(v, dtype=np.float32, copy=True).reshape(-1, 3))
+                 for p, v in samples]
         self._chunk.append((float(time_code), owned))
         self._written.append(float(time_code))
+        following = int(round(time_code)) + self.step
+        if following > self.last or (following - self.first) // self.clip_frames != index:
+            self._submit()  # the chunk is whole: hand it over now (a checkpoint may follow)
+
+    @property
+    def chunks_handed_over(self) -> int:
+        """Chunks handed to the writers (or kept from a resumed run) so far."""
+        return len(self._clips)
+
+    @property
+    def at_chunk_boundary(self) -> bool:
+        """No written frame waits in an unfinished chunk (a checkpoint now keeps every frame)."""
+        return not self._chunk
 
     def _submit(self) -> None:
         frames, index = self._chunk, self._chunk_index
         self._chunk = []
-        self._clips.append((index, frames[0][0], frames[-1][0]))
-        path = self.partial_folder / self._clip_name(index)
+        self._clips.append((index, [t for t, _ in frames]))
+        path = self.partial_folder / _clip_name(index)
         self._futures.append(self._pool.submit(_write_clip, path, self.targets, frames, self.velocities))
 
     def write_qc(self, time_code: float, qc: dict) -> None:
         self.top.write_qc(time_code, qc)
 
     def flush(self) -> None:
+        """Wait for the handed-over chunks, record them and save the output layer."""
+        import json
+
         for f in self._futures:
             f.result()
+        self._futures = []
+        self.top.set_record(CHUNKS_RECORD, {"clip_frames": self.clip_frames,
+                                            "chunks": json.dumps([[i, times] for i, times in self._clips])})
+        self.top.flush()
 
     @property
     def written_time_codes(self) -> list[float]:
@@ -152,7 +283,11 @@ class ClipsWriter(FrameWriter):
             if self._chunk:
                 self._submit()
             self._pool.shutdown(wait=True)
-            self.flush()
+            for f in self._futures:
+                f.result()
+            with contextlib.suppress(KeyError):  # the chunk list is a batch record, not the output's
+                self.top.layer.customLayerData = {k: v for k, v in dict(self.top.layer.customLayerData).items()
+                                                  if k != CHUNKS_RECORD}
             # topology: the top layer's over specs without samples (and without records or QC)
             topology = Sdf.Layer.CreateNew(str(self.partial_folder / "topology.usdc"))
             for path_, _ in self.targets:
@@ -170,10 +305,11 @@ class ClipsWriter(FrameWriter):
                         prim.RemoveProperty(attr)
             # the clip metadata (UsdClipsAPI's ``clips`` dictionary), authored with Sdf: no stage is
             # opened on the partial layer, whose relative paths resolve only once it is in place
-            assets = Sdf.AssetPathArray([f"{rel}/{self._clip_name(i)}" for i, _, _ in self._clips])
-            active = Vt.Vec2dArray([(t0, float(k)) for k, (_, t0, _) in enumerate(self._clips)])
+            assets = Sdf.AssetPathArray([f"{rel}/{_clip_name(i)}" for i, _ in self._clips])
+            spans = [(i, ts[0], ts[-1]) for i, ts in self._clips]
+            active = Vt.Vec2dArray([(t0, float(k)) for k, (_, t0, _) in enumerate(spans)])
             times = []
-            for _, t0, t1 in self._clips:
+            for _, t0, t1 in spans:
                 times += [(t0, t0)] + ([(t1, t1)] if t1 != t0 else [])
             for path_, _ in self.targets:
                 layer.GetPrimAtPath(path_).SetInfo("clips", {CLIP_SET: {
@@ -181,26 +317,34 @@ class ClipsWriter(FrameWriter):
                     "manifestAssetPath": Sdf.AssetPath(f"{rel}/topology.usdc")}})  # topology = manifest
             shutil.rmtree(self.folder, ignore_errors=True)
             os.replace(self.partial_folder, self.folder)
+            self.top.keep_partial = self.keep_partial
             out = self.top.commit()
             self.top = None
             return out
         except BaseException:
+            self.keep_partial = False
             self.abort()
             raise
 
     def abort(self) -> None:
+        """Drop the partial output (unless ``keep_partial``: batch resumes from its checkpoint)."""
         self._pool.shutdown(wait=True, cancel_futures=True)
         if self.top is not None and self.top.is_open:
+            self.top.keep_partial = self.keep_partial
             self.top.abort()
         self.top = None
-        shutil.rmtree(self.partial_folder, ignore_errors=True)
+        if not (self.keep_partial or self.keep_chunks):
+            shutil.rmtree(self.partial_folder, ignore_errors=True)
 
 
-def create_clips(output, scene, *, frames, clip_frames: int = 0, velocities: bool = True) -> ClipsWriter:
-    """A :class:`ClipsWriter` for ``output`` (``clip_frames`` 0: :func:`auto_clip_frames`)."""
+def create_clips(output, scene, *, frames, clip_frames: int = 0, velocities: bool = True,
+                 keep_partial: bool = False, step: int = 1) -> ClipsWriter:
+    """A :class:`ClipsWriter` for ``output`` (``clip_frames`` 0: :func:`auto_clip_frames`);
+    ``step``: the distance between written frames (``--frame-step``)."""
     output = check_output_path(output, scene.source)
     if output.suffix.lower() == ".usda":
         raise UserError(f"{output}: --clips writes a .usdc or .usd output layer")
     ensure_folder(output)
     frames = (int(frames[0]), int(frames[1]))
-    return ClipsWriter(output, scene, frames, clip_frames or auto_clip_frames(scene, velocities), velocities)
+    return ClipsWriter(output, scene, frames, clip_frames or auto_clip_frames(scene, velocities), velocities,
+                       keep_partial=keep_partial, step=step)

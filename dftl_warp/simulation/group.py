@@ -84,7 +84,8 @@ class Group:
                     solver = make_solver(model, settings.solver, damping=settings.damping,
                                          correction=settings.correction, gravity=scene.gravity, **extra)
                 except ValueError as exc:
-                    hint = " (run without colliders, wind or hair-hair)" if elastic and "features" in str(exc) else ""
+                    hint = (" (remove them from the scene or use --solver dftl)"
+                            if elastic and "features" in str(exc) else "")
                     raise UserError(f"{scene.source}: {exc}{hint}") from None
                 models.append(model)
                 solvers.append(solver)

@@ -47,6 +47,8 @@ class SimulationOptions:
     iterations: int | None = None
     #: watch each group's energy and warn once when it grows without bound (dftl_warp.simulation.monitor)
     monitor: bool = field(default=default("monitor"))
+    #: seconds of settling at the first frame's pose before the shot (dftl_warp.features.clean_start)
+    preroll: float = field(default=default("preroll"))
 
     def __post_init__(self):
         for f in fields(self):

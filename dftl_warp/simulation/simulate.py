@@ -72,6 +72,8 @@ class Summary:
     warnings: list[str] = field(default_factory=list)
     #: raised while simulating, e.g. energy growth (printed as they happen when progress is shown)
     run_warnings: list[str] = field(default_factory=list)
+    #: ``--tolerance``: what was chosen (simulation.tolerance.Tolerance.lines)
+    tolerance: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -84,9 +86,23 @@ class Simulation:
     ``advance()`` steps to the next frame.
     """
 
-    def __init__(self, scene: Scene, options: SimulationOptions, frame: int):
+    def __init__(self, scene: Scene, options: SimulationOptions, frame: int, tolerance: float | None = None,
+                 guides: dict | None = None):
         import warp as wp
 
+        #: what is written (:meth:`samples` gives one pair per prim of it); ``scene`` is what is simulated
+        self.output_scene = scene
+        #: guides and render curves (issue 22, :mod:`dftl_warp.guides.scene`): render prims (``rel
+        #: dftl:guides``, or ``guides={"guides": N}``) are deformed from simulated guides, not simulated
+        self.guides = None
+        if guides is not None and guides.get("guides") is None:
+            guides = None if not any(c.guides for c in scene.curves) else guides
+        if guides is not None or any(c.guides for c in scene.curves):
+            from ..guides.scene import GuideSet
+
+            self.guides = GuideSet(scene, int(frame), **(guides or {}))
+            scene = self.guides.sim_scene
+            self.output_scene = self.guides.output_scene
         self.scene = scene
         self.options = options
         self.frame = int(frame)
@@ -121,6 +137,61 @@ class Simulation:
         self.on_warning = None
         #: the last frame whose energy was checked
         self._checked = None
+        #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
+        #: with the device line and kept in Summary.warnings
+        self.start_notes: list[str] = self._clean_start()
+        #: ``--tolerance``: substeps (and solvers) chosen per frame (simulation.tolerance), else None
+        self.tolerance = None
+        if tolerance is not None:
+            from .tolerance import setup
+
+            self.tolerance = setup(self, tolerance)
+
+    def _clean_start(self) -> list[str]:
+        """Hair that starts inside a collider is moved out, and ``options.preroll`` seconds settle
+        the groom, with roots and colliders held at the first frame's pose
+        (:mod:`dftl_warp.features.clean_start`). Groups split across devices are left as read."""
+        import warp as wp
+
+        from ..features import update_frame
+        from ..features.clean_start import StartReport, preroll, resolve_start
+
+        notes = []
+        seconds = float(self.options.preroll or 0.0)
+        mpu = self.scene.stage.meters_per_unit
+        units = {1.0: "m", 0.01: "cm", 0.001: "mm"}.get(mpu, "stage units")
+        for k, g in enumerate(self.groups):
+            has_colliders = g.control.features is not None and g.control.features.colliders is not None
+            if not has_colliders and seconds <= 0:
+                continue
+            split = len(g.devices) > 1
+            with wp.ScopedDevice(self.device):
+                roots = self._roots_world(g, self.frame)
+                g.control.set_root_targets(roots, roots)
+                update_frame(self.scene, g.curves, g.control, self.frame, self.frame)  # the first frame's pose
+                if has_colliders:
+                    # per strand, so a split group is pushed out part by part exactly as on one device
+                    parts = zip(g._parts, g.control.parts) if split else [((g.model, g.state), g.control)]
+                    reports = [resolve_start(m, st, c, inside_only=True) for (m, st), c in parts]
+                    report = reports[0] if len(reports) == 1 else StartReport(
+                        *(sum(getattr(r, f) for r in reports) for f in ("particles", "inside", "touching")),
+                        *(max(getattr(r, f) for r in reports) for f in ("max_depth", "max_depth_radii",
+                                                                         "max_penetration", "max_penetration_radii")))
+                    if report.inside:   # a clean scene says nothing
+                        notes.append(report.line(units))
+                if split and seconds > 0:
+                    notes.append(f"preroll: not run for {len(g.members)} prim(s) split across devices "
+                                 f"{', '.join(g.devices)}")
+                    if g.control.features is not None:
+                        g.control.features.resync()
+                    continue
+                if seconds > 0:
+                    tcps = self.scene.stage.time_codes_per_second
+                    notes.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
+                                         resolve=has_colliders).line(units))
+                if g.control.features is not None:
+                    g.control.features.resync()
+        return notes
 
     # -- geometry helpers ---------------------------------------------------------------------
 
@@ -167,6 +238,13 @@ class Simulation:
                         self.on_warning(g.monitor.message)
 
     def samples(self, owned: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(points, velocities) of every prim of :attr:`output_scene` at the current frame, local
+        space, float32: :meth:`simulated_samples`, plus render curves deformed from their guides."""
+        if self.guides is None:
+            return self.simulated_samples(owned)
+        return self.guides.samples(self, self.simulated_samples(True), self.device)
+
+    def simulated_samples(self, owned: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of ``scene.curves`` at the current frame, in the
         prim's local space (stage units, stage units per second), float32 as USD stores them.
 
@@ -223,7 +301,14 @@ class Simulation:
                         g.solver.set_clamp_targets(g.clamps.world(self._matrix, g.members, self.frame),
                                                    g.clamps.world(self._matrix, g.members, nxt))
                 update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
-                g.solver.advance(g.state, g.control, g.dt, g.settings.substeps)
+                substeps, dt = g.settings.substeps, g.dt
+                if self.tolerance is not None:   # --tolerance: from the error estimate on sampled strands
+                    frame_dt = 1.0 / self.scene.stage.time_codes_per_second
+                    roots = self._end_roots[k] if k in self._end_roots and self._end_roots[k][0] == nxt else None
+                    substeps = self.tolerance.substeps(k, g, frame_dt, None if roots is None else (start, end),
+                                                       self.frame, nxt)
+                    dt = frame_dt / substeps
+                g.solver.advance(g.state, g.control, dt, substeps)
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 1)
@@ -277,6 +362,8 @@ class Simulation:
         self.frame = int(state["frame"])
         self._matrices = {}
         self._at_rest = False
+        if self.guides is not None:
+            self.guides.reset()
         for g in self.groups:
             if g.control.features is not None:
                 g.control.features.resync()  # colliders start the next frame where it says
@@ -393,6 +480,10 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
 
     parse_gates(options.get("check"))  # a bad gate in the gates' words
     out_opts = {k: check_api(k, options.pop(k, None)) for k in OUTPUT_OPTIONS}
+    tolerance = check_api("tolerance", options.pop("tolerance", None))  # simulation.tolerance
+    from ..options import GUIDE_OPTIONS
+
+    guides = {k: check_api(k, options.pop(k, None)) for k in GUIDE_OPTIONS}  # guides.scene (issue 22)
     if "device" in options and options["device"] is None:
         options = {**options, "device": resolve_device(None)}
     opts = SimulationOptions(**options)
@@ -402,16 +493,25 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     check_output_path(output, input)
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
-    sim = Simulation(scene, opts, first)
+    sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides)
+    if sim.guides is not None and sim.guides.output == "binding" and out_opts["clips"] is not None:
+        raise UserError(f"{output}: --guides-output binding cannot be written as --clips")
     step = out_opts["frame_step"] or 1
     last_written = first + (last - first) // step * step
+    if out_opts["no_clips"] and out_opts["clips"] is not None:
+        raise UserError(f"{output}: --clips and --no-clips contradict each other")
+    if out_opts["clips"] is None and not out_opts["no_clips"] and (sim.guides is None or sim.guides.output != "binding"):
+        from ..output.clips import auto_clips  # large outputs: clips (measured size, docs/caches.md)
+
+        out_opts["clips"] = auto_clips(sim.output_scene, (last_written - first) // step + 1, output)
     record = provenance.build(sim, input, quality=quality, command=command, output_options={
         "frame_step": step, "velocities": not out_opts["no_velocities"], "check": out_opts["check"] or "none",
         "clips": "none" if out_opts["clips"] is None else out_opts["clips"]})
     qc = FrameQC(sim)
     t_load = time.perf_counter() - t0
     if progress:
-        for line in (*notes, device_line(sim.options.device)):
+        for line in (*notes, *sim.start_notes, *(sim.guides.notes() if sim.guides else ()), *(sim.tolerance.notes if sim.tolerance else ()),
+                     device_line(sim.options.device)):
             print(line, file=sys.stderr)
 
     ensure_folder(output)
@@ -430,16 +530,22 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
             if out_opts["clips"] is not None:
                 from ..output.clips import create_clips
 
-                opened = create_clips(output, scene, frames=(first, last_written), clip_frames=out_opts["clips"],
+                opened = create_clips(output, sim.output_scene, frames=(first, last_written), clip_frames=out_opts["clips"],
                                       **extra)
             else:
-                opened = cls.create(output, scene, frames=(first, last_written), **extra)
+                opened = cls.create(output, sim.output_scene, frames=(first, last_written), **extra)
             with opened as writer:
                 writer.set_record(provenance.RECORD, record)
                 times = run_frames(sim, writer, last_written, progress=bar.update if bar else None, frame_step=step,
                                    qc=qc, gates=gates, velocities=not out_opts["no_velocities"])
                 a = time.perf_counter()
+                if sim.tolerance is not None:   # the estimated error per frame and the choices
+                    from .tolerance import RECORD
+
+                    writer.set_record(RECORD, sim.tolerance.record())
                 writer.commit()
+                if sim.guides is not None and sim.guides.output == "binding":   # the binding as primvars
+                    sim.guides.write_binding(output)
                 times["writing"] += time.perf_counter() - a
         finally:
             if bar is not None:
@@ -458,6 +564,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         seconds_writing=times["writing"],
         groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
                  "features": sorted(g.model.feature_flags)} for g in sim.groups],
-        warnings=list(scene.warnings),
+        warnings=list(scene.warnings) + list(sim.start_notes),
         run_warnings=list(sim.warnings),
+        tolerance=sim.tolerance.lines() if sim.tolerance is not None else [],
     )

@@ -44,7 +44,14 @@ float64) and the zero-gravity curly strand (2e-6 L in 10 s) pass, but a styled s
 with inverse statics moves 3e-2 L (its bending forces balance gravity only to float32 round-off);
 with float64 arithmetic and float32 storage it moves 2e-8 L.
 
-Not supported yet: models with features (colliders, binding, hair-hair, air...) are refused.
+**Features.** Colliders (every registered shape, their per-substep poses from the Control's
+``features``) respond as in the featured DFTL sweep, after the follow-the-leader projection:
+rounds of collide (the first continuous, Coulomb friction) then back to the rest length from the
+leader. Contact moves the position only: the velocity is ``(x^{n+1} - x^n)/h`` of the contact
+position, the tensions are the solve's and the correction ``c`` the projection's (as DFTL's). The
+Drag feature (per strand, added to ``drag``) and Wind (with its curl noise) act in the implicit
+solve, as a force ``m drag (w - v^{n+1})``. Hair-hair, root binding and shape retention are refused
+(:func:`check_features`).
 """
 
 from __future__ import annotations
@@ -56,7 +63,7 @@ import warp as wp
 
 from ..core.precision import numpy_type, scalar_type
 from ..core.state import State
-from ..kernels.solvers.elastic import elastic_kernel
+from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_kernel
 from . import elastic_rest
 from .base import DEFAULT_GRAVITY, Solver, check_gravity, register
 
@@ -68,6 +75,30 @@ HAIR_DENSITY = 1320.0
 TWIST_G = 10 * HAIR_G
 #: default hair radius (m) when the model has no widths
 DEFAULT_RADIUS = 40e-6
+
+
+#: what the elastic solver says about the features it does not support (by feature class name)
+UNSUPPORTED = {
+    "HairHair": "hair-hair interaction (dftl:hairHair)",
+    "RootBinding": "root binding to a deforming mesh (the clamp follows the prim's transform only)",
+    "ShapeRetention": "shape retention (dftl:shapeStiffness; the elastic solver keeps the authored style "
+                      "itself: remove it)",
+}
+
+
+def check_features(model) -> None:
+    """ValueError naming the model's features the elastic solver does not support (it supports
+    colliders, drag and wind)."""
+    from ..features import Colliders, Drag, Wind
+
+    bad = [f for f in model.features if not isinstance(f, (Colliders, Drag, Wind))]
+    names = [UNSUPPORTED.get(type(f).__name__, type(f).__name__) for f in bad]
+    flags = set(model.feature_flags) - elastic_flags()
+    names += [f"the {flag!r} flag" for flag in sorted(flags)
+              if not any(flag in getattr(f, "flags", ()) for f in bad)]
+    if names:
+        raise ValueError("the elastic solver supports colliders, drag and wind only; it does not support these "
+                         f"features: {'; '.join(names)}")
 
 
 @dataclass(eq=False)
@@ -99,8 +130,8 @@ class ElasticSolver(Solver):
     """Elastic rods, scheme K (see the module docstring).
 
     Args:
-        model: the :class:`~dftl_warp.core.model.Model` (no features); free particles need non-zero
-            rest lengths.
+        model: the :class:`~dftl_warp.core.model.Model` (its features: colliders, drag and wind only,
+            :func:`check_features`); free particles need non-zero rest lengths.
         youngs_modulus: E (Pa, or the model's units), default human hair 3.89e9.
         density: kg/m^3, default 1320.
         radius: hair radius, one value or one per point (input order); default half the model's
@@ -129,9 +160,7 @@ class ElasticSolver(Solver):
                  inverse_statics: bool = True, damping: float = 0.0, correction: str = "prior",
                  drag: float = 0.0, compute_precision: str | None = None, stiffness_scale=None,
                  rest_shape=None):
-        if model.features or model.feature_flags:
-            names = sorted({type(f).__name__ for f in model.features} | set(model.feature_flags))
-            raise ValueError(f"the elastic solver does not support features yet; this model has: {', '.join(names)}")
+        check_features(model)
         if correction not in ("prior", "posterior"):
             raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
         if not (0.0 <= float(damping) <= 1.0):
@@ -212,7 +241,17 @@ class ElasticSolver(Solver):
                          wp.zeros(n, dtype=wp.types.matrix((4, 4), real), device=dev),
                          wp.zeros(n, dtype=wp.types.vector(4, real), device=dev)]
         self._dummy = wp.zeros(1, dtype=model.vec3, device=dev)
-        self._kernel = elastic_kernel(model.scalar, real, correction)
+        flags = model.feature_flags
+        self._kernel = elastic_kernel(model.scalar, real, correction, flags)
+        #: the featured DFTL step's host side (collider poses per substep, the feature struct)
+        self._features = None
+        self._no_features = None
+        if flags:
+            from ..features.step import FeatureStep
+
+            self._features = FeatureStep(model, self._kernel)
+        else:
+            self._no_features = NoFeatures()
 
     # -- the State -------------------------------------------------------------------------------
 
@@ -261,7 +300,7 @@ class ElasticSolver(Solver):
     # -- stepping --------------------------------------------------------------------------------
 
     def kernels(self) -> list:
-        return [self._kernel]
+        return self._features.kernels() if self._features is not None else [self._kernel]
 
     def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``)."""
@@ -275,6 +314,11 @@ class ElasticSolver(Solver):
                 raise ValueError("the prior correction form needs states with corrections (solver.state())")
         f = self._fields
         prior = self.carries_corrections
+        if self._features is not None:
+            self._features.pose_and_bounds(state_in, control, root_alpha)   # this substep's collider poses
+            features = self._features._struct(control)
+        else:
+            features = self._no_features
         wp.launch(
             self._kernel,
             dim=m.num_strands,
@@ -283,7 +327,7 @@ class ElasticSolver(Solver):
                 f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],
                 f["rest_rotation"], self._clamp_direction, self._curved,
                 control.root_start, control.root_end, self._clamp_start, self._clamp_end, self._clamp_relative,
-                float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag,
+                float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag, features,
                 state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,
                 state_in.tensions, state_in.frames, state_in.clamps,
                 *self._scratch,

@@ -15,8 +15,14 @@ largest residual the projection removed from a converged solve (``constraint_res
 many strand-steps dropped a diverged Newton result (``fallbacks``) since the solver was built or
 :meth:`RattleSolver.reset_statistics` was called.
 
-Memory: besides the State, one vec3 and three scalars of scratch per particle (24 bytes in float32)
-and 8 bytes per strand; the scratch is the solver's, so one solver advances one state at a time.
+On chip: strands of at most 32 vertices can run :mod:`dftl_warp.kernels.solvers.rattle_fused`,
+the same arithmetic with the whole strand in thread-local storage (bitwise equal on the CPU);
+``on_chip=None`` (the default) chooses it on CUDA, ``True``/``False`` force it either way. Longer
+strands take the global-memory kernel.
+
+Memory: besides the State, two vec3 and three scalars of scratch per particle (36 bytes in float32;
+none when every strand runs on chip) and 8 bytes per strand; the scratch is the solver's, so one
+solver advances one state at a time.
 Features (colliders, hair-hair, shape retention) are not part of this solver: it steps gravity and
 roots only, and refuses a model with features.
 """
@@ -28,6 +34,7 @@ import warp as wp
 
 from ..core.layout import strand_offsets
 from ..kernels.solvers.rattle import rattle_kernel
+from ..kernels.solvers.rattle_fused import rattle_capacity, rattle_fused_kernel
 from .base import DEFAULT_GRAVITY, Solver, register
 
 #: Newton iterations per step: 3 bring the relative squared-length residual of a float32 groom at
@@ -47,6 +54,23 @@ DEFAULT_MAX_HALVINGS = 3
 DEFAULT_FALLBACK = 0.25
 
 
+def rattle_runs(strand_count, scalar, on_chip: bool) -> list:
+    """(kernel, first device strand, number of strands) for each run of consecutive device strands
+    that share a kernel: the on-chip kernel of their capacity (8/16/24/32 vertices) when ``on_chip``,
+    None for the global-memory kernel (longer strands, or ``on_chip`` off)."""
+    counts = [int(c) for c in strand_count]
+    if not counts:
+        return []
+    keys = [rattle_capacity(c) if on_chip else None for c in counts]
+    runs, first = [], 0
+    for s in range(1, len(keys) + 1):
+        if s == len(keys) or keys[s] != keys[first]:
+            kernel = rattle_fused_kernel(scalar, keys[first]) if keys[first] is not None else None
+            runs.append((kernel, first, s - first))
+            first = s
+    return runs
+
+
 @register
 class RattleSolver(Solver):
     """RATTLE in the model's precision, ``newton_iterations`` Newton + Thomas solves per step.
@@ -60,14 +84,15 @@ class RattleSolver(Solver):
         accept: relative squared-length residual below which the fixed iterations count as
             converged; above it (and above ``max_halvings`` splits) the step is redone in halves.
         max_halvings: how many times a substep may be halved (at most ``2^max_halvings`` pieces).
+        on_chip: run strands of at most 32 vertices with the on-chip kernel (None: on CUDA only).
     """
 
     name = "rattle"
-    options = ("newton_iterations", "fallback", "accept", "max_halvings")
+    options = ("newton_iterations", "fallback", "accept", "max_halvings", "on_chip")
 
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, newton_iterations: int = DEFAULT_NEWTON_ITERATIONS,
                  fallback: float = DEFAULT_FALLBACK, accept: float = DEFAULT_ACCEPT,
-                 max_halvings: int = DEFAULT_MAX_HALVINGS):
+                 max_halvings: int = DEFAULT_MAX_HALVINGS, on_chip: bool | None = None):
         if int(newton_iterations) != newton_iterations or int(newton_iterations) < 1:
             raise ValueError(f"newton_iterations must be an integer >= 1, got {newton_iterations!r}")
         if not (float(fallback) > 0.0):
@@ -92,15 +117,18 @@ class RattleSolver(Solver):
         self.accept = float(accept)
         self.max_halvings = int(max_halvings)
         self._kernel = rattle_kernel(model.scalar)
+        self.on_chip = bool(model.device.is_cuda) if on_chip is None else bool(on_chip)
+        self._runs = rattle_runs(model.layout.strand_count, model.scalar, self.on_chip)
         n, dev = model.num_slots, model.device
-        self._q = wp.zeros(n, dtype=model.vec3, device=dev)
-        self._lo = wp.zeros(n, dtype=model.vec3, device=dev)
-        self._scalars = [wp.zeros(n, dtype=model.scalar, device=dev) for _ in range(3)]
+        if any(kernel is None for kernel, _, _ in self._runs):
+            self._q = wp.zeros(n, dtype=model.vec3, device=dev)
+            self._lo = wp.zeros(n, dtype=model.vec3, device=dev)
+            self._scalars = [wp.zeros(n, dtype=model.scalar, device=dev) for _ in range(3)]
         self._residual = wp.zeros(model.num_strands, dtype=model.scalar, device=dev)
         self._fallbacks = wp.zeros(model.num_strands, dtype=wp.int32, device=dev)
 
     def kernels(self) -> list:
-        return [self._kernel]
+        return [self._kernel] + sorted({k for k, _, _ in self._runs if k is not None}, key=id)
 
     def _launch(self, state_in, state_out, control, dt, alpha_first, alpha_step, substeps):
         m = self.model
@@ -109,20 +137,18 @@ class RattleSolver(Solver):
         if state_out is not state_in:
             wp.copy(state_out.positions, state_in.positions)
             wp.copy(state_out.velocities, state_in.velocities)
-        wp.launch(
-            self._kernel,
-            dim=m.num_strands,
-            inputs=[
-                m.strand_base, m.strand_stride, m.strand_count,
-                control.root_start, control.root_end,
-                alpha_first, alpha_step, int(substeps),
-                m.rest_lengths, self.gravity, dt, self.newton_iterations, self.fallback, self.accept,
-                self.max_halvings,
-                state_out.positions, state_out.velocities,
-                self._q, self._lo, *self._scalars, self._residual, self._fallbacks,
-            ],
-            device=m.device,
-        )
+        common = [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
+                  alpha_first, alpha_step, int(substeps), m.rest_lengths, self.gravity, dt,
+                  self.newton_iterations, self.fallback, self.accept, self.max_halvings,
+                  state_out.positions, state_out.velocities]
+        for kernel, first, size in self._runs:
+            if kernel is None:
+                wp.launch(self._kernel, dim=size, device=m.device,
+                          inputs=[first, *common, self._q, self._lo, *self._scalars, self._residual,
+                                  self._fallbacks])
+            else:
+                wp.launch(kernel, dim=size, device=m.device,
+                          inputs=[first, *common, self._residual, self._fallbacks])
 
     def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``)."""

@@ -116,3 +116,24 @@ def scale_velocities_kernel(scalar):
             velocities[k] = velocities[k] * factor
 
     return scale_velocities
+
+
+@functools.cache
+def motion_kernel(scalar):
+    """Largest distance between ``positions`` and ``previous`` over every particle (atomic max
+    into ``largest[0]``, float32), then ``previous`` set to ``positions``."""
+    vec3 = wp.types.vector(3, scalar)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def motion(strand_base: wp.array(dtype=wp.int32), strand_stride: wp.array(dtype=wp.int32),
+               strand_count: wp.array(dtype=wp.int32), positions: wp.array(dtype=vec3),
+               previous: wp.array(dtype=vec3), largest: wp.array(dtype=wp.float32)):
+        s = wp.tid()
+        m = wp.float32(0.0)
+        for i in range(strand_count[s]):
+            k = particle(strand_base[s], strand_stride[s], i)
+            m = wp.max(m, wp.float32(wp.length(positions[k] - previous[k])))
+            previous[k] = positions[k]
+        wp.atomic_max(largest, 0, m)
+
+    return motion

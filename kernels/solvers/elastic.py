@@ -7,14 +7,16 @@ particles (root 0 kinematic, a kinematic clamp ghost ``x_{-1}`` behind it):
 A. **frames, root -> tip** (curved strands only): one Gauss-Seidel sweep of the projective-dynamics
    local step, ``F_j = polar(W_j (Dx^n)_j b_j^T + G_j F_{j-1} Qb_j + G_{j+1} F_{j+1} Qb_{j+1}^T)``,
    ``F_{-1}`` the root frame (the minimal rotation from the authored clamp direction to the current
-   one), polar factor by ``wp.svd3``;
+   one), polar factor by at most :data:`POLAR_ITERATIONS` Newton steps on the rotation from the
+   last step's frame (exact at convergence), ``wp.svd3`` where they do not converge;
 B. **elimination, tip -> root**: the block-pentadiagonal KKT system (4x4 blocks ``z_k = (v_k, mu_k)``)
    of the linearly implicit velocity solve with the exact linearised inextensibility constraint,
    ``[A J^T; J 0] [v; mu] = [M v^n + h f; J_0 v_0]``, ``A = M (1 + h drag) + h^2 K + h^2 K_T``, is
    factored as a reversed block ``U D U^T``; the forces ``f`` (gravity + bending with the frames of A,
    the root and ghost at their step-end targets) are built on the way;
 C. **back substitution, root -> tip**, fused with the follow-the-leader projection of
-   ``p_k = x_k + h v_k`` (exact segment lengths), the velocity ``(x^{n+1} - x^n)/h`` in DFTL's
+   ``p_k = x_k + h v_k`` (exact segment lengths), the colliders' response (as the featured DFTL
+   sweep: collide, back to the rest length from the leader), the velocity ``(x^{n+1} - x^n)/h`` in DFTL's
    prior or posterior form, and the tensions ``T_k = -mu_k / h``.
 
 Precision: ``scalar`` is the storage precision of the State, ``real`` the computation's (the model
@@ -43,15 +45,55 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..features.collide import collide_all_func, collider_flags
+from ..features.step import NOISE_STRIDE, check_flags, feature_struct
 
 #: as the DFTL step kernels: no floating-point contraction
 ELASTIC_MODULE_OPTIONS = {"fuse_fp": False}
 
+#: Newton iterations of the frames' rotation extraction before it falls back to ``wp.svd3``
+POLAR_ITERATIONS = 4
+
+#: the feature flags the elastic step supports besides the registered collider shapes'
+ELASTIC_OTHER_FLAGS = frozenset({"drag", "wind", "wind_noise"})
+
+
+@wp.struct
+class NoFeatures:
+    """The feature struct of a model without features (the kernel's ``features`` argument)."""
+
+    unused: wp.int32
+
+
+def elastic_flags() -> frozenset:
+    """Every feature flag the elastic step supports: the colliders', drag and wind."""
+    return frozenset(collider_flags()) | ELASTIC_OTHER_FLAGS
+
+
+def elastic_features_struct(scalar, flags: frozenset):
+    """The struct type the elastic kernel for ``flags`` takes (the featured DFTL step's for the
+    same flags, :func:`~dftl_warp.kernels.features.step.feature_struct`; :class:`NoFeatures`
+    without flags)."""
+    flags = check_flags(flags)
+    return feature_struct(scalar, flags) if flags else NoFeatures
+
 
 @functools.cache
-def elastic_kernel(scalar, real, correction: str):
+def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()):
     """The scheme-K step kernel for States stored in ``scalar``, computing in ``real``, with the
-    velocity correction in ``correction`` form (``"prior"`` or ``"posterior"``)."""
+    velocity correction in ``correction`` form (``"prior"`` or ``"posterior"``) and the features
+    ``flags`` (:func:`elastic_flags`: colliders after the follow-the-leader projection, drag and
+    wind in the implicit solve)."""
+    flags = check_flags(flags)
+    extra = flags - elastic_flags()
+    if extra:
+        raise ValueError(f"the elastic step does not support the feature flags {sorted(extra)}")
+    Features = elastic_features_struct(scalar, flags)
+    COLLIDE = bool(flags & set(collider_flags()))
+    collide_all = collide_all_func(scalar, Features, flags) if COLLIDE else None
+    DRAG = "drag" in flags
+    WIND = "wind" in flags
+    WIND_NOISE = "wind_noise" in flags
     vec3s = wp.types.vector(3, scalar)
     quats = wp.types.quaternion(scalar)
     vec3 = wp.types.vector(3, real)
@@ -90,6 +132,44 @@ def elastic_kernel(scalar, real, correction: str):
             c = wp.cross(a, ref)
             w = real(0.0)
         return wp.quat_to_matrix(wp.normalize(quat(c[0], c[1], c[2], w)))
+
+    # the frame's rotation: Newton on the rotation manifold from the last step's frame, svd3 where
+    # it does not converge in POLAR_ITERATIONS (see :func:`polar_rotation`)
+    tol = real(1.0e-8) if real == wp.float64 else real(1.0e-4)
+
+    @wp.func
+    def polar_rotation(M: mat33, q0: quat):
+        """The rotation maximising tr(F^T M) (the polar factor of M), from the warm start q0."""
+        q = q0
+        for _it in range(POLAR_ITERATIONS):
+            R = wp.quat_to_matrix(q)
+            S = wp.transpose(R) * M
+            g = vec3(S[2, 1] - S[1, 2], S[0, 2] - S[2, 0], S[1, 0] - S[0, 1])
+            tr = S[0, 0] + S[1, 1] + S[2, 2]
+            H = mat33(tr - S[0, 0], real(-0.5) * (S[0, 1] + S[1, 0]), real(-0.5) * (S[0, 2] + S[2, 0]),
+                      real(-0.5) * (S[0, 1] + S[1, 0]), tr - S[1, 1], real(-0.5) * (S[1, 2] + S[2, 1]),
+                      real(-0.5) * (S[0, 2] + S[2, 0]), real(-0.5) * (S[1, 2] + S[2, 1]), tr - S[2, 2])
+            # H must be positive definite (near the maximum): leading minors
+            m1 = H[0, 0]
+            m2 = H[0, 0] * H[1, 1] - H[0, 1] * H[1, 0]
+            m3 = wp.determinant(H)
+            if m1 <= real(0.0) or m2 <= real(0.0) or m3 <= real(0.0):
+                break
+            w = wp.inverse(H) * g
+            th = wp.length(w)
+            if th > real(0.5):
+                break
+            sh = real(0.5)
+            if th > real(1.0e-30):
+                sh = wp.sin(real(0.5) * th) / th
+            q = wp.normalize(q * quat(sh * w[0], sh * w[1], sh * w[2], wp.cos(real(0.5) * th)))
+            if th < tol:
+                return q
+        U = mat33()
+        sig = vec3()
+        V = mat33()
+        wp.svd3(M, U, sig, V)
+        return wp.quat_from_matrix(U * wp.transpose(V))
 
     @wp.func
     def curv(xm: vec3, x: vec3, xp: vec3, lj: real, lj1: real):
@@ -143,6 +223,7 @@ def elastic_kernel(scalar, real, correction: str):
         dt: real,
         damping: real,
         drag: real,
+        features: Features,
         # State in:
         positions_in: wp.array(dtype=vec3s),
         velocities_in: wp.array(dtype=vec3s),
@@ -189,6 +270,20 @@ def elastic_kernel(scalar, real, correction: str):
             return
         N = n - 1
         is_curved = curved[s] != 0
+        # drag (1/s): the solver's own plus the Drag feature's, toward the air velocity (wind)
+        drag_s = drag
+        air = zero3
+        if wp.static(DRAG):
+            drag_s = drag + real(features.drag[s])
+            if wp.static(WIND):
+                wa = ld(features.wind_velocity[0])
+                air = wa + root_alpha * (ld(features.wind_velocity[1]) - wa)
+            if wp.static(WIND_NOISE):
+                t0 = features.wind_time[0]
+                time = t0 + scalar(root_alpha) * (features.wind_time[1] - t0)
+                noise_state = wp.uint32(features.noise_seed)
+                gust = zero3
+                noise_at = int(-1)
 
         # ---- A: frames, Gauss-Seidel root -> tip, at x^n (ghost at its old place) ----------------
         if is_curved:
@@ -204,13 +299,9 @@ def elastic_kernel(scalar, real, correction: str):
                 if j + 1 < N:
                     Fn = wp.quat_to_matrix(ldq(frames_in[kp]))
                     M = M + twist[kp] * (Fn * wp.transpose(wp.quat_to_matrix(rest_rotation[kp])))
-                U = mat33()
-                sig = vec3()
-                V = mat33()
-                wp.svd3(M, U, sig, V)
-                F = U * wp.transpose(V)
-                frames_out[kj] = stq(wp.quat_from_matrix(F))
-                Fprev = F
+                qF = polar_rotation(M, ldq(frames_in[kj]))
+                frames_out[kj] = stq(qF)
+                Fprev = wp.quat_to_matrix(qF)
                 xm = xj
                 xj = xp
         else:
@@ -276,10 +367,25 @@ def elastic_kernel(scalar, real, correction: str):
             if wp.static(prior):
                 xp_ = xk - damping * ld(c_hi)
                 rv = mk * (vk + (xp_ - xk) / h) + h * f
+            if wp.static(DRAG):
+                w_air = air
+                if wp.static(WIND_NOISE):
+                    # curl noise sampled every NOISE_STRIDE particles, held in between (as DFTL)
+                    si = 1 + ((k - 1) // NOISE_STRIDE) * NOISE_STRIDE
+                    if si != noise_at:
+                        xs_ = positions_in[particle(base, stride, si)]
+                        xyzt = wp.vec4f(wp.float32(xs_[0] * features.noise_inv_scale),
+                                        wp.float32(xs_[1] * features.noise_inv_scale),
+                                        wp.float32(xs_[2] * features.noise_inv_scale),
+                                        wp.float32(time * features.noise_frequency))
+                        gust = real(features.noise_amplitude) * vec3(wp.curlnoise(noise_state, xyzt))
+                        noise_at = si
+                    w_air = air + gust
+                rv = rv + (h * mk * drag_s) * w_air
             rk = vec4(rv[0], rv[1], rv[2], real(0.0))
             if k == 1:
                 rk[3] = wp.dot(e, v0)
-            a0 = mk * (real(1.0) + h * drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
+            a0 = mk * (real(1.0) + h * drag_s) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
             Dk = block0(a0, e) - U1k * D1 * wp.transpose(U1k) - U2k * D2 * wp.transpose(U2k)
             Di = wp.inverse(Dk)
             U1new = mat44()
@@ -335,6 +441,23 @@ def elastic_kernel(scalar, real, correction: str):
             if dn > real(1.0e-30):
                 x = leader + (length[kk] / dn) * d
             c = x - p
+            if wp.static(COLLIDE):
+                # the featured DFTL sweep's response: rounds of collide-then-restore-rest-length, the
+                # first continuous; contact changes the position (so the velocity) only, not c or T
+                xs = st(x)
+                xo = positions_in[kk]
+                lead_s = st(leader)
+                rest_s = scalar(length[kk])
+                radius = features.particle_radius[kk]
+                for it in range(features.collider_iterations):
+                    xs, touched = collide_all(features, xs, xo, lead_s, rest_s, it == 0, radius)
+                    if not touched:
+                        break
+                    dc = ld(xs) - leader
+                    dcn = wp.length(dc)
+                    if dcn > real(1.0e-30):
+                        x = leader + (length[kk] / dcn) * dc
+                    xs = st(x)
             v = (x - x_old) / h
             positions_out[kk] = st(x)
             tensions_out[kk] = scalar(-zk[3] / h)

@@ -56,6 +56,7 @@ def rattle_kernel(scalar):
 
     @wp.kernel(enable_backward=False, module="unique")
     def rattle_steps(
+        first_strand: wp.int32,
         strand_base: wp.array(dtype=wp.int32),
         strand_stride: wp.array(dtype=wp.int32),
         strand_count: wp.array(dtype=wp.int32),
@@ -81,7 +82,7 @@ def rattle_kernel(scalar):
         residual: wp.array(dtype=scalar),
         fallbacks: wp.array(dtype=wp.int32),
     ):
-        s = wp.tid()
+        s = first_strand + wp.tid()
         base = strand_base[s]
         stride = strand_stride[s]
         n = strand_count[s]

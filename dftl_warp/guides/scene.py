@@ -1,0 +1,262 @@
+"""Guides in a simulated scene (issue 22, docs/guides.md): which prims are simulated, and the render
+curves deformed from them each frame.
+
+Two ways a scene gets render curves:
+
+- ``rel dftl:guides`` on a BasisCurves prim (:mod:`dftl_warp.usd.guides`): the prim is a render prim,
+  deformed from the named guide prims, which are simulated as usual;
+- ``simulate --guides N|FRACTION`` (:func:`parse_count`): from every prim without the relationship
+  (a dense groom) ``N`` strands are picked (:func:`~dftl_warp.guides.select.select_guides`) and
+  simulated as a prim of their own; the whole prim is then deformed from them, its guide strands
+  reproduced exactly.
+
+The binding is computed once, at the first frame, in **world space** (each prim's points through its
+local-to-world transform at that frame); each frame the simulated guides go to world space, the
+render points are deformed on the simulation's device (:class:`~dftl_warp.guides.deform.GuideDeformer`)
+and come back to the render prim's local space. Velocities of deformed curves are the **backward
+difference** of their local points over the previous sampled frame (zero at the first frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..errors import UserError
+from ..usd.scene import CurvesPrim, Scene, transform_points
+from .binding import bind, bind_groom, check_strands
+from .select import METHODS, select_guides
+
+#: what ``--guides-output`` writes
+OUTPUTS = ("curves", "binding")
+#: suffix of the prim the guides picked from a dense prim are written to (``--guides-output binding``)
+GUIDES_SUFFIX = "_guides"
+
+
+def parse_count(text):
+    """``--guides``: ``"10"`` -> 10 guides, ``"0.1"`` or ``"10%"`` -> the fraction 0.1."""
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        value = text
+    else:
+        t = str(text).strip()
+        try:
+            value = float(t[:-1]) / 100.0 if t.endswith("%") else (int(t) if t.isdigit() else float(t))
+        except ValueError:
+            raise UserError(f"--guides {text}: expected a number of guides, a fraction or a percentage") from None
+    if isinstance(value, int):
+        if value < 1:
+            raise UserError(f"--guides {text}: at least 1 guide")
+    elif not 0.0 < value <= 1.0:
+        raise UserError(f"--guides {text}: a fraction must be in (0, 1] (a percentage in (0%, 100%])")
+    return value
+
+
+def _subset(c: CurvesPrim, strands: np.ndarray, path: str) -> CurvesPrim:
+    """The strands ``strands`` of ``c`` as a prim of their own (same transform and settings)."""
+    starts = np.concatenate([[0], np.cumsum(c.counts)[:-1]])
+    verts = np.concatenate([np.arange(starts[s], starts[s] + c.counts[s]) for s in strands])
+    widths, interp = c.widths, c.widths_interpolation
+    if widths is not None:
+        if interp == "vertex" and widths.shape[0] == c.num_points:
+            widths = widths[verts]
+        elif interp == "uniform" and widths.shape[0] == c.num_strands:
+            widths = widths[strands]
+        elif interp != "constant":
+            widths, interp = None, ""
+    return replace(
+        c, path=path, points=c.points[verts], counts=c.counts[strands], widths=widths, widths_interpolation=interp,
+        display_color=None, display_color_interpolation="",
+        rest_points=None if c.rest_points is None else c.rest_points[verts],
+        bend_scale=None if c.bend_scale is None else c.bend_scale[verts], guides=())
+
+
+@dataclass
+class _Render:
+    """One deformed output prim."""
+
+    index: int  # in the output scene
+    sources: list  # simulated prim indices whose points, in order, are the binding's guides
+    binding: object
+    deformer: object = None
+    prev: tuple | None = None  # (frame, local points float32)
+
+
+class GuideSet:
+    """The guide plan of a scene: :attr:`sim_scene` (what is simulated), :attr:`output_scene` (what
+    is written) and the render prims deformed each frame (:meth:`samples`)."""
+
+    def __init__(self, scene: Scene, frame: int, *, guides=None, guide_method: str | None = None,
+                 guides_output: str | None = None, k: int = 4):
+        method = guide_method or "kmeans"
+        output = guides_output or "curves"
+        if method not in METHODS:
+            raise UserError(f"--guide-method {method}: choose one of {', '.join(METHODS)}")
+        if output not in OUTPUTS:
+            raise UserError(f"--guides-output {output}: choose one of {', '.join(OUTPUTS)}")
+        count = None if guides is None else parse_count(guides)
+        self.method, self.output, self.count = method, output, count
+        file = scene.source
+        sim, sim_index = [], {}  # simulated prims, path -> index in sim
+        picked = {}  # output index -> (sim index, strand indices) of a dense prim
+        for i, c in enumerate(scene.curves):
+            if c.guides:
+                continue
+            if count is None:
+                sim_index[c.path] = len(sim)
+                sim.append(c)
+                continue
+            world = transform_points(c.transform(frame), c.points)
+            try:
+                check_strands(world, c.counts)
+                chosen = select_guides(world, c.counts, count, method)
+            except ValueError as exc:
+                raise UserError(f"{file}: {c.path}: --guides {guides}: {_why(exc, c)}") from None
+            path = c.path + GUIDES_SUFFIX if output == "binding" else c.path
+            picked[i] = (len(sim), np.asarray(chosen, dtype=np.int64))
+            sim_index[c.path] = len(sim)
+            sim.append(_subset(c, chosen, path))
+        self.sim_scene = replace(scene, curves=sim)
+        self.renders: list[_Render] = []
+        for i, c in enumerate(scene.curves):
+            where = f"{file}: {c.path}"
+            m = c.transform(frame)
+            if i in picked:
+                s, chosen = picked[i]
+                try:
+                    b = bind_groom(transform_points(m, c.points), c.counts, chosen, k=min(k, chosen.size))
+                except ValueError as exc:
+                    raise UserError(f"{where}: cannot bind to its guides: {exc}") from None
+                self.renders.append(_Render(i, [s], b))
+            elif c.guides:
+                sources = [sim_index[g] for g in c.guides]
+                gp = np.concatenate([transform_points(sim[s].transform(frame), sim[s].points) for s in sources])
+                gc = np.concatenate([sim[s].counts for s in sources])
+                try:
+                    b = bind(gp, gc, transform_points(m, c.points), c.counts, k=min(k, gc.shape[0]))
+                except ValueError as exc:
+                    raise UserError(f"{where}: cannot bind to its guides {', '.join(c.guides)}: {exc}") from None
+                self.renders.append(_Render(i, sources, b))
+        #: render prims' output indices -> _Render
+        self._by_output = {r.index: r for r in self.renders}
+        self._passthrough = {i: sim_index[c.path] for i, c in enumerate(scene.curves)
+                             if not c.guides and i not in picked}
+        self.input_scene = scene
+        #: what the writer writes: every prim (deformed render curves as time samples), or the guides only
+        self.output_scene = scene if output == "curves" else self.sim_scene
+        self.tcps = scene.stage.time_codes_per_second
+
+    @property
+    def num_render_strands(self) -> int:
+        return sum(r.binding.num_render for r in self.renders)
+
+    def notes(self) -> list[str]:
+        g = sum(c.num_strands for c in self.sim_scene.curves)
+        how = f"{self.method}, " if self.count is not None else ""
+        return [f"guides: {g} guide strand(s) simulated, {self.num_render_strands} render strand(s) in "
+                f"{len(self.renders)} prim(s) deformed from them ({how}k <= 4, bound at the first frame in world "
+                f"space; render velocities: backward difference)"]
+
+    def reset(self) -> None:
+        """Forget the previous frame (a restored state): the next velocities are zero."""
+        for r in self.renders:
+            r.prev = None
+
+    def samples(self, sim, simulated: list, device) -> list:
+        """Output samples from the simulated prims' ``simulated`` (local points, velocities)."""
+        if self.output == "binding":
+            return simulated
+        frame = sim.frame
+        scene = self.input_scene
+        out: list = [None] * len(scene.curves)
+        for i, s in self._passthrough.items():
+            out[i] = simulated[s]
+        world = {}
+        for r in self.renders:
+            if r.deformer is None:
+                from .deform import GuideDeformer
+
+                r.deformer = GuideDeformer(r.binding, device=device)
+            for s in r.sources:
+                if s not in world:
+                    m = sim.scene.curves[s].transform(frame)
+                    world[s] = transform_points(m, np.asarray(simulated[s][0], dtype=np.float64))
+            gp = np.concatenate([world[s] for s in r.sources])
+            points = r.deformer.deform_numpy(gp)
+            c = scene.curves[r.index]
+            local = transform_points(np.linalg.inv(c.transform(frame)), points).astype(np.float32)
+            if r.prev is None or r.prev[0] >= frame or sim._at_rest:
+                vel = np.zeros_like(local)
+            else:
+                vel = ((local - r.prev[1]) * (self.tcps / (frame - r.prev[0]))).astype(np.float32)
+            r.prev = (frame, local)
+            out[r.index] = (local, vel)
+        return out
+
+    def write_binding(self, output) -> None:
+        """``--guides-output binding``: after the writer's commit, author on ``output`` each render
+        prim's binding as primvars (docs/guides.md) and, for guides picked from a dense prim, the guide
+        prim's topology (a BasisCurves prim ``<prim>_guides``)."""
+        from pxr import Sdf, Vt
+
+        layer = Sdf.Layer.FindOrOpen(str(output))
+        if layer is None:
+            raise UserError(f"{output}: cannot reopen to write the guide binding")
+        scene = self.input_scene
+        for c in self.sim_scene.curves:
+            if not c.path.endswith(GUIDES_SUFFIX) or layer.GetPrimAtPath(c.path) is None:
+                continue
+            spec = layer.GetPrimAtPath(c.path)
+            spec.specifier = Sdf.SpecifierDef
+            spec.typeName = "BasisCurves"
+            _attr(spec, "curveVertexCounts", Sdf.ValueTypeNames.IntArray, Vt.IntArray([int(n) for n in c.counts]), True)
+            _attr(spec, "type", Sdf.ValueTypeNames.Token, c.type, True)
+            _attr(spec, "basis", Sdf.ValueTypeNames.Token, c.basis, True)
+            _attr(spec, "wrap", Sdf.ValueTypeNames.Token, c.wrap, True)
+            if c.widths is not None:
+                a = _attr(spec, "widths", Sdf.ValueTypeNames.FloatArray, Vt.FloatArray([float(w) for w in c.widths]))
+                a.SetInfo("interpolation", c.widths_interpolation or "constant")
+        for r in self.renders:
+            c = scene.curves[r.index]
+            b = r.binding
+            spec = layer.GetPrimAtPath(c.path) or Sdf.CreatePrimInLayer(layer, c.path)
+            if spec.specifier != Sdf.SpecifierDef:
+                spec.specifier = Sdf.SpecifierOver
+            guides = [self.sim_scene.curves[s].path for s in r.sources]
+            rel = spec.relationships.get("dftl:guides") or Sdf.RelationshipSpec(spec, "dftl:guides", custom=True)
+            rel.targetPathList.explicitItems = [Sdf.Path(p) for p in guides]
+            k = b.k
+            for name, tname, values, interp, elem in (
+                ("primvars:dftl:guideIds", Sdf.ValueTypeNames.IntArray,
+                 Vt.IntArray([int(x) for x in b.guide_ids[:, :k].reshape(-1)]), "uniform", k),
+                ("primvars:dftl:guideWeights", Sdf.ValueTypeNames.FloatArray,
+                 Vt.FloatArray([float(x) for x in b.weights[:, :k].reshape(-1)]), "uniform", k),
+                ("primvars:dftl:guideOffsets", Sdf.ValueTypeNames.Vector3fArray,
+                 Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(b.offsets.reshape(b.t.shape[0], -1)[:, :3], dtype=np.float32))
+                 if b.frames == "blend" else None, "vertex", 1),
+                ("primvars:dftl:guideParam", Sdf.ValueTypeNames.FloatArray,
+                 Vt.FloatArray([float(x) for x in b.t]), "vertex", 1),
+            ):
+                if values is None:
+                    continue
+                a = _attr(spec, name, tname, values)
+                a.SetInfo("interpolation", interp)
+                if elem > 1:
+                    a.SetInfo("elementSize", elem)
+        layer.Save()
+
+
+def _attr(spec, name, type_name, value, uniform: bool = False):
+    from pxr import Sdf
+
+    a = spec.attributes.get(name) or Sdf.AttributeSpec(spec, name, type_name,
+                                                         Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
+    a.default = value
+    return a
+
+
+def _why(exc: ValueError, c: CurvesPrim) -> str:
+    text = str(exc)
+    if "asks for" in text:
+        return f"{text.replace('n_or_fraction asks for', 'asks for')} (the prim has {c.num_strands} strands)"
+    return text
