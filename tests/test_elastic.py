@@ -299,3 +299,14 @@ def test_kernel_equals_numpy_step(correction):
     assert np.abs(v - ref["v"]).max() < 1e-10 * np.abs(ref["v"]).max()
     assert np.abs(T - ref["T"]).max() < 1e-10 * np.abs(ref["T"]).max()
     assert wp.get_device("cpu") == model.device
+
+
+def test_radius_defaults_to_half_the_model_widths():
+    rest = straight([LB])
+    model = Model.from_strands(rest.reshape(-1, 3), [N + 1], precision="float64", widths=100e-6)
+    assert np.allclose(make_solver(model, "elastic").radius, 50e-6)
+    per_point = np.linspace(100e-6, 60e-6, N + 1)   # tapering to the tip
+    model = Model.from_strands(rest.reshape(-1, 3), [N + 1], precision="float64", widths=per_point)
+    assert np.allclose(make_solver(model, "elastic").radius, per_point / 2)
+    plain = Model.from_strands(rest.reshape(-1, 3), [N + 1], precision="float64")
+    assert np.allclose(make_solver(plain, "elastic").radius, 40e-6)

@@ -84,7 +84,7 @@ def run(args) -> int:
         for w in summary.warnings:
             print(f"dftl-warp: warning: {w}", file=sys.stderr)
     s = summary
-    for line in getattr(s, "tolerance", ()):   # --tolerance: what it chose
+    for line in s.tolerance:   # --tolerance: what it chose
         print(f"dftl-warp: {line}", file=sys.stderr)
     total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
     print(

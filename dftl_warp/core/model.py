@@ -61,6 +61,10 @@ class Model:
     features: tuple = ()
     #: their device data (:class:`~dftl_warp.features.step.ModelFeatures`), None without features
     feature_data: object = None
+    #: hair diameters as given to :meth:`from_strands` (one value, or one per point in input
+    #: order; stage units), None when not given: the colliders' contact distance and the elastic
+    #: solver's default radius
+    widths: np.ndarray | None = None
 
     @property
     def num_strands(self) -> int:
@@ -173,6 +177,7 @@ class Model:
             root_rest=wp.array(roots, dtype=vec3, device=device),
             features=tuple(features or ()),
             feature_data=feature_data,
+            widths=None if widths is None else np.asarray(widths, dtype=np.float64),
         )
 
     # -- conversions between the caller's order/world space and the device layout ---------------

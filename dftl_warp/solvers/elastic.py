@@ -195,8 +195,7 @@ class ElasticSolver(Solver):
         dev, lay = model.device, model.layout
         npts = model.num_points
         if radius is None:
-            widths = getattr(model, "widths", None)
-            radius = 0.5 * np.asarray(widths, float) if widths is not None else DEFAULT_RADIUS
+            radius = 0.5 * model.widths if model.widths is not None else DEFAULT_RADIUS
         radius = np.broadcast_to(np.asarray(radius, float).reshape(-1) if np.ndim(radius) else float(radius),
                                  (npts,)).astype(float)
         if not np.all(np.isfinite(radius) & (radius > 0)):
