@@ -86,6 +86,8 @@ class Option:
     toml: str | None = None
     #: Python keyword (SimulationOptions field, simulate_usd keyword)
     api: str | None = None
+    #: a retired USD attribute: why, and what replaces it (the reader refuses it with this text)
+    retired: str = ""
 
     # -- checking ------------------------------------------------------------------------------
 
@@ -197,6 +199,14 @@ PRECISION_NAMES = ("float32", "float64")
 #: the quality presets (dftl_warp.simulation.quality.QUALITY_PRESETS)
 QUALITY_NAMES = ("draft", "production", "reference")
 
+#: why ``dftl:shapeStiffness`` is refused, and what replaces it
+SHAPE_STIFFNESS_RETIRED = (
+    "shape retention is retired (it pulled positions toward the rest shape every substep, which "
+    "buzzed at frame rate and wrote velocities 4-16x the motion): strands with widths keep their "
+    "style as elastic rods of hair by default (docs/elastic.md); scale their stiffness with "
+    "primvars:dftl:bendStiffnessScale, give a rest shape with physics:restShapePoints, and remove "
+    "dftl:shapeStiffness")
+
 _RUN = [
     Option("start", int, None, "first frame (default: the stage's startTimeCode)",
            cli="--start", metavar="F", toml="start", api="start"),
@@ -209,8 +219,12 @@ _RUN = [
            cli="--damping", metavar="S", usd="dftl:damping", scope="curves", toml="damping", api="damping"),
     Option("correction", str, "prior", "velocity correction form", choices=CORRECTION_NAMES,
            cli="--correction", usd="dftl:correction", scope="curves", toml="correction", api="correction"),
-    Option("solver", str, "dftl", "solver", choices=SOLVER_NAMES,
+    Option("solver", str, None, "solver (unset: elastic for prims with widths, which bend like hair of "
+           "their thickness, docs/elastic.md; dftl for prims without)", choices=SOLVER_NAMES,
            cli="--solver", usd="dftl:solver", scope="curves", toml="solver", api="solver"),
+    Option("bending", bool, True,
+           "false: a prim with widths stays the plain DFTL chain where no solver is set (no bending "
+           "stiffness)", usd="dftl:bending", scope="curves"),
     Option("inverse_statics", bool, True,
            "elastic solver: the authored shape is the equilibrium under gravity (false: it sags "
            "toward its rest shape)", usd="dftl:inverseStatics", scope="curves"),
@@ -256,8 +270,8 @@ _USD = [
            low=0.0, usd="dftl:hairHairFriction", scope="scene"),
     Option("hairHairRepulsion", float, 5.0, "acceleration per unit density difference across a cell",
            unit="stage units/s^2", low=0.0, usd="dftl:hairHairRepulsion", scope="scene"),
-    Option("shapeStiffness", float, 0.0, "shape retention per substep; 0: off", low=0.0, high=1.0,
-           usd="dftl:shapeStiffness", scope="both"),
+    Option("shapeStiffness", float, None, "retired (shape retention)", usd="dftl:shapeStiffness", scope="both",
+           retired=SHAPE_STIFFNESS_RETIRED),
     Option("collisionIterations", int, 2, "collide-and-restore rounds per particle", low=1,
            usd="dftl:collisionIterations", scope="scene"),
     Option("rootMesh", "rel", None,
@@ -274,7 +288,7 @@ BY_TOML: dict[str, Option] = {o.toml: o for o in OPTIONS.values() if o.toml}
 #: options by Python keyword
 BY_API: dict[str, Option] = {o.api: o for o in OPTIONS.values() if o.api}
 #: the USD attributes that turn features on (those dftl_warp.features reads: features.ATTRIBUTES)
-FEATURE_ATTRIBUTES = tuple(o.usd for o in _USD if o.usd not in ("dftl:simulate", "dftl:friction"))
+FEATURE_ATTRIBUTES = tuple(o.usd for o in _USD if o.usd not in ("dftl:simulate", "dftl:friction") and not o.retired)
 
 
 def add_choice(name: str, value: str) -> None:

@@ -51,7 +51,7 @@ def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path
     groom = workdir / "groom.usda"
     make_default(groom, strands=strands, vertices=16)
     first, last = 1, frames
-    opts = SimulationOptions(start=first, end=last, substeps=substeps, device=device)
+    opts = SimulationOptions(start=first, end=last, substeps=substeps, device=device, solver="dftl")
     scene = read_scene(str(groom))
 
     # simulating alone (one frame first to compile and capture)
@@ -85,11 +85,11 @@ def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path
     del recorded
 
     summary = simulate_usd(str(groom), str(workdir / "simulated.usdc"), start=first, end=last,
-                           substeps=substeps, device=device, no_clips=True)  # one layer (no automatic clips)
+                           substeps=substeps, device=device, no_clips=True, solver="dftl")  # one layer (no automatic clips)
     t_both = summary.seconds_simulating + summary.seconds_writing
     clip_frames = max(1, frames // 8)
     clips = simulate_usd(str(groom), str(workdir / "clips.usdc"), start=first, end=last, substeps=substeps,
-                         device=device, clips=clip_frames)
+                         device=device, clips=clip_frames, solver="dftl")
     t_clips = clips.seconds_simulating + clips.seconds_writing
     clip_bytes = _tree_bytes(workdir / "clips_clips") + _tree_bytes(workdir / "clips.usdc")
     dd = dd_bandwidth(workdir)

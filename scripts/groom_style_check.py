@@ -20,8 +20,8 @@ it) the script writes a wrapper stage:
         /World/Pivot/HeadMesh     with --head MESH: that mesh with PhysicsCollisionAPI
       /World/Camera         a fixed 3/4 view of the groom at frame 1 (for the contact sheet)
 
-``--shape-stiffness S`` authors ``dftl:shapeStiffness`` on every BasisCurves prim (today's shape
-retention, docs/features.md). It runs ``dftl-warp simulate`` (frames 1..--frames) and measures, on
+(``--shape-stiffness``, which authored the retired ``dftl:shapeStiffness``, made the baseline rows of
+docs/grooms.md; the reader now refuses that attribute.) It runs ``dftl-warp simulate`` (frames 1..--frames) and measures, on
 the written time samples:
 
 - tip displacement: per strand, the largest distance over the run of the tip from its authored
@@ -182,12 +182,6 @@ def write_wrapper(groom_path, folder, args):
             t = (f - start) / tcps
             rot.Set(args.turn_degrees * math.sin(2 * math.pi * t / args.turn_period), Usd.TimeCode(f))
         pivot.AddTranslateOp(opSuffix="pivotInv").Set(Gf.Vec3d(*(-centre)))
-
-    if args.shape_stiffness is not None:
-        for cpath, *_ in curves:
-            over = stage.OverridePrim(gpath.AppendPath(cpath.MakeRelativePath(groot.GetPath())))
-            over.CreateAttribute("dftl:shapeStiffness", Sdf.ValueTypeNames.Float, custom=True).Set(
-                float(args.shape_stiffness))
 
     # a fixed camera: 3/4 view of hair (+ head) at the start
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
@@ -421,7 +415,6 @@ def main(argv=None):
     ap.add_argument("--turn-degrees", type=float, default=60.0)
     ap.add_argument("--turn-period", type=float, default=2.0, help="seconds (default 2)")
     ap.add_argument("--frames", type=int, default=48, help="frames simulated, from 1 (default 48 = 2 s at 24 fps)")
-    ap.add_argument("--shape-stiffness", type=float, default=None, help="author dftl:shapeStiffness on the curves")
     ap.add_argument("--device", default="cpu", help="for simulate and render (default cpu)")
     ap.add_argument("--label", default=None, help="row label (default: groom file name + settings)")
     ap.add_argument("--json", default=None)
@@ -435,7 +428,6 @@ def main(argv=None):
     args, extra = ap.parse_known_args(argv)
 
     label = args.label or (os.path.splitext(os.path.basename(args.groom))[0] + f" {args.motion}"
-                           + (f" shape {args.shape_stiffness:g}" if args.shape_stiffness is not None else "")
                            + (" " + " ".join(extra) if extra else ""))
     folder = args.keep or tempfile.mkdtemp(prefix="groom_style_")
     os.makedirs(folder, exist_ok=True)
@@ -451,7 +443,7 @@ def main(argv=None):
         up_index = 2 if meta["up"] == "Z" else 1
         res = measure(prims, up_index, meta["fps"])
         res.update(label=label, groom=os.path.abspath(args.groom), motion=args.motion, head=meta["head"],
-                   frames=args.frames, shape_stiffness=args.shape_stiffness, device=args.device,
+                   frames=args.frames, device=args.device,
                    simulate_flags=extra, sim_seconds=sim_s, command=" ".join(sys.argv if argv is None else argv))
         if args.sheet:
             contact_sheet(out_usd, folder, meta["start"], meta["end"], args.sheet, args.device, label,

@@ -134,6 +134,8 @@ def make_chain(path: Path, *, links=20, seed=2):
     chain[:, 0] = np.arange(links + 1) * 0.05
     curves = _curves(stage, "/World/Anchor/Chain", [chain], width=0.02, colors=[(0.6, 0.6, 0.65)])
     _set(curves.GetPrim(), "dftl:substeps", Sdf.ValueTypeNames.Int, 16)
+    # a chain of links, not hair: no bending stiffness (widths only size it for rendering)
+    _set(curves.GetPrim(), "dftl:bending", Sdf.ValueTypeNames.Bool, False)
     stage.GetRootLayer().Save()
 
 

@@ -212,7 +212,6 @@ def test_wind_blows_a_hanging_strand_downstream(noise):
 
 @pytest.mark.parametrize("feature,name", [
     (lambda: F.HairHair(cell_size=0.01), "hair-hair"),
-    (lambda: F.ShapeRetention(0.1), "shape retention"),
     (lambda: F.RootBinding(np.array([[0.0, 0, -1], [1, 0, 1], [-1, 0, 1]]), np.array([[0, 1, 2]])), "root binding"),
 ])
 def test_unsupported_features_are_refused_by_name(feature, name):

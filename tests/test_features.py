@@ -263,25 +263,6 @@ def curl_radius(x, quarter):
     return 1.0 / np.median(2.0 * area2 / sides)
 
 
-def test_shape_retention_keeps_curls_per_curve():
-    radius, pitch, turns, per_turn = 0.02, 0.015, 4, 20
-    t = np.linspace(0.0, 2 * np.pi * turns, turns * per_turn + 1)
-    helix = np.stack([radius * np.cos(t), -pitch * t / (2 * np.pi), radius * np.sin(t)], 1)
-    n = len(helix)
-    pts = np.concatenate([helix, helix + [0.2, 0.0, 0.0]])
-    # the first curl keeps its shape; the second has shape retention off (stiffness 0)
-    model = dw.Model.from_strands(pts, [n, n], features=[F.ShapeRetention([0.9, 0.0])])
-    _, state = run_frames(model, 48, 10)
-    x = model.points_from_device(state.positions)
-    rest = curl_radius(helix, per_turn // 4)
-    assert curl_radius(x[:n], per_turn // 4) == pytest.approx(rest, rel=0.1)
-    assert curl_radius(x[n:], per_turn // 4) > 5 * rest  # straightened under gravity
-    # stiffness 0 is exactly no shape term: the bare simulation of that curl
-    bare = dw.simulate_strands(helix + [0.2, 0.0, 0.0], [n], steps=480, dt=1.0 / 240, gravity=G, record_every=480)
-    assert np.abs(bare.positions[-1] - x[n:]).max() < 1e-5
-    assert np.abs(segment_lengths(x, [n, n]) / segment_lengths(pts, [n, n]) - 1).max() < 1e-5
-
-
 def test_bad_feature_input_is_refused():
     pts = np.stack([np.arange(3) * 0.1, np.zeros(3), np.zeros(3)], 1)
     with pytest.raises(ValueError, match="add a Drag"):
@@ -292,8 +273,6 @@ def test_bad_feature_input_is_refused():
         F.Sphere(radius=0.0)
     with pytest.raises(ValueError, match="indices reference points"):
         F.TriangleMesh(points=np.zeros((3, 3)), indices=[[0, 1, 3]])
-    with pytest.raises(ValueError, match="stiffness"):
-        F.ShapeRetention(1.5)
     with pytest.raises(ValueError, match="one per strand"):
         dw.Model.from_strands(pts, [3], features=[F.Drag([1.0, 2.0])])
 
@@ -312,11 +291,11 @@ def test_all_features_together_keep_lengths(precision, correction):
                      F.Box(half_extents=(0.05, 0.05, 0.05), position=(0.12, 0.0, 0.0)),
                      F.TriangleMesh(points=mesh_pts, indices=mesh_tris, position=(0.0, -0.2, 0.0))]),
         F.Drag(0.5), F.Wind(velocity=[[0.0, 0.5, 0.0, 0.0], [1.0, 0.0, 0.0, 1.0]], noise_amplitude=0.3),
-        F.HairHair(cell_size=0.01), F.ShapeRetention(0.5),
+        F.HairHair(cell_size=0.01),
     ]
     model = dw.Model.from_strands(pts, counts, widths=0.002, precision=precision, features=feats)
     assert model.feature_flags == {"spheres", "capsules", "boxes", "meshes", "drag", "wind", "wind_noise",
-                                   "hair_hair", "shape"}
+                                   "hair_hair"}
     solver = dw.DFTLSolver(model, gravity=G, correction=correction)
     state, control = solver.state(), model.control()
     for f in range(24):
@@ -334,18 +313,17 @@ def test_dftl_attributes_map_to_features():
 
     scene = {"dftl:drag": 1.5, "dftl:wind": [[0.0, 1.0, 0.0, 0.0], [2.0, 3.0, 0.0, 0.0]], "dftl:windNoise": 0.2,
              "dftl:hairHair": True, "dftl:hairHairRepulsion": 8.0}
-    curves = [{"path": "/a", "dftl:shapeStiffness": 0.9}, {"path": "/b", "dftl:drag": 0.0}]
+    curves = [{"path": "/a"}, {"path": "/b", "dftl:drag": 0.0}]
     feats = features_from_attributes(scene, curves, [2, 3], mean_segment=0.01)
     by_type = {type(f).__name__: f for f in feats}
-    assert set(by_type) == {"Drag", "Wind", "HairHair", "ShapeRetention"}
+    assert set(by_type) == {"Drag", "Wind", "HairHair"}
     assert list(by_type["Drag"].rate) == [1.5, 1.5, 0.0, 0.0, 0.0]
-    assert list(by_type["ShapeRetention"].stiffness) == [0.9, 0.9, 0.0, 0.0, 0.0]
     assert np.allclose(by_type["Wind"].at(1.0), [2.0, 0.0, 0.0])
     assert by_type["Wind"].flags == {"wind", "wind_noise"}
     assert by_type["HairHair"].cell_size == pytest.approx(0.04) and by_type["HairHair"].repulsion == 8.0
     assert features_from_attributes({}, [{}], [4]) == []
-    with pytest.raises(ValueError, match="/b: dftl:shapeStiffness = 2.0: must be in"):
-        features_from_attributes({}, [{}, {"path": "/b", "dftl:shapeStiffness": 2.0}], [1, 1])
+    with pytest.raises(ValueError, match="/b: dftl:drag = -1.0: must be"):
+        features_from_attributes({}, [{}, {"path": "/b", "dftl:drag": -1.0}], [1, 1])
     with pytest.raises(ValueError, match="author dftl:drag"):
         features_from_attributes({"dftl:wind": (1.0, 0.0, 0.0)}, [{}], [1])
 
@@ -357,7 +335,7 @@ def test_memory_estimate_counts_the_features():
     bare = memory_estimate(dw.Model.from_strands(pts, [10]))
     # State 36 B + rest length 4 B per particle, strand tables 12 B + root rest/targets 36 B
     assert bare["bytes_per_strand"] == 10 * 40 + 48 and bare["feature_bytes_per_strand"] == 0
-    shaped = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.ShapeRetention(0.5)]))
-    assert shaped["feature_bytes_per_strand"] == 10 * 12 + 20  # rest directions; stiffness + frame
+    dragged = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.Drag(0.5)]))
+    assert dragged["feature_bytes_per_strand"] == 4  # the drag rate
     grid = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.HairHair(cell_size=0.01)]))
     assert grid["fixed_feature_bytes"] > 0 and grid["feature_bytes_per_strand"] == 0

@@ -51,6 +51,7 @@ def Xform "World"
         point3f[] points = [(0, 1, 0), (0.08, 1, 0), (0.16, 1, 0), (0.24, 1, 0), (0.32, 1, 0), (0.4, 1, 0),
                             (0, 1, 0.05), (0.08, 1, 0.05), (0.16, 1, 0.05), (0.24, 1, 0.05), (0.32, 1, 0.05), (0.4, 1, 0.05)]
         float[] widths = [0.004] (interpolation = "constant")
+        custom bool dftl:bending = false
     }}
 {extra}
 }}

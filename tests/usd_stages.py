@@ -28,8 +28,13 @@ def new_stage(path, *, up="Y", meters_per_unit=1.0, start=1, end=10, fps=24.0, d
     return stage
 
 
-def add_curves(stage, path, points, counts, *, curve_type="linear", basis=None, wrap=None, widths=None):
-    """A BasisCurves prim; points/counts are authored as given (no checks)."""
+def add_curves(stage, path, points, counts, *, curve_type="linear", basis=None, wrap=None, widths=None,
+               bending=False):
+    """A BasisCurves prim; points/counts are authored as given (no checks).
+
+    With ``widths`` the prim also authors ``dftl:bending = false`` unless ``bending`` is true (or
+    None: unauthored): most tests give widths for the colliders' contact distance and test the DFTL
+    chain, which a prim with widths is only when it says so (it bends as an elastic rod by default)."""
     curves = UsdGeom.BasisCurves.Define(stage, path)
     curves.CreateTypeAttr(curve_type)
     if basis is not None:
@@ -42,6 +47,8 @@ def add_curves(stage, path, points, counts, *, curve_type="linear", basis=None, 
     if widths is not None:
         curves.CreateWidthsAttr(Vt.FloatArray([float(w) for w in np.atleast_1d(widths)]))
         curves.SetWidthsInterpolation("constant" if np.size(widths) == 1 else "vertex")
+        if bending is not None and not bending:
+            curves.GetPrim().CreateAttribute("dftl:bending", Sdf.ValueTypeNames.Bool, custom=True).Set(False)
     return curves
 
 

@@ -98,6 +98,8 @@ def describe(scene) -> dict:
     """A JSON-able description of a :class:`~dftl_warp.usd.scene.Scene`."""
     import numpy as np
 
+    from ..simulation.settings import SimulationOptions, group_settings
+
     info = scene.stage
     counts = np.concatenate([c.counts for c in scene.curves])
     strands = int(counts.size)
@@ -128,6 +130,8 @@ def describe(scene) -> dict:
         "curves": [
             {
                 "path": c.path,
+                # what `simulate` runs the prim with when the command line sets no solver
+                "solver": group_settings(scene, SimulationOptions(), i).solver,
                 "type": c.type,
                 "basis": c.basis if c.type == "cubic" else None,
                 "wrap": c.wrap,
@@ -139,7 +143,7 @@ def describe(scene) -> dict:
                 "root_mesh": c.root_mesh.path if c.root_mesh is not None else None,
                 "material": material_summary(scene, c),
             }
-            for c in scene.curves
+            for i, c in enumerate(scene.curves)
         ],
         "colliders": [
             {"path": c.path, "kind": c.kind, "friction": c.friction, "animated_transform": c.animated}
@@ -205,7 +209,8 @@ def run(args) -> int:
                             for k, v in c["feature_attributes"].items())
         if c["root_mesh"]:
             settings += f", roots on {c['root_mesh']}"
-        print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}")
+        print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}; "
+              f"solver {c['solver']}")
         m = c["material"]
         ei = "" if m["bend_stiffness"] is None else f", EI {m['bend_stiffness']:.4g}"
         extras = "".join(t for t, on in ((", restShapePoints", m["rest_shape_points"]),

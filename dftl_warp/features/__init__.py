@@ -1,4 +1,4 @@
-"""Optional simulation features: colliders, root binding, drag and wind, hair-hair, shape retention.
+"""Optional simulation features: colliders, root binding, drag and wind, hair-hair.
 
 A scene turns a feature on by giving its object to the model
 (``Model.from_strands(points, counts, widths=..., features=[...])``); the solver then compiles a
@@ -13,7 +13,6 @@ One module per feature, each with its parameters, device data, per-frame control
 - :mod:`.binding`: :class:`RootBinding`, roots as barycentric points on a deforming mesh;
 - :mod:`.air`: :class:`Drag` (1/s) and :class:`Wind` (m/s, keyframed, optional curl noise);
 - :mod:`.hair_hair`: :class:`HairHair`, grid-based friction and repulsion (Petrovic et al. 2005);
-- :mod:`.shape`: :class:`ShapeRetention`, a rest-shape term in each strand's frame;
 
 then :mod:`.step` composes them (flags, Model data, ``control.features``, the featured step) and
 :mod:`.scene` maps a USD Scene to them. ``from dftl_warp import features as F; F.Sphere(...)``.
@@ -32,7 +31,6 @@ from .scene import (
     update_frame,
     widths_per_point,
 )
-from .shape import ShapeRetention, rest_frames
 from .colliders.usd import split_matrix
 from .step import (
     FEATURE_TYPES,
@@ -50,9 +48,9 @@ install_feature_hooks(build=build, control=FeatureControl)
 
 __all__ = [
     "Colliders", "ColliderShape", "Sphere", "Capsule", "Box", "TriangleMesh", "SHAPES", "SHAPE_KINDS",
-    "register_shape", "RootBinding", "Drag", "Wind", "HairHair", "ShapeRetention",
+    "register_shape", "RootBinding", "Drag", "Wind", "HairHair",
     "FEATURE_TYPES", "check_features", "feature_flags", "find",
-    "ModelFeatures", "FeatureControl", "FeatureStep", "build", "memory_estimate", "hair_hair_extent", "rest_frames",
+    "ModelFeatures", "FeatureControl", "FeatureStep", "build", "memory_estimate", "hair_hair_extent",
     "ATTRIBUTES", "features_from_attributes", "group_features", "update_frame", "feature_names",
     "widths_per_point", "split_matrix",
 ]

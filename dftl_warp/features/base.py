@@ -1,7 +1,7 @@
 """Shared helpers of the feature modules: validation, per-strand values, numpy quaternions,
 authored-attribute parsing.
 
-Quaternions are ``(x, y, z, w)`` like Warp's; the numpy ones mirror ``kernels/features/shape.py``.
+Quaternions are ``(x, y, z, w)`` like Warp's (``wp.quat_rotate``).
 """
 
 from __future__ import annotations
@@ -54,35 +54,10 @@ def find(features, kind):
 # -- numpy quaternions (x, y, z, w) -------------------------------------------------------------------
 
 
-def quat_multiply(a, b):
-    ax, ay, az, aw = np.moveaxis(a, -1, 0)
-    bx, by, bz, bw = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw,
-                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
-
-
 def quat_rotate(q, v):
     u, w = q[..., :3], q[..., 3:]
     t = 2.0 * np.cross(u, v)
     return v + w * t + np.cross(u, t)
-
-
-def quat_between(a, b):
-    """The minimal rotation taking unit vectors ``a`` to ``b`` (a half turn when opposite)."""
-    c = np.sum(a * b, axis=-1, keepdims=True)
-    v = np.cross(a, b)
-    q = np.concatenate([v, 1.0 + c], axis=-1)
-    opposite = c[..., 0] < -0.999999
-    if np.any(opposite):
-        ao = a[opposite]
-        axis = np.cross(ao, [1.0, 0.0, 0.0])
-        small = np.linalg.norm(axis, axis=-1) < 1e-3
-        axis[small] = np.cross(ao[small], [0.0, 1.0, 0.0])
-        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-        q[opposite] = np.concatenate([axis, np.zeros((len(axis), 1))], axis=-1)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 # -- authored dftl: attributes --------------------------------------------------------------------------

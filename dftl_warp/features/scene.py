@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from . import air, binding, colliders, hair_hair, shape
+from . import air, binding, colliders, hair_hair
 
 #: every ``dftl:`` feature attribute: name -> (type, where: "scene", "curves" or "both", description)
-ATTRIBUTES = {**air.ATTRIBUTES, **hair_hair.ATTRIBUTES, **shape.ATTRIBUTES, **colliders.ATTRIBUTES,
+ATTRIBUTES = {**air.ATTRIBUTES, **hair_hair.ATTRIBUTES, **colliders.ATTRIBUTES,
               **binding.ATTRIBUTES}
 
 
@@ -37,8 +37,7 @@ def features_from_attributes(scene: dict, curves: list, counts: list, *, mean_se
     """
     counts = [int(c) for c in counts]
     return (air.from_attributes(scene, curves, counts, where)
-            + hair_hair.from_attributes(scene, where, mean_segment)
-            + shape.from_attributes(scene, curves, counts, where))
+            + hair_hair.from_attributes(scene, where, mean_segment))
 
 
 def widths_per_point(curve) -> np.ndarray | None:
@@ -89,6 +88,6 @@ def update_frame(scene, curves, control, frame: int, nxt: int) -> None:
 def feature_names(flags) -> list[str]:
     """Readable names of kernel flags, for ``dftl-warp info``."""
     names = {"drag": "air drag", "wind": "wind", "wind_noise": "wind noise",
-             "hair_hair": "hair-hair interaction", "shape": "shape retention"}
+             "hair_hair": "hair-hair interaction"}
     names.update({kind: f"{cls.usd_kind} colliders" for kind, cls in colliders.SHAPES.items()})
     return [names[f] for f in sorted(flags)]

@@ -6,8 +6,7 @@ features (``kernels/solvers/featured.py``).
 
 Each feature's own parameters, device data, per-frame control and USD mapping live in its module
 (:mod:`~dftl_warp.features.colliders`, :mod:`~dftl_warp.features.binding`,
-:mod:`~dftl_warp.features.air`, :mod:`~dftl_warp.features.hair_hair`,
-:mod:`~dftl_warp.features.shape`). Device coordinates are relative to ``model.origin`` (m).
+:mod:`~dftl_warp.features.air`, :mod:`~dftl_warp.features.hair_hair`). Device coordinates are relative to ``model.origin`` (m).
 """
 
 from __future__ import annotations
@@ -18,15 +17,14 @@ import warp as wp
 from ..core.precision import numpy_type
 from ..kernels.features.collide import collider_pose_kernel
 from ..kernels.features.step import feature_struct
-from . import air, binding, colliders, hair_hair, shape
+from . import air, binding, colliders, hair_hair
 from .air import Drag, Wind
 from .base import find
 from .binding import RootBinding
 from .colliders import Colliders
 from .hair_hair import HairHair
-from .shape import ShapeRetention
 
-FEATURE_TYPES = (Colliders, RootBinding, Drag, Wind, HairHair, ShapeRetention)
+FEATURE_TYPES = (Colliders, RootBinding, Drag, Wind, HairHair)
 
 
 def check_features(features) -> tuple:
@@ -57,7 +55,7 @@ class ModelFeatures:
 
     ``colliders``: the Colliders feature (shapes in the user's order) or None, its device data
     ``collider_data`` and ``collider_order`` (device index of each user collider); ``arrays``:
-    per-strand and per-slot arrays (drag rate, shape retention); ``binding``: the root binding's
+    per-strand arrays (drag rate); ``binding``: the root binding's
     triangles and weights; ``grid_shape``/``grid_cell``: the hair-hair grid's nodes and cell (m)."""
 
     def __init__(self, features, flags, arrays, collider_data, binding, grid_shape, grid_cell):
@@ -75,8 +73,6 @@ class ModelFeatures:
         """Device bytes per particle of the features' per-particle arrays (model and scratch)."""
         f = np.dtype(precision).itemsize
         b = 0
-        if "shape" in self.flags:
-            b += 3 * f
         if self.collider_data is not None:
             b += f
         return b
@@ -86,8 +82,6 @@ class ModelFeatures:
         b = 0
         if "drag" in self.flags:
             b += f
-        if "shape" in self.flags:
-            b += 5 * f
         if self.binding is not None:
             b += 12 + 3 * f
         return b
@@ -113,9 +107,6 @@ def build(model_args, features, *, widths=None) -> ModelFeatures:
     if drag is not None:
         arrays["drag"] = air.build_drag(drag, len(ctx["counts"]), ctx["layout"].strand_order, ctx["scalar"],
                                         ctx["ftype"], ctx["device"])
-    retention = find(features, ShapeRetention)
-    if retention is not None:
-        arrays.update(shape.build(retention, ctx))
     rb = find(features, RootBinding)
     bound = binding.build(rb, ctx) if rb is not None else None
     grid_shape = grid_cell = None
@@ -251,8 +242,6 @@ class FeatureStep:
         air.fill_struct(st, flags, mf.arrays.get("drag"), fc.air)
         if self._grid is not None:
             self._grid.fill_struct(st, find(mf.features, HairHair))
-        if "shape" in flags:
-            shape.fill_struct(st, mf.arrays)
         self._structs[key] = (control, st)
         return st
 

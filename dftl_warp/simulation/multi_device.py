@@ -15,7 +15,7 @@ when the frame is written.
 appear twice (``cpu,cpu``: two Models on one device, for tests).
 
 Features (:mod:`dftl_warp.features`): colliders and wind are shared by every part; per-strand
-values (drag rate, shape-retention stiffness, root-binding triangles) are sliced with the strands.
+values (drag rate, root-binding triangles) are sliced with the strands.
 Hair-hair interaction (:class:`~dftl_warp.features.HairHair`) couples strands through a grid:
 every part gets the grid shape of the whole groom, and :class:`SplitSolver` then steps the parts
 in lockstep, exchanging the grid each substep (:class:`GridExchange`): the lower corner is the
@@ -32,7 +32,7 @@ import numpy as np
 
 from ..core.devices import parse_devices  # noqa: F401  (re-exported)
 from ..errors import UserError
-from ..features import Drag, HairHair, RootBinding, ShapeRetention
+from ..features import Drag, HairHair, RootBinding
 
 
 def split_strands(counts, parts: int) -> list[tuple[int, int]]:
@@ -295,7 +295,5 @@ def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid
                         weights=per_strand(f.weights, "dftl:rootMesh weights"))
         elif isinstance(f, Drag):
             f = replace(f, rate=per_strand(f.rate, "drag rate"))
-        elif isinstance(f, ShapeRetention):
-            f = replace(f, stiffness=per_strand(f.stiffness, "shape retention stiffness"))
         out.append(f)
     return out

@@ -2,7 +2,8 @@
 
 :class:`SimulationOptions` are a run's settings (command line or API); :func:`group_settings`
 resolves each prim's solver settings (command line, else the prim's ``dftl:`` attributes, else the
-defaults); :func:`resolve_frames` the frame range.
+defaults; a prim that sets no solver gets :func:`automatic_solver`'s); :func:`resolve_frames` the
+frame range.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from ..usd.scene import Scene
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise (the
 #: options table's defaults, :mod:`dftl_warp.options`; these names are kept for scripts)
-DEFAULT_SOLVER = default("solver")
+#: the solver of prims without widths (a prim with widths gets the elastic solver: automatic_solver)
+DEFAULT_SOLVER = "dftl"
 DEFAULT_DAMPING = default("damping")
 DEFAULT_CORRECTION = default("correction")
 DEFAULT_SUBSTEPS = default("substeps")
@@ -85,18 +87,49 @@ def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
     return first, last
 
 
-def group_settings(scene: Scene, options: SimulationOptions, index: int) -> GroupSettings:
-    """Settings of ``scene.curves[index]``: command line, else ``dftl:`` attributes, else defaults."""
+def automatic_solver(scene: Scene, options: SimulationOptions, index: int, tolerance: bool = False) -> str:
+    """The solver of ``scene.curves[index]`` where neither the command line nor the prim sets one:
+    ``elastic`` for a prim with widths (hair of that thickness bends: docs/elastic.md) unless it
+    authors ``dftl:bending = false``, else ``dftl``. Where the elastic solver cannot run the scene yet
+    (hair-hair, root binding, several devices, ``--tolerance``) the prim stays on DFTL and the
+    scene's warnings say so."""
+    c = scene.curves[index]
+    if c.settings.bending is False or c.widths is None or not np.any(np.asarray(c.widths) > 0):
+        return DEFAULT_SOLVER
+    missing = []
+    if scene.features.get("dftl:hairHair"):
+        missing.append("hair-hair interaction (dftl:hairHair)")
+    if c.root_mesh is not None:
+        missing.append("root binding (dftl:rootMesh)")
+    if options.device is not None and "," in str(options.device):
+        missing.append(f"several devices (--device {options.device})")
+    if tolerance:
+        missing.append("--tolerance")
+    if missing:
+        line = (f"{scene.source}: {c.path}: has widths but runs as a plain DFTL chain, without hair's bending "
+                f"stiffness: the elastic solver does not support {', '.join(missing)} yet (dftl:bending = false "
+                f"or --solver dftl says this is meant)")
+        if line not in scene.warnings:
+            scene.warnings.append(line)
+        return DEFAULT_SOLVER
+    return "elastic"
+
+
+def group_settings(scene: Scene, options: SimulationOptions, index: int, tolerance: bool = False) -> GroupSettings:
+    """Settings of ``scene.curves[index]``: command line, else ``dftl:`` attributes, else defaults
+    (the solver: :func:`automatic_solver`; ``tolerance``: the run has ``--tolerance``)."""
     s = scene.curves[index].settings
 
     def pick(flag, attr, default):
         return flag if flag is not None else attr if attr is not None else default
 
+    solver = pick(options.solver, s.solver, None)
+    if solver is None:
+        solver = automatic_solver(scene, options, index, tolerance)
     return GroupSettings(
-        solver=pick(options.solver, s.solver, DEFAULT_SOLVER),
+        solver=solver,
         # the elastic solver's velocities need no correction: its damping defaults to 0 (elastic.py)
-        damping=float(pick(options.damping, s.damping,
-                           0.0 if pick(options.solver, s.solver, DEFAULT_SOLVER) == "elastic" else DEFAULT_DAMPING)),
+        damping=float(pick(options.damping, s.damping, 0.0 if solver == "elastic" else DEFAULT_DAMPING)),
         correction=pick(options.correction, s.correction, DEFAULT_CORRECTION),
         substeps=int(pick(options.substeps, s.substeps, DEFAULT_SUBSTEPS)),
         inverse_statics=bool(pick(None, s.inverse_statics, default("inverse_statics"))),

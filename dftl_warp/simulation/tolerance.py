@@ -72,7 +72,7 @@ def sample_strands(num_strands: int, share: float = SAMPLE_SHARE, least: int = S
 
 def sample_features(features, idx: np.ndarray, num_strands: int) -> list:
     """The features of strands ``idx``: per-strand values picked, scene-wide ones shared."""
-    from ..features import Drag, RootBinding, ShapeRetention
+    from ..features import Drag, RootBinding
 
     def pick(values):
         v = np.asarray(values)
@@ -84,8 +84,6 @@ def sample_features(features, idx: np.ndarray, num_strands: int) -> list:
             f = replace(f, triangles=pick(f.triangles), weights=pick(f.weights))
         elif isinstance(f, Drag):
             f = replace(f, rate=pick(f.rate))
-        elif isinstance(f, ShapeRetention):
-            f = replace(f, stiffness=pick(f.stiffness))
         out.append(f)
     return out
 

@@ -50,7 +50,7 @@ rounds of collide (the first continuous, Coulomb friction) then back to the rest
 leader. Contact moves the position only: the velocity is ``(x^{n+1} - x^n)/h`` of the contact
 position, the tensions are the solve's and the correction ``c`` the projection's (as DFTL's). The
 Drag feature (per strand, added to ``drag``) and Wind (with its curl noise) act in the implicit
-solve, as a force ``m drag (w - v^{n+1})``. Hair-hair, root binding and shape retention are refused
+solve, as a force ``m drag (w - v^{n+1})``. Hair-hair and root binding are refused
 (:func:`check_features`).
 """
 
@@ -81,8 +81,6 @@ DEFAULT_RADIUS = 40e-6
 UNSUPPORTED = {
     "HairHair": "hair-hair interaction (dftl:hairHair)",
     "RootBinding": "root binding to a deforming mesh (the clamp follows the prim's transform only)",
-    "ShapeRetention": "shape retention (dftl:shapeStiffness; the elastic solver keeps the authored style "
-                      "itself: remove it)",
 }
 
 

@@ -50,6 +50,8 @@ def read_values(prim, where: str, scope: str, time_codes_per_second: float) -> d
                 keys.append([t / time_codes_per_second, *v])
             values[name] = np.array(keys) if times else np.array(keys[0][1:])
             continue
+        if option.retired:
+            raise UserError(f"{where}: {name}: {option.retired}")
         value = attr.Get()
         try:
             option.check(value)

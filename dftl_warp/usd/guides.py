@@ -59,7 +59,7 @@ def check_guides(curves, file: str) -> None:
                                 f"({guide.guides[0]}); guides must be simulated prims")
             if c.root_mesh is not None:
                 raise UserError(f"{where}: dftl:rootMesh on a render prim: bind its guides' roots instead")
-            for name in ("solver", "damping", "correction", "substeps", "inverse_statics"):
+            for name in ("solver", "damping", "correction", "substeps", "inverse_statics", "bending"):
                 mine, theirs = getattr(c.settings, name), getattr(guide.settings, name)
                 if mine is not None and mine != theirs:
                     raise UserError(

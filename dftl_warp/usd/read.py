@@ -105,7 +105,7 @@ def _time_code(time):
 
 
 #: the per-prim solver settings among the curves' dftl: attributes (the others turn features on)
-_SETTINGS = ("simulate", "solver", "damping", "correction", "substeps", "inverse_statics")
+_SETTINGS = ("simulate", "solver", "damping", "correction", "substeps", "inverse_statics", "bending")
 
 
 def _split_values(values: dict) -> tuple[CurveSettings, dict]:

@@ -106,6 +106,8 @@ class CurveSettings:
     correction: str | None = None
     substeps: int | None = None
     inverse_statics: bool | None = None
+    #: ``dftl:bending``: False keeps a prim with widths on the DFTL chain when no solver is set
+    bending: bool | None = None
 
 
 @dataclass
@@ -167,7 +169,7 @@ class CurvesPrim:
     #: whether the local-to-world transform may change over time
     animated: bool = False
     settings: CurveSettings = field(default_factory=CurveSettings)
-    #: authored per-curve feature values (``dftl:drag``, ``dftl:shapeStiffness``; see docs/features.md)
+    #: authored per-curve feature values (``dftl:drag``; see docs/features.md)
     features: dict = field(default_factory=dict)
     #: the mesh the roots are bound to (``dftl:rootMesh``), if any
     root_mesh: MeshSource | None = None

@@ -17,7 +17,7 @@ from .collide import collider_fields, collider_flags
 #: the wind's curl noise is sampled at every NOISE_STRIDE-th particle of a strand and held between
 NOISE_STRIDE = 8
 #: the flags of the features that are not colliders (the colliders' are their registered shapes')
-OTHER_FLAGS = ("drag", "wind", "wind_noise", "hair_hair", "shape")
+OTHER_FLAGS = ("drag", "wind", "wind_noise", "hair_hair")
 
 
 def feature_flag_names() -> tuple:
@@ -68,12 +68,6 @@ def feature_struct(scalar, flags: frozenset):
             grid_momentum=wp.array3d(dtype=vec3),
             grid_friction=scalar,
             grid_repulsion=scalar,
-        )
-    if "shape" in flags:
-        fields.update(
-            shape_stiffness=wp.array(dtype=scalar),
-            shape_rest_frame=wp.array(dtype=wp.types.quaternion(dtype=scalar)),
-            shape_rest_dir=wp.array(dtype=vec3),
         )
     name = "StepFeatures_" + ("f64_" if scalar == wp.float64 else "f32_") + "_".join(sorted(flags))
     cls = type(name, (), {"__annotations__": fields, "__module__": __name__, "__qualname__": name})

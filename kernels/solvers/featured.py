@@ -17,8 +17,6 @@ Flags (:data:`FLAGS`) and where they act in the sweep of particle ``i`` (root ex
   ``wind_noise`` (curl noise in space and time, sampled every :data:`NOISE_STRIDE` particles
   along a strand and held in between: the noise is the costliest term of the step);
 - prediction ``p = x + dt v + dt^2 g`` (and the prior form's carried correction);
-- ``shape``: ``p += stiffness (target - p)``, ``target`` the rest direction of the segment in the
-  frame of the segment before it (``kernels/shape.py``);
 - follow-the-leader projection to the rest length;
 - colliders (the registered shapes: ``spheres``, ``capsules``, ``boxes``, ``meshes``, in
   :data:`~dftl_warp.kernels.features.collide.COLLIDER_KERNELS`): ``iterations`` rounds of
@@ -37,7 +35,6 @@ from ..core.arith import madd
 from ..core.layout import particle
 from ..features.collide import collide_all_func, collider_flags
 from ..features.grid import grid_sample_func
-from ..features.shape import shape_funcs
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct  # noqa: F401  (re-exported)
 from .ftl import STEP_MODULE_OPTIONS, follow_func
 
@@ -51,7 +48,6 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     Features = feature_struct(scalar, flags)
     follow = follow_func(scalar)
     grid_sample = grid_sample_func(scalar)
-    quat_between, advance_frame = shape_funcs(scalar)
 
     PRIOR = correction == "prior"
     COLLIDE = bool(flags & set(collider_flags()))
@@ -60,7 +56,6 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     WIND = "wind" in flags
     WIND_NOISE = "wind_noise" in flags
     HAIR_HAIR = "hair_hair" in flags
-    SHAPE = "shape" in flags
     one = scalar(1.0)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
@@ -113,11 +108,6 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
         if wp.static(HAIR_HAIR):
             blend_grid = one - wp.exp(-features.grid_friction * dt)
             push = features.grid_repulsion * features.grid_h * dt
-        if wp.static(SHAPE):
-            stiffness = features.shape_stiffness[s]
-            frame = features.shape_rest_frame[s]
-            rest_first = wp.quat_rotate(frame, vec3(one, scalar(0.0), scalar(0.0)))
-            direction = rest_first
 
         for i in range(1, n):
             k = particle(base, stride, i)
@@ -144,10 +134,6 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                 if i + 1 < n:
                     p = madd(-damping, corrections_in[particle(base, stride, i + 1)], p)
             rest = rest_lengths[k]
-            if wp.static(SHAPE):
-                if i > 1:
-                    target = leader + rest * wp.quat_rotate(frame, features.shape_rest_dir[k])
-                    p = p + stiffness * (target - p)
             x = follow(leader, p, rest, leader_old, x_old)
             correction = x - p
             if wp.static(COLLIDE):
@@ -157,14 +143,6 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                     if not touched:
                         break
                     x = follow(leader, x, rest, leader_old, x_old)
-            if wp.static(SHAPE):
-                if rest > scalar(0.0):
-                    t = (x - leader) / rest
-                    if i == 1:
-                        frame = wp.normalize(quat_between(rest_first, t) * frame)
-                    else:
-                        frame = advance_frame(frame, direction, t)
-                    direction = t
             positions_out[k] = x
             if wp.static(PRIOR):
                 velocities_out[k] = (x - x_old) * inv_dt

@@ -1,0 +1,80 @@
+"""Which solver a prim gets when nobody names one: a BasisCurves prim with widths bends like hair of
+its thickness (the elastic solver); one without widths, or with ``dftl:bending = false``, is the
+plain DFTL chain; where the elastic solver cannot run the scene yet the prim stays DFTL with a
+warning that says why."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from usd_stages import add_curves, composed_samples, new_stage, set_attr
+
+from dftl_warp import cli
+from dftl_warp.simulation.settings import SimulationOptions, group_settings
+from dftl_warp.simulation.simulate import simulate_usd
+from dftl_warp.usd.read import read_scene
+
+#: 80 um hair, in metres
+WIDTH = 80e-6
+
+
+def _helix(turns=2, radius=0.01, pitch=0.01, per_turn=16):
+    t = np.linspace(0.0, 2 * np.pi * turns, turns * per_turn + 1)
+    return np.stack([radius * np.cos(t), -pitch * t / (2 * np.pi), radius * np.sin(t)], 1)
+
+
+def _scene(tmp_path, *, widths=WIDTH, bending=None, hair_hair=False, end=10):
+    stage = new_stage(tmp_path / "in.usda", end=end)
+    if hair_hair:
+        set_attr(stage.GetPrimAtPath("/World"), "dftl:hairHair", "Bool", True)
+    h = _helix()
+    add_curves(stage, "/World/Hair", h, [len(h)], widths=widths, bending=bending)
+    stage.Save()
+    return tmp_path / "in.usda"
+
+
+def _solver(path, **options):
+    scene = read_scene(str(path))
+    return group_settings(scene, SimulationOptions(**options), 0).solver, scene.warnings
+
+
+def test_widths_mean_elastic_hair_unless_bending_is_off(tmp_path):
+    (tmp_path / "a").mkdir()
+    assert _solver(_scene(tmp_path / "a"))[0] == "elastic"
+    (tmp_path / "b").mkdir()
+    assert _solver(_scene(tmp_path / "b", widths=None))[0] == "dftl"
+    (tmp_path / "c").mkdir()
+    assert _solver(_scene(tmp_path / "c", bending=False))[0] == "dftl"
+    (tmp_path / "d").mkdir()
+    assert _solver(_scene(tmp_path / "d", widths=0.0))[0] == "dftl"      # zero widths: no hair radius
+    # the command line and dftl:solver still choose
+    assert _solver(tmp_path / "a" / "in.usda", solver="pbd")[0] == "pbd"
+
+
+@pytest.mark.parametrize("case,reason", [("hair_hair", "hair-hair interaction"), ("devices", "several devices")])
+def test_unsupported_scenes_stay_dftl_and_say_why(tmp_path, case, reason):
+    path = _scene(tmp_path, hair_hair=case == "hair_hair")
+    options = {"device": "cpu,cpu"} if case == "devices" else {}
+    solver, warnings = _solver(path, **options)
+    assert solver == "dftl"
+    assert any("/World/Hair: has widths but runs as a plain DFTL chain" in w and reason in w for w in warnings), warnings
+
+
+def test_a_curl_with_widths_keeps_its_shape_by_default(tmp_path, capsys):
+    """The default run of a curl of 80 um hair under gravity: the authored shape is the equilibrium
+    (inverse statics), so it stays as authored; the same prim as a DFTL chain (bending off) falls
+    straight. info names the solver."""
+    path = _scene(tmp_path, end=24)
+    out = tmp_path / "out.usdc"
+    simulate_usd(path, out)
+    x = composed_samples(out, "/World/Hair")[24.0]
+    h = _helix()
+    length = np.linalg.norm(np.diff(h, axis=0), axis=1).sum()
+    assert np.abs(x - h).max() < 1e-3 * length
+    (tmp_path / "chain").mkdir()
+    chain_path = _scene(tmp_path / "chain", bending=False, end=24)
+    simulate_usd(chain_path, tmp_path / "chain.usdc")
+    y = composed_samples(tmp_path / "chain.usdc", "/World/Hair")[24.0]
+    assert np.abs(y - h).max() > 0.1 * length
+    assert cli.main(["info", str(path)]) == 0
+    assert "solver elastic" in capsys.readouterr().out
