@@ -17,6 +17,8 @@ global-memory kernel, and reports the largest position difference between the tw
 (``vs_global``, stage units; 0 where bitwise equal). ``on``/``off``/``auto`` run one variant.
 
 Prints a markdown table and writes ``bench_rattle.json`` and ``bench_rattle.md`` into ``--out``.
+The groom and the measuring are :mod:`dftl_warp.study.front` (``FrontBench``), which
+``dftl-warp study --front`` runs over every solver and setting.
 """
 
 from __future__ import annotations
@@ -29,8 +31,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 #: (label, solver, precision, options, substeps)
 SETTINGS = [
     ("DFTL float32", "dftl", "float32", {}, [8, 64, 512]),
@@ -40,14 +40,11 @@ SETTINGS = [
 ]
 
 
-def released_groom(strands: int, particles: int, length: float, angle: float = np.pi / 4):
-    from dftl_warp.study import scenarios as sc
+def released_groom(strands: int, particles: int, length: float, angle: float = 0.7853981633974483):
+    """The groom of the front (:func:`dftl_warp.study.front.released_groom`)."""
+    from dftl_warp.study.front import released_groom as groom
 
-    pts, counts = sc.groom(strands, particles, length, hanging=True)
-    roots = np.repeat(pts[sc.strand_starts(counts)], counts, axis=0)
-    c, s = np.cos(angle), np.sin(angle)
-    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return roots + (pts - roots) @ rot.T, counts
+    return groom(strands, particles, length, angle)
 
 
 def main(argv=None) -> int:
@@ -63,30 +60,17 @@ def main(argv=None) -> int:
                    help="rattle kernel: both variants (default), on chip, global memory, or the solver's choice")
     a = p.parse_args(argv)
 
+    import numpy as np
     import warp as wp
 
     wp.config.quiet = True
     wp.init()
-    from dftl_warp.core.model import Model
-    from dftl_warp.solvers import make_solver
-    from dftl_warp.study import scenarios as sc
-    from dftl_warp.study.sweeps import max_stretch, trajectory_error
-
-    G = (0.0, -sc.GRAVITY, 0.0)
-    pts, counts = released_groom(a.strands, a.particles, a.length)
-    rest = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-
-    def run(solver, precision, substeps, options):
-        model = Model.from_strands(pts, counts, device=a.device, precision=precision)
-        s = make_solver(model, solver, gravity=G, **options)
-        clock: list = []
-        x, _ = sc.record(s, a.frames, 1 / 24, substeps, clock=clock)
-        ms = 1000.0 * float(np.median(clock[1:] if len(clock) > 1 else clock))
-        extra = s.diagnostics(s.state()) if solver == "rattle" else {}
-        return x, ms, extra
+    from dftl_warp.study.front import FrontBench
 
     started = time.perf_counter()
-    ref, ref_ms, _ = run("reference", "float64", a.reference_substeps, {})
+    pts, counts = released_groom(a.strands, a.particles, a.length)
+    bench = FrontBench(pts, counts, device=a.device, frames=a.frames, length=a.length)
+    ref_ms = bench.set_truth(a.reference_substeps)["ms_per_frame"]
     variants = {"both": [("global", False), ("on chip", True)], "on": [("on chip", True)],
                 "off": [("global", False)], "auto": [(None, None)]}[a.on_chip]
     rows = []
@@ -97,18 +81,19 @@ def main(argv=None) -> int:
             for variant, on_chip in runs:
                 opts = dict(options) if on_chip is None else {**options, "on_chip": on_chip}
                 name = label if variant is None else f"{label}, {variant}"
-                x, ms, extra = run(solver, precision, k, opts)
+                frames: list = []
+                keep = a.on_chip == "both" and solver == "rattle"
+                r = bench.run(solver, precision, k, opts, observe=(lambda f, x: frames.append(x)) if keep else None)
                 rows.append({"setting": name, "solver": solver, "precision": precision, "options": opts,
-                             "substeps": k, "ms_per_frame": ms, "error": trajectory_error(x, ref, a.length),
-                             "max_stretch": float(max_stretch(x, counts, rest).max()),
-                             "fallbacks": extra.get("fallbacks"), "finite": bool(np.isfinite(x).all())})
+                             "substeps": k, "ms_per_frame": r["ms_per_frame"], "error": r["error"],
+                             "max_stretch": r["max_stretch"], "fallbacks": r["fallbacks"], "finite": r["finite"]})
                 if on_chip is False:
-                    global_x = x
-                elif on_chip and global_x is not None:
-                    rows[-1]["vs_global"] = float(np.abs(x - global_x).max())
+                    global_x = frames
+                elif on_chip and global_x:
+                    rows[-1]["vs_global"] = float(max(np.abs(x - g).max() for x, g in zip(frames, global_x)))
                 r = rows[-1]
                 diff = f"  vs global {r['vs_global']:.1e}" if "vs_global" in r else ""
-                print(f"{name:36s} x{k:<4d} {ms:9.3f} ms/frame  error {r['error']:.2e}  "
+                print(f"{name:36s} x{k:<4d} {r['ms_per_frame']:9.3f} ms/frame  error {r['error']:.2e}  "
                       f"stretch {r['max_stretch']:.1e}{diff}", file=sys.stderr, flush=True)
     device = wp.get_device(a.device)
     meta = {"date": datetime.date.today().isoformat(), "device": a.device, "device_name": device.name,

@@ -23,6 +23,20 @@ def add_parser(sub):
     p.add_argument("--out", default="study", help="folder for CSV, PNG and accuracy.md (default ./study)")
     p.add_argument("--docs", default=None, help="also write the report here, image links relative to it")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    front = p.add_argument_group(
+        "the front at scale (docs/accuracy-h200/front.md)",
+        "--front runs only the GPU-scale section: every solver and setting on a released groom of "
+        "--strands x --particles against the float64 reference; writes front.json, front.md and front.png "
+        "into --out, with the quality presets re-derived from it. With --fast: a few settings (a CPU smoke run).")
+    front.add_argument("--front", action="store_true", help="run the front at scale instead of the CPU sections")
+    front.add_argument("--front-from", metavar="JSON", default=None,
+                       help="redraw front.md and front.png into --out from a front.json, without running")
+    front.add_argument("--strands", type=int, default=None,
+                       help="strands of the front's groom (default 100000; 64 with --fast)")
+    front.add_argument("--particles", type=int, default=32, help="particles per strand (default 32)")
+    front.add_argument("--frames", type=int, default=None, help="frames at 24 fps (default 12; 3 with --fast)")
+    front.add_argument("--reference-substeps", type=int, default=64,
+                       help="substeps per frame of the float64 reference that is the truth (default 64)")
     p.set_defaults(run=run)
 
 
@@ -37,19 +51,63 @@ def _cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
-def _command_line() -> str:
-    """How this study was started, as the user typed it."""
-    words = [shlex.quote(a) for a in sys.argv[1:]]
+def _command_line(args=None) -> str:
+    """How this study was started, as the user typed it (``args.argv``: the words after the program)."""
     if os.path.basename(sys.argv[0]) == "study.py":
-        return " ".join(["python scripts/study.py", *words])
+        return " ".join(["python scripts/study.py", *(shlex.quote(a) for a in sys.argv[1:])])
+    words = [shlex.quote(a) for a in getattr(args, "argv", None) or sys.argv[1:]]
     return " ".join(["dftl-warp", *words])
+
+
+def _check_front_args(args) -> None:
+    if args.strands is None:
+        args.strands = 64 if args.fast else 100_000
+    if args.frames is None:
+        args.frames = 3 if args.fast else 12
+    for flag, value, low in (("--strands", args.strands, 1), ("--particles", args.particles, 2),
+                             ("--frames", args.frames, 1), ("--reference-substeps", args.reference_substeps, 2)):
+        if value < low:
+            raise UserError(f"{flag} {value}: must be at least {low}")
+    if args.docs:
+        raise UserError("--docs: the front writes its report into --out (front.md); leave --docs out")
+
+
+def run_front(args, device, log) -> int:
+    """``--front``: measure the front at scale and write it into ``--out``."""
+    import warp as wp
+
+    from ..study.front import SMOKE_SETTINGS, measure_front
+    from ..study.front_report import write_front
+
+    with wp.ScopedDevice(device):
+        result = measure_front(strands=args.strands, particles=args.particles, frames=args.frames,
+                               reference_substeps=args.reference_substeps, device=str(device),
+                               settings=SMOKE_SETTINGS if args.fast else None, log=log)
+    meta = {"command": _command_line(args), "machine": platform.node() or "unknown host", "cpu": _cpu_name(),
+            "cores": os.cpu_count(), "device": str(device), "device_name": device.name, "warp": wp.config.version,
+            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "fast": args.fast}
+    written = write_front(result, meta, args.out)
+    log(f"study --front: {result['seconds']:.0f} s; wrote {', '.join(written)}")
+    return 0
 
 
 def run(args) -> int:
     import warp as wp
 
-    from ..study.sweeps import StudyConfig, run_study
-    from ..study.report import write_results
+    if os.path.exists(args.out) and not os.path.isdir(args.out):
+        raise UserError(f"--out {args.out}: exists and is not a folder")
+    log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, flush=True))
+    if args.front_from:
+        from ..study.front_report import load_front, write_front
+
+        try:
+            result, meta = load_front(args.front_from)
+        except (OSError, ValueError, KeyError) as exc:
+            raise UserError(f"--front-from {args.front_from}: not a front.json ({exc})") from None
+        log(f"study --front-from: wrote {', '.join(write_front(result, meta, args.out))}")
+        return 0
+    if args.front:
+        _check_front_args(args)
 
     from ..core.devices import device_line, resolve_device
 
@@ -59,16 +117,18 @@ def run(args) -> int:
     except (RuntimeError, ValueError, KeyError) as exc:
         raise UserError(f"--device {args.device}: not available ({exc})") from None
 
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        raise UserError(f"--out {args.out}: exists and is not a folder")
     if not args.quiet:
         print(device_line(str(device)), file=sys.stderr)
+    if args.front:
+        return run_front(args, device, log)
+    from ..study.report import write_results
+    from ..study.sweeps import StudyConfig, run_study
+
     cfg = StudyConfig.fast(str(device)) if args.fast else StudyConfig(device=str(device))
-    log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, flush=True))
     with wp.ScopedDevice(device):
         results = run_study(cfg, log)
     meta = {
-        "command": _command_line(),
+        "command": _command_line(args),
         "machine": platform.node() or "unknown host",
         "cpu": _cpu_name(),
         "cores": os.cpu_count(),
