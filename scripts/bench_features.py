@@ -101,7 +101,6 @@ def scenarios(pts, counts, roots):
         ("wind + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0.0, 0.0))], {}),
         ("wind with curl noise + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], {}),
         ("hair-hair grid (1 cm cells)", [F.HairHair(cell_size=0.01)], {}),
-        ("shape retention", [F.ShapeRetention(0.9)], {}),
     ]
 
 
