@@ -101,6 +101,7 @@ def describe(scene) -> dict:
     from ..simulation.settings import SimulationOptions, group_settings
 
     info = scene.stage
+    defaults = SimulationOptions()
     counts = np.concatenate([c.counts for c in scene.curves])
     strands = int(counts.size)
     memory = {p: device_bytes(scene, p) for p in ("float32", "float64")}
@@ -131,7 +132,7 @@ def describe(scene) -> dict:
             {
                 "path": c.path,
                 # what `simulate` runs the prim with when the command line sets no solver
-                "solver": group_settings(scene, SimulationOptions(), i).solver,
+                "solver": group_settings(scene, defaults, i).solver,
                 "type": c.type,
                 "basis": c.basis if c.type == "cubic" else None,
                 "wrap": c.wrap,

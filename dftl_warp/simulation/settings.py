@@ -93,14 +93,16 @@ def automatic_solver(scene: Scene, options: SimulationOptions, index: int, toler
     authors ``dftl:bending = false``, else ``dftl``. Where the elastic solver cannot run the scene yet
     (hair-hair, root binding, several devices, ``--tolerance``) the prim stays on DFTL and the
     scene's warnings say so."""
+    from ..solvers.elastic import UNSUPPORTED
+
     c = scene.curves[index]
     if c.settings.bending is False or c.widths is None or not np.any(np.asarray(c.widths) > 0):
         return DEFAULT_SOLVER
     missing = []
     if scene.features.get("dftl:hairHair"):
-        missing.append("hair-hair interaction (dftl:hairHair)")
+        missing.append(UNSUPPORTED["HairHair"])
     if c.root_mesh is not None:
-        missing.append("root binding (dftl:rootMesh)")
+        missing.append(UNSUPPORTED["RootBinding"])
     if options.device is not None and "," in str(options.device):
         missing.append(f"several devices (--device {options.device})")
     if tolerance:
