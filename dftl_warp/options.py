@@ -251,6 +251,13 @@ _USD = [
     Option("friction", float, None,
            "Coulomb friction coefficient (overrides the bound physics material's dynamicFriction)",
            low=0.0, usd="dftl:friction", scope="collider"),
+    Option("collisionSdf", bool, None,
+           "mesh colliders: true collides through a signed distance field rebuilt when the points change "
+           "(exact mesh queries where it cannot answer), false through exact mesh queries; unset: the field "
+           "from 20000 triangles on (docs/features.md)", usd="dftl:collisionSdf", scope="collider"),
+    Option("collisionSdfCellSize", float, None,
+           "cell of a mesh collider's signed distance field (default: the mesh's mean edge length)",
+           unit="stage units", low=0.0, low_open=True, usd="dftl:collisionSdfCellSize", scope="collider"),
     # the feature attributes (dftl_warp.features.ATTRIBUTES; docs/features.md)
     Option("drag", float, 0.0, "air drag rate: velocities relax toward the air's velocity; 0: no drag",
            unit="1/s", low=0.0, usd="dftl:drag", scope="both"),

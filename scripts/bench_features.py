@@ -4,8 +4,12 @@
 The scene: a head-sized groom (roots on the upper half of a 10 cm sphere, strands of 32 vertices
 combed outward and down), stepped a frame of 10 substeps at a time (a CUDA graph on the GPU),
 timed after 12 frames (0.5 s) in which it falls onto the head and settles. The colliders
-stand for the head (sphere, mesh) or sit below it (capsule: a neck, box: shoulders). Each row runs the same groom with one feature; the ratio is to the bare
-step timed in the same run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
+stand for the head (sphere, mesh) or sit below it (capsule: a neck, box: shoulders). The
+deforming body (a bumpy closed head of 50800 triangles whose points change every frame, as a point
+cache's) runs twice: through exact mesh queries and through its signed distance field; its rows
+include the per-frame update (BVH refit, and the field's rebuild), which is also given on its own.
+Each row runs the same groom with one feature; the ratio is to the bare step timed in the same
+run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
 path features take; the fused-substep figure is given for reference.
 
     python scripts/bench_features.py --device cpu --out docs/bench/features-cpu
@@ -34,6 +38,7 @@ import warp as wp
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402
 from dftl_warp.core.layout import strand_offsets  # noqa: E402
+from dftl_warp.features.colliders.sdf import mesh_signed_distance  # noqa: E402
 
 G = (0.0, -9.81, 0.0)
 FPS = 24
@@ -67,6 +72,35 @@ def uv_sphere(radius, rings=24, segments=48):
     return pts, tris
 
 
+#: the deforming body: a bumpy closed head of BODY_RINGS x BODY_SEGMENTS (50800 triangles), under the
+#: groom's roots (its surface stays below 9.9 cm; the roots sit at 10.2 cm)
+BODY_RINGS, BODY_SEGMENTS = 128, 200
+#: the body's deformation repeats every BODY_PERIOD seconds (its frames are computed once)
+BODY_PERIOD = 2.0
+
+
+def body_mesh(rings=BODY_RINGS, segments=BODY_SEGMENTS):
+    """A closed body-like mesh: unit directions (P, 3) of a UV sphere and its triangles (T, 3);
+    :func:`body_points` places the points at a time."""
+    return uv_sphere(1.0, rings, segments)
+
+
+def body_points(directions, t):
+    """Points (P, 3), m, of the deforming body at time ``t`` (s): a 9.5 cm sphere breathing by
+    +-1.5 mm (period 2 s) with +-2.5 mm bumps travelling around it (0.5 Hz)."""
+    y = np.clip(directions[:, 1], -1.0, 1.0)
+    theta = np.arccos(y)
+    phi = np.arctan2(directions[:, 2], directions[:, 0])
+    w = 2.0 * np.pi / BODY_PERIOD
+    r = 0.095 + 0.0015 * np.sin(w * t) + 0.0025 * np.sin(5.0 * theta) * np.cos(4.0 * phi - w * t)
+    return directions * r[:, None]
+
+
+def body_frames(directions, frames):
+    """The body's points at each of ``frames`` frames of one period (cycled by the runs)."""
+    return [body_points(directions, f / FPS) for f in range(frames)]
+
+
 def groom(num_strands, count=32, seed=0):
     """Strands rooted on the upper half of the head sphere, combed outward then down."""
     rng = np.random.default_rng(seed)
@@ -85,6 +119,9 @@ def scenarios(pts, counts, roots):
     mesh_pts, mesh_tris = uv_sphere(HEAD)
     n = len(counts)
     bind_tris = np.array([[0, 1, 2]])
+    dirs, body_tris = body_mesh()
+    frames = body_frames(dirs, int(round(BODY_PERIOD * FPS)))
+    deform = dict(body_frames=frames)
     return [
         ("bare DFTL step", None, {}),
         ("gravity-only scene (features=[])", [], {}),
@@ -97,6 +134,10 @@ def scenarios(pts, counts, roots):
         ("box collider", [F.Colliders([F.Box(half_extents=(0.15, 0.1, 0.1), position=(0, -0.35, 0))])], {}),
         (f"mesh collider ({len(mesh_tris)} triangles)",
          [F.Colliders([F.TriangleMesh(points=mesh_pts, indices=mesh_tris)])], {}),
+        (f"deforming body mesh ({len(body_tris)} triangles), exact queries",
+         [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=False)])], deform),
+        (f"deforming body mesh ({len(body_tris)} triangles), signed distance field",
+         [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)])], deform),
         ("drag", [F.Drag(1.0)], {}),
         ("wind + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0.0, 0.0))], {}),
         ("wind with curl noise + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], {}),
@@ -187,6 +228,44 @@ def collision_guarantees(device="cpu", precision="float32"):
     return out
 
 
+def body_penetration(device="cpu", precision="float32", strands=64, frames=24):
+    """Worst penetration of the contact distance (hair radii) over every substep of a groom of
+    ``strands`` falling onto the deforming body (its points set per frame), with exact mesh
+    queries and with the signed distance field, with the default 2 collision rounds and with 4,
+    measured against the body's own mesh (exact signed distance, the mesh as the step sees it);
+    and the field's statistics at the end."""
+    pts, counts, _ = groom(strands)
+    dirs, tris = body_mesh()
+    cycle = body_frames(dirs, int(round(BODY_PERIOD * FPS)))
+    width = 1e-4
+    out = {}
+    with wp.ScopedDevice(device):
+        for label, sdf, rounds in (("exact queries", False, 2), ("exact queries, 4 collision rounds", False, 4),
+                                   ("signed distance field", True, 2),
+                                   ("signed distance field, 4 collision rounds", True, 4)):
+            feats = [F.Colliders([F.TriangleMesh(points=cycle[0], indices=tris, sdf=sdf)], iterations=rounds)]
+            model = dw.Model.from_strands(pts, counts, widths=width, features=feats, device=device, precision=precision)
+            solver = dw.DFTLSolver(model, gravity=G)
+            state, control = solver.state(), model.control()
+            meshes = control.features.colliders.kind_data["meshes"]
+            mesh = meshes.meshes[0][1]
+            worst = 0.0
+            for f in range(frames):
+                control.features.set_mesh_points(0, cycle[(f + 1) % len(cycle)])
+                for k in range(SUBSTEPS):
+                    solver.step(state, state, control, 1 / FPS / SUBSTEPS, (k + 1) / SUBSTEPS)
+                    x = model.points_from_device(state.positions)
+                    d, _ = mesh_signed_distance(mesh, x, max_dist=0.05)
+                    worst = max(worst, float((width / 2 - d).max()))
+            out[f"deforming body ({len(tris)} triangles), {label}: penetration / hair radius"] = worst / (width / 2)
+            if sdf and rounds == 2:
+                stats = meshes.fields.stats(0)
+    out["deforming body: field cell (mm)"] = 1e3 * stats["cell"]
+    out["deforming body: field tolerance (mm)"] = 1e3 * stats["tolerance"]
+    out["deforming body: band cells answered by the field (end)"] = stats["answering_fraction"]
+    return out
+
+
 def machine_line(device):
     d = wp.get_device(device)
     if d.is_cuda:
@@ -214,21 +293,34 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
     particles = int(counts.sum())
     dt = 1.0 / FPS / SUBSTEPS
     runs = []
-    for name, feats, _ in scenarios(pts, counts, roots):
+    updates = {}
+    for name, feats, extra in scenarios(pts, counts, roots):
         with wp.ScopedDevice(device):
             model = dw.Model.from_strands(pts, counts, device=device, widths=1e-4, features=feats)
             solver = dw.DFTLSolver(model, gravity=G, fused=False)
             state, control = solver.state(), model.control()
             binding = model.feature_data is not None and model.feature_data.binding is not None
+            frames = extra.get("body_frames")
+            if frames is not None:
+                updates[name] = []
 
-            def one_frame(solver=solver, state=state, control=control, binding=binding):
+            def one_frame(solver=solver, state=state, control=control, binding=binding, frames=frames,
+                          clock=[0], spent=updates.get(name)):
                 if binding:
                     control.bind_roots(np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1.0]]))
+                if frames is not None:  # the body's points at the frame's end: refit (and field) per frame
+                    clock[0] += 1
+                    t = time.perf_counter()
+                    control.features.set_mesh_points(0, frames[clock[0] % len(frames)])
+                    wp.synchronize_device(device)
+                    spent.append(time.perf_counter() - t)
                 solver.advance(state, control, dt, SUBSTEPS)
 
             for _ in range(SETTLE_FRAMES):  # warm-up (compile, capture), and let the groom settle
                 one_frame()
-            runs.append((name, model, solver, state, one_frame, []))
+            if frames is not None:
+                del updates[name][:]
+            runs.append((name, model, solver, state, control, one_frame, []))
     # rounds over all scenarios, so that load from elsewhere spreads evenly over them
     for _ in range(repeats):
         for *_, one_frame, times in runs:
@@ -239,13 +331,18 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
             times.append(time.perf_counter() - t)
     results = []
     bare = None
-    for name, model, solver, state, _, times in runs:
+    for name, model, solver, state, control, _, times in runs:
         seconds = statistics.median(times) / SUBSTEPS
         if bare is None:
             bare = seconds
         results.append(dict(scenario=name, flags=sorted(model.feature_flags), seconds_per_step=seconds,
                             particle_steps_per_s=particles / seconds, vs_bare=seconds / bare,
                             max_stretch=solver.diagnostics(state)["max_stretch"]))
+        if name in updates:
+            results[-1]["mesh_update_per_frame_s"] = statistics.median(updates[name])
+            meshes = control.features.colliders.kind_data["meshes"]
+            if meshes.fields.fields:
+                results[-1]["field"] = meshes.fields.stats(int(model.feature_data.collider_order[0]))
     if device.is_cuda:
         with wp.ScopedDevice(device):
             model = dw.Model.from_strands(pts, counts, device=device)
@@ -256,6 +353,7 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
                             particle_steps_per_s=particles / seconds, vs_bare=seconds / bare, max_stretch=0.0))
 
     guarantees = collision_guarantees(device)
+    guarantees.update(body_penetration(device))
     rows = ["| scenario | kernel flags | time per step | particle-steps/s | vs bare |",
             "|---|---|---:|---:|---:|"]
     for r in results:
@@ -264,6 +362,15 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
                     f"{r['particle_steps_per_s']:.3g} | {r['vs_bare']:.2f}x |")
     rows += ["", "| collision measure (worst over every substep) | value |", "|---|---:|"]
     rows += [f"| {k} | {v:.3g} |" for k, v in guarantees.items()]
+    deforming = [r for r in results if "mesh_update_per_frame_s" in r]
+    if deforming:
+        rows += ["", "| deforming body: per-frame mesh update (set_mesh_points: refit, field) | time per frame | "
+                     "field bricks used / reserved | band cells answered by the field |", "|---|---:|---:|---:|"]
+        for r in deforming:
+            field = r.get("field")
+            bricks = f"{field['bricks_used']} / {field['bricks_reserved']}" if field else "-"
+            answered = f"{field['answering_fraction']:.4f}" if field else "-"
+            rows.append(f"| {r['scenario']} | {r['mesh_update_per_frame_s'] * 1e3:.3f} ms | {bricks} | {answered} |")
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)

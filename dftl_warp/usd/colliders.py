@@ -226,5 +226,7 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
         warnings.append(f"{where}: collider of type {prim.GetTypeName() or 'untyped'} is not supported; ignored")
         return None
     c.friction = _friction(prim, where)
+    if c.kind == "mesh":  # the collider-scope dftl: attributes its shape reads (dftl:collisionSdf, ...)
+        c.attributes.update({k: v for k, v in read_values(prim, where, "collider", 24.0).items() if k != "dftl:friction"})
     c.transform, c.animated = transforms.sampler(prim, time)
     return c

@@ -5,6 +5,10 @@ it at the first front-face crossing; the closest-point query (``wp.mesh_query_po
 angle-weighted pseudo-normal sign) reaches the contact distance plus the path plus the mesh's
 ``depth_band`` (m). A broad phase first tests the path's box against the mesh's bounds grown by
 that reach. The response is shared (:func:`~dftl_warp.kernels.features.collide.respond_func`).
+
+A mesh collider with a signed distance field (``cell`` > 0 in its ``collider_sdf`` entry) is
+answered by the field (``kernels/features/sdf.py``) where it can answer, and by the exact query
+above where it cannot (thin parts, sharp edges, beyond the field's reach).
 """
 
 
@@ -13,6 +17,7 @@ import functools
 import warp as wp
 
 from .collide import ColliderKernel, named_func, respond_func, tiny_length, transform_type
+from .sdf import collide_sdf_func, sdf_fields
 
 
 @functools.cache
@@ -88,19 +93,28 @@ def collide_mesh_func(scalar):
 
 def mesh_fields(scalar) -> dict:
     """Struct fields of mesh colliders, per device collider: the mesh id, its depth band (m) and
-    its local bounds (m)."""
+    its local bounds (m); and their signed distance fields (``kernels/features/sdf.py``)."""
     vec3 = wp.types.vector(3, scalar)
     return dict(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar),
-                collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3))
+                collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3), **sdf_fields())
 
 
 @functools.cache
 def _collide_mesh_at(scalar, Features):
     vec3 = wp.types.vector(3, scalar)
     one = collide_mesh_func(scalar)
+    field = collide_sdf_func(scalar)
 
     def collide_mesh_at(f: Features, c: int, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool,
                         radius: scalar):
+        grid = f.collider_sdf[c]
+        if grid.cell > wp.float32(0.0):
+            # through the collider's signed distance field, where it can answer
+            z, touched, answered = field(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
+                                         f.collider_inv_pose[c], f.collider_inv_pose_prev[c], grid, f.sdf_brick_map,
+                                         f.sdf_values, f.sdf_cells, f.collider_depth_band[c], f.collider_friction[c])
+            if answered:
+                return z, touched
         y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
                      f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c], f.collider_upper[c],
                      f.collider_depth_band[c], f.collider_friction[c])

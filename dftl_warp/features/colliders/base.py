@@ -19,9 +19,12 @@ from ...kernels.features.collide import ColliderKernel, register_collider_kernel
 from ...usd.colliders import accept_collider_type
 from ..base import nonnegative, unit_quaternion, vector
 
-#: name -> (type, where: "scene", "curves" or "both", description)
+#: name -> (type, where: "scene", "curves", "both" or "collider", description)
 ATTRIBUTES = {
     "dftl:collisionIterations": (int, "scene", "collide-and-restore rounds per particle (>= 1, default 2)"),
+    "dftl:collisionSdf": (bool, "collider", "mesh colliders: true through a signed distance field, false exact "
+                                            "queries; unset: the field from 20000 triangles on"),
+    "dftl:collisionSdfCellSize": (float, "collider", "cell of a mesh collider's signed distance field"),
 }
 
 #: kernel flag -> shape class, in registration (device) order

@@ -1,7 +1,8 @@
 """Triangle-mesh colliders (:class:`TriangleMesh`): a :class:`warp.Mesh` per collider, made per
 Control so that its points can deform per frame (:meth:`MeshColliders.set_points`, refitting its
 BVH). USD: UsdGeomMesh (fan-triangulated), scale baked into the points; a mirroring scale turns
-the faces back outward. Kernel: ``kernels/features/mesh.py``.
+the faces back outward; ``dftl:collisionSdf`` and ``dftl:collisionSdfCellSize`` choose the signed
+distance field (``sdf.py``). Kernel: ``kernels/features/mesh.py``.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from ...core.precision import numpy_type
 from ...kernels.features.mesh import MESH
 from ..base import nonnegative
 from .base import ColliderShape
+from .sdf import MeshFields, estimated_bytes, field_band, field_settings
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,11 +29,19 @@ class TriangleMesh(ColliderShape):
     found inside at the start of a step are pushed out from up to ``depth_band`` (m, default 1%
     of the mesh's bounding diagonal) plus their step's path below the surface. The closest-point
     query reaches that far, and its cost grows with it.
+
+    ``sdf``: collide through a signed distance field rebuilt whenever the points change (True),
+    through exact mesh queries (False), or the field from ``SDF_MIN_TRIANGLES`` triangles on
+    (None); ``sdf_cell`` (m, default the mean edge length) and ``sdf_tolerance`` (m, the largest
+    estimated interpolation error where the field answers; default 1/16 cell): see ``sdf.py``.
     """
 
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     indices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int32))
     depth_band: float | None = None
+    sdf: bool | None = None
+    sdf_cell: float | None = None
+    sdf_tolerance: float | None = None
     kind = "meshes"
     kernel = MESH
     usd_kind = "mesh"
@@ -52,25 +62,44 @@ class TriangleMesh(ColliderShape):
         if band is None:
             band = 0.01 * float(np.linalg.norm(pts.max(0) - pts.min(0)))
         object.__setattr__(self, "depth_band", nonnegative(band, f"{self._label()} depth_band"))
+        if self.sdf is not None:
+            object.__setattr__(self, "sdf", bool(self.sdf))
+        for name in ("sdf_cell", "sdf_tolerance"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(float(value)) and float(value) > 0):
+                raise ValueError(f"{self._label()} {name} must be a finite length > 0, got {value!r}")
+
+    @property
+    def uses_sdf(self) -> bool:
+        """Whether the mesh collides through a signed distance field (``sdf``, else its size)."""
+        return field_settings(self)[0]
 
     @classmethod
     def from_prim(cls, prim, position, rotation, scale, common):
         tris = np.asarray(prim.triangles)
         if np.prod(np.sign(scale)) < 0:
             tris = tris[:, ::-1]  # a mirror turns the faces inside out; turn them back
-        return cls(points=np.asarray(prim.mesh_points) * scale, indices=tris, **common)
+        attrs = prim.attributes
+        return cls(points=np.asarray(prim.mesh_points) * scale, indices=tris, sdf=attrs.get("dftl:collisionSdf"),
+                   sdf_cell=attrs.get("dftl:collisionSdfCellSize"), **common)
 
     @classmethod
     def make_device_data(cls, model, shapes, num_colliders):
         return MeshColliders(model, shapes, num_colliders)
 
     def fixed_bytes(self) -> int:
-        return (self.points.size * 4 + self.indices.size * 4) * 2
+        mesh = (self.points.size * 4 + self.indices.size * 4) * 2
+        uses, cell, _ = field_settings(self)
+        if not uses:
+            return mesh
+        # the field's band for hair of radius 0 (the hair's radius adds little)
+        return mesh + estimated_bytes(self.points, self.indices, cell, field_band(self.depth_band, 0.0, cell))
 
 
 class MeshColliders:
     """The meshes of a Control's mesh colliders, per device collider (others: id 0): ``ids``,
-    local bounds ``lower``/``upper`` (m) and ``depth_band`` (m)."""
+    local bounds ``lower``/``upper`` (m) and ``depth_band`` (m); ``fields``: the signed distance
+    fields of those that use one (:class:`~.sdf.MeshFields`, rebuilt by :meth:`set_points`)."""
 
     def __init__(self, model, shapes: dict, num_colliders: int):
         device = model.device
@@ -81,6 +110,7 @@ class MeshColliders:
         band = np.zeros(num_colliders, dtype=f)
         #: user index -> (device index, wp.Mesh)
         self.meshes = {}
+        with_field = []
         for c, (user_index, s) in shapes.items():
             mesh = wp.Mesh(points=wp.array(s.points.astype(np.float32), dtype=wp.vec3, device=device),
                            indices=wp.array(s.indices.reshape(-1), dtype=wp.int32, device=device))
@@ -88,11 +118,15 @@ class MeshColliders:
             ids[c] = mesh.id
             lower[c], upper[c] = s.points.min(0), s.points.max(0)
             band[c] = s.depth_band
+            if s.uses_sdf:
+                with_field.append((c, s, mesh))
         self._ftype = f
         self.ids = wp.array(ids, dtype=wp.uint64, device=device)
         self.lower = wp.array(lower.astype(f), dtype=model.vec3, device=device)
         self.upper = wp.array(upper.astype(f), dtype=model.vec3, device=device)
         self.depth_band = wp.array(band, dtype=model.scalar, device=device)
+        radius = model.feature_data.collider_data.arrays["particle_radius"].numpy()
+        self.fields = MeshFields(device, num_colliders, with_field, float(radius.max(initial=0.0)))
 
     def set_points(self, index: int, points) -> None:
         """New local points (P, 3), m, of mesh collider ``index`` (user order), from now on."""
@@ -108,9 +142,12 @@ class MeshColliders:
         lower[c], upper[c] = pts.min(0).astype(self._ftype), pts.max(0).astype(self._ftype)
         self.lower.assign(lower)
         self.upper.assign(upper)
+        if c in self.fields.fields:
+            self.fields.build(c, pts)
 
     def fill_struct(self, st) -> None:
         st.collider_mesh = self.ids
         st.collider_depth_band = self.depth_band
         st.collider_lower = self.lower
         st.collider_upper = self.upper
+        self.fields.fill_struct(st)
