@@ -49,6 +49,17 @@ def test_study_fast_writes_tables_plots_and_report(tmp_path, capsys):
     assert not any(v for (s, _, _), v in stab.items() if s == 1.0)
     assert [v for (s, n, dt), v in stab.items() if s == 0.5 and n == 64 and abs(dt / 1e-4 - 1) < 0.01] == [True]
 
+    # elastic strands: the elastic solver against the reference with the same elastic energy
+    assert (out / "elastic.png").read_bytes()[:4] == b"\x89PNG"
+    assert "Elastic strands: the elastic solver against the elastic reference" in report
+    refs = {r["scenario"]: r for r in read(out / "elastic_reference.csv")}
+    assert set(refs) == {"cantilever", "curly"}
+    elastic = {(r["scenario"], r["setting"], int(r["substeps"])): r for r in read(out / "elastic.csv")}
+    e8, e32 = (float(elastic[("cantilever", "elastic s=0 (default)", k)]["error"]) for k in (8, 32))
+    assert e8 > 2.0 * e32  # first order: 4x the substeps, about a quarter of the error
+    assert float(refs["cantilever"]["self_error"]) < 1e-3 * e32  # the reference is far more accurate
+    assert all(float(r["max_stretch"]) < 1e-10 for r in elastic.values())  # both are inextensible
+
 
 def test_study_refuses_an_unknown_device(tmp_path, capsys):
     assert main(["study", "--fast", "--device", "cuda:7", "--out", str(tmp_path / "x")]) == 2

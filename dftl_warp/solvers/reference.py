@@ -17,6 +17,13 @@ reachable along the old segment directions; where it is not (a whipping tip, a r
 the kernel splits the step in halves until it is. ``diagnostics()["constraint_residual"]``
 reports the worst accepted residual. It is a reference, not a production solver: its cost
 grows with the Newton iterations and the splits.
+
+Elastic strands (opt-in): ``elastic=True`` or ``elastic={...}`` (the elastic solver's material
+options) adds the ``elastic`` solver's bending and twist energy, masses and clamped root, with the
+frames at their minimiser (:mod:`.reference_elastic`, kernel
+:mod:`dftl_warp.kernels.solvers.reference_elastic`); ``drag`` (1/s) adds linear drag there. The
+bending force is explicit: a step beyond ``2 / omega_max`` (the stiffest bending mode) is refused.
+Without ``elastic`` the solver is exactly the chain of unit masses above.
 """
 
 from __future__ import annotations
@@ -41,13 +48,22 @@ class ReferenceSolver(Solver):
         max_iterations: Newton iterations per step at most.
         accept: largest residual accepted before a step is split into halves (see
             :mod:`dftl_warp.kernels.solvers.reference`).
+        elastic: None (default: inextensible chains of unit masses), True (human hair's elastic
+            material) or a dict of the elastic solver's material options
+            (:data:`~dftl_warp.solvers.reference_elastic.ELASTIC_OPTIONS`): elastic strands.
+        drag: linear drag (1/s) toward still air, elastic strands only; 0 by default.
+        frame_tolerance: elastic strands: the frames' Newton solve stops once its step is below
+            this (rad).
+        frame_iterations: elastic strands: Newton iterations of the frames per force evaluation
+            at most.
     """
 
     name = "reference"
-    options = ("tolerance", "max_iterations", "accept")
+    options = ("tolerance", "max_iterations", "accept", "elastic", "drag", "frame_tolerance", "frame_iterations")
 
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, tolerance: float = 1.0e-14, max_iterations: int = 30,
-                 accept: float = 1.0e-10):
+                 accept: float = 1.0e-10, elastic=None, drag: float = 0.0, frame_tolerance: float = 1.0e-11,
+                 frame_iterations: int = 30):
         rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
         starts = strand_offsets(model.counts)
         free = np.ones(rest.shape[0], dtype=bool)
@@ -65,10 +81,23 @@ class ReferenceSolver(Solver):
         self._vectors = [wp.zeros(n, dtype=wp.vec3d, device=dev) for _ in range(3)]
         self._scalars = [wp.zeros(n, dtype=wp.float64, device=dev) for _ in range(3)]
         self._residual = wp.zeros(model.num_strands, dtype=wp.float64, device=dev)
+        #: the elastic option's rest data, kernel and energy (None: chains of unit masses)
+        self.elastic = None
+        if elastic is not None and elastic is not False:
+            from .reference_elastic import ElasticReference
+
+            self.elastic = ElasticReference(model, self._gravity64, elastic, drag=float(drag),
+                                            frame_tolerance=frame_tolerance, frame_iterations=frame_iterations)
+        elif drag:
+            raise ValueError(f"drag = {drag!r} needs elastic strands (elastic=...); the chain of unit masses has none")
 
     def _launch(self, state_in, state_out, control, dt, alpha_first, alpha_step, substeps):
         m = self.model
         if m.num_strands == 0:
+            return
+        if self.elastic is not None:
+            self.elastic.check_step(dt)
+            self.elastic.launch(self, state_in, state_out, control, dt, alpha_first, alpha_step, substeps)
             return
         wp.launch(
             self._kernel,
@@ -94,9 +123,27 @@ class ReferenceSolver(Solver):
         the substep loop runs inside the kernel, in float64 throughout)."""
         self._launch(state, state, control, dt, 1.0 / substeps, 1.0 / substeps, substeps)
 
+    def state(self):
+        """A rest State; with elastic strands also the frames' warm start back at the rest frames."""
+        if self.elastic is not None:
+            self.elastic.reset_frames()
+        return super().state()
+
+    def energy(self, state) -> float:
+        """Elastic strands: kinetic + gravitational + elastic energy (J) (:meth:`ElasticReference.energy
+        <dftl_warp.solvers.reference_elastic.ElasticReference.energy>`)."""
+        if self.elastic is None:
+            raise ValueError("energy() in joules needs elastic strands (masses); diagnostics() gives J/kg")
+        return self.elastic.energy(state)
+
     def diagnostics(self, state) -> dict:
         """Energy (J/kg), max stretch, max speed (m/s), and the last call's worst relative
-        squared-length residual of the Newton solve (``constraint_residual``)."""
+        squared-length residual of the Newton solve (``constraint_residual``); with elastic
+        strands also ``elastic_energy`` (:meth:`energy`, J) and ``frame_residual`` (the last
+        call's largest final Newton step of the frames, rad)."""
         out = super().diagnostics(state)
         out["constraint_residual"] = float(self._residual.numpy().max()) if self.model.num_strands else 0.0
+        if self.elastic is not None:
+            out["elastic_energy"] = self.energy(state)
+            out["frame_residual"] = float(self.elastic.frame_residual.numpy().max()) if self.model.num_strands else 0.0
         return out

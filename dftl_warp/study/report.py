@@ -2,9 +2,10 @@
 
 :func:`write_results` takes :func:`dftl_warp.study.sweeps.run_study`'s rows and writes, in ``out``:
 ``convergence.csv``, ``energy.csv``, ``groom.csv``, ``stretch.csv``, ``modes.csv``,
-``stability.csv``, the plots ``convergence.png``, ``pareto.png``, ``energy.png``, ``stretch.png``,
-``modes.png``, ``stability.png`` and the report ``accuracy.md`` (also written to ``docs`` when
-given, with image links relative to it).
+``stability.csv`` (and ``elastic.csv``, ``elastic_reference.csv`` when the results have the elastic
+sweep), the plots ``convergence.png``, ``pareto.png``, ``energy.png``, ``stretch.png``,
+``modes.png``, ``stability.png`` (``elastic.png``: :mod:`.elastic_report`) and the report
+``accuracy.md`` (also written to ``docs`` when given, with image links relative to it).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..simulation.quality import QUALITY_PRESETS
+from .elastic_report import elastic_markdown, plot_elastic
 from .sweeps import fitted_slope
 
 
@@ -223,11 +225,12 @@ def render_markdown(results: dict, meta: dict, image_dir: str) -> str:
     s1_ratio = max((r["worst_ratio"] for r in stab if r["damping"] == 1.0), default=float("nan"))
 
     groom_text = _groom_text(results)
+    elastic_text = elastic_markdown(results, img) + "\n\n" if results.get("elastic") else ""
     modes_text = _modes_text(results)
     m = meta
     return f"""# Accuracy: the speed-accuracy trade
 
-Measured by the accuracy study (`dftl_warp/study.py`, `dftl_warp/study_report.py`), regenerated with
+Measured by the accuracy study (`dftl_warp/study/`: `sweeps.py`, `scenarios.py`, `report.py`), regenerated with
 
     {m['command']}
 
@@ -254,7 +257,9 @@ Three solvers are compared (`--solver`):
   hundred periods no worse than the first) at 9.9e-4 of the swing energy for a 0.1 rad swing
   (velocity Verlet's bound on a harmonic oscillator is `(omega dt)^2 / 4 = 9.87e-4` there, so the
   test's 1e-3 is tight by construction) and 6.4e-4 of `m g l` for a 1 rad swing, and halving the
-  step divides it by 4.00 (second order).
+  step divides it by 4.00 (second order). With `elastic=` it integrates the `elastic` solver's
+  rods instead (their masses, bending and twist energy, clamped root): section 9.
+- `elastic` -- elastic rods of hair (docs/elastic.md), measured against that reference in section 9.
 
 ## 1. Convergence: error against the step (the seed's claims)
 
@@ -343,7 +348,7 @@ damping as the amplitude kept per period over {m['mode_periods']} periods.
 
 Strands of 0.2 m with 2 to {max(r['particles'] for r in stab)} particles released horizontally, float32, {m['map_seconds']:g} s, one
 run per (s, dt) holding every particle count; a cell is marked X where the energy monitor
-(`dftl_warp/monitor.py`, below) found the strand's energy past its budget. Colour: the largest
+(`dftl_warp/simulation/monitor.py`, below) found the strand's energy past its budget. Colour: the largest
 ratio of energy to budget (0.5 is a strand that only lost energy; 1 is the warning threshold).
 
 ![stability map]({img}stability.png)
@@ -381,7 +386,7 @@ s = 1, and the faithful forms are never altered.
 
 ## 8. Quality presets
 
-`dftl_warp/quality.py` (`QUALITY_PRESETS`, `--quality draft|production|reference`), measured on the groom above:
+`dftl_warp/simulation/quality.py` (`QUALITY_PRESETS`, `--quality draft|production|reference`), measured on the groom above:
 
 {_table(["preset", "solver", "substeps/frame", "dt (ms)", "precision", "error", "max stretch", "wall s per simulated s", "ms per frame"], preset_rows)}
 
@@ -390,9 +395,9 @@ s = 1, and the faithful forms are never altered.
   the strand length; float32 (its floor is far below the discretisation error at this step).
 - `reference` -- the RATTLE solver in float64 at 64 substeps: the truth, for validation.
 
-## The energy monitor
+{elastic_text}## The energy monitor
 
-`dftl_warp/monitor.py`:
+`dftl_warp/simulation/monitor.py`:
 
     monitor = EnergyMonitor(solver, "dftl s=0.5 dt=1e-05 s", state)   # initial state
     for frame in range(frames):
@@ -481,6 +486,12 @@ def write_results(results: dict, meta: dict, out, docs=None) -> dict:
         written[name] = path
     for name, file in plot_all(results, out).items():
         written[f"{name}.png"] = out / file
+    if results.get("elastic"):
+        for name in ("elastic", "elastic_reference"):
+            _write_csv(out / f"{name}.csv", results[name])
+            written[name] = out / f"{name}.csv"
+        for name, file in plot_elastic(results, out).items():
+            written[f"{name}.png"] = out / file
     report = out / "accuracy.md"
     report.write_text(render_markdown(results, meta, "."))
     written["report"] = report

@@ -6,6 +6,8 @@
 - :func:`pendulum_period`: the large-amplitude period of a pendulum (complete elliptic integral
   by the arithmetic-geometric mean);
 - :func:`groom` / :func:`head_roots`: a small groom hanging from a spherical head that turns and nods;
+- :func:`hair_cantilever` / :func:`hair_helix` / :func:`shaken_roots`: elastic strands (80 um hair,
+  :data:`HAIR_RADIUS`) and a root shaken to and fro;
 - :func:`record`: run any solver over frames and record the trajectory.
 
 Units: metres, seconds, m/s^2. Gravity is along -Y.
@@ -105,6 +107,33 @@ def head_roots(roots0: np.ndarray, t: float) -> np.ndarray:
     r_pitch = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
     bob = np.array([0.0, 0.03 * np.sin(2.0 * np.pi * 2.0 * t), 0.0])
     return roots0 @ (r_yaw @ r_pitch).T + bob
+
+
+#: elastic strands: the hair radius of the study's scenarios (80 um hair), m
+HAIR_RADIUS = 40e-6
+
+
+def hair_cantilever(length: float, segments: int = 32) -> np.ndarray:
+    """(segments + 1, 3) points of a straight strand of ``length`` (m) along +x from the origin."""
+    return horizontal_chain(segments + 1, length)
+
+
+def hair_helix(length: float = 0.2, turns: float = 2.0, radius: float = 0.015, segments: int = 32) -> np.ndarray:
+    """(segments + 1, 3) points of a helix of ``turns`` turns of ``radius`` (m) hanging down (-y)
+    from the origin, ``segments`` equal segments of total ``length`` (m): a styled curl."""
+    s = np.linspace(0.0, length, segments + 1)
+    c = length / np.sqrt((2 * np.pi * turns * radius) ** 2 + length ** 2)
+    angle = 2 * np.pi * turns * s / length
+    pts = np.stack([radius * (np.cos(angle) - 1), -s * c, radius * np.sin(angle)], axis=-1)
+    seg = np.diff(pts, axis=0)
+    seg *= (length / segments) / np.linalg.norm(seg, axis=1, keepdims=True)
+    return np.concatenate([pts[:1], pts[:1] + np.cumsum(seg, axis=0)])
+
+
+def shaken_roots(roots0: np.ndarray, amplitude: float = 0.02, frequency: float = 2.0):
+    """Root targets ``t -> roots0 + amplitude sin(2 pi frequency t) x`` (m, Hz): a head shaken sideways."""
+    roots0 = np.asarray(roots0, dtype=np.float64)
+    return lambda t: roots0 + np.array([amplitude * np.sin(2.0 * np.pi * frequency * t), 0.0, 0.0])
 
 
 def strand_starts(counts) -> np.ndarray:

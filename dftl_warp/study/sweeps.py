@@ -9,7 +9,10 @@ returns their rows; :mod:`dftl_warp.study.report` turns them into CSV, PNG and m
 3. ``groom``: a groom on a turning, nodding head over 0.5 s against the reference: error, stretch
    and wall time (the Pareto front), the quality presets;
 4. ``modes``: a hanging chain started in a mode shape: period and damping per solver;
-5. ``stability``: a map over (s, dt, particles per strand) of where runs create energy.
+5. ``stability``: a map over (s, dt, particles per strand) of where runs create energy;
+6. ``elastic``: elastic strands (a cantilever of human hair released horizontal, a styled curl on
+   a shaken root): the ``elastic`` solver over substeps against the reference solver with the same
+   elastic energy (``reference`` with ``elastic=``): error, stretch and cost.
 
 Error norm everywhere: the max over recorded frames of the RMS over particles of the position
 error, divided by the strand length (dimensionless).
@@ -28,6 +31,7 @@ from ..core.model import Model
 from ..simulation.monitor import EnergyMonitor
 from ..simulation.quality import QUALITY_PRESETS
 from ..solvers import make_solver
+from ..solvers.elastic import HAIR_DENSITY, HAIR_E
 
 G = (0.0, -sc.GRAVITY, 0.0)
 
@@ -90,6 +94,13 @@ class StudyConfig:
     map_particles: list = field(default_factory=lambda: [2, 4, 8, 16, 32, 64, 128, 256, 512, 1024])
     map_length: float = 0.2
     map_seconds: float = 1.0
+    elastic_scenarios: list = field(default_factory=lambda: ["cantilever", "curly"])
+    elastic_frames: int = 12  # 0.5 s at 24 fps
+    elastic_substeps: list = field(default_factory=lambda: [8, 32, 128, 512, 2048])
+    elastic_settings: list = field(default_factory=lambda: [
+        ("elastic s=0 (default)", {}), ("elastic s=1", {"damping": 1.0})])
+    elastic_strands: int = 8  # copies side by side: the elastic solver's wall time measures computation
+    elastic_reference_fraction: float = 0.5  # the reference's step, as a fraction of its stability limit
 
     @classmethod
     def fast(cls, device: str = "cpu") -> StudyConfig:
@@ -107,6 +118,7 @@ class StudyConfig:
         c.mode_settings = c.mode_settings[:2]
         c.map_dampings, c.map_dts, c.map_particles = [0.5, 1.0], [1 / 240, 1e-4], [4, 64]
         c.map_seconds = 0.5
+        c.elastic_frames, c.elastic_substeps, c.elastic_strands = 6, [8, 32], 1
         return c
 
 
@@ -309,6 +321,74 @@ def stability(cfg: StudyConfig, log=print):
     return rows
 
 
+# -- 6. elastic strands against the elastic reference ----------------------------------------------
+
+def _elastic_scenario(name: str):
+    """(rest points, elastic material, roots(t) factory or None, description) of a scenario."""
+    lb = (HAIR_E * np.pi * sc.HAIR_RADIUS ** 4 / 4 / (HAIR_DENSITY * np.pi * sc.HAIR_RADIUS ** 2 * sc.GRAVITY)) ** (1 / 3)
+    if name == "cantilever":
+        return (sc.hair_cantilever(lb), {"inverse_statics": False}, None,
+                f"a straight strand L = l_b = {lb * 100:.2f} cm released horizontal, root held")
+    if name == "curly":
+        return (sc.hair_helix(), {}, sc.shaken_roots,
+                "a styled helix (0.2 m, 2 turns of 1.5 cm radius; inverse statics: it hangs as authored), "
+                "root shaken 2 cm at 2 Hz")
+    raise ValueError(f"unknown elastic scenario {name!r}; choose cantilever or curly")
+
+
+def elastic(cfg: StudyConfig, log=print):
+    """The elastic solver against the elastic reference: (rows per setting and substeps, rows per
+    scenario for the reference: its substeps, self error and cost)."""
+    frame = 1 / 24
+    rows, references = [], []
+    for name in cfg.elastic_scenarios:
+        rest, material, roots_of, description = _elastic_scenario(name)
+        material = dict(radius=sc.HAIR_RADIUS, **material)
+        n = rest.shape[0]
+        length = float(np.linalg.norm(np.diff(rest, axis=0), axis=1).sum())
+        copies = cfg.elastic_strands
+        pts = np.concatenate([rest + [0.0, 0.0, 0.05 * i] for i in range(copies)])
+        counts = [n] * copies
+        roots = roots_of(pts[sc.strand_starts(counts)]) if roots_of else None
+        one_root = roots_of(rest[:1]) if roots_of else None
+
+        def reference(substeps, clock=None):
+            solver = make_solver(_model(rest, [n], "float64", cfg.device), "reference", gravity=G, elastic=material)
+            return sc.record(solver, cfg.elastic_frames, frame, substeps, roots=one_root, clock=clock)[0], solver
+
+        probe = make_solver(_model(rest, [n], "float64", cfg.device), "reference", gravity=G, elastic=material)
+        k = int(np.ceil(frame / (cfg.elastic_reference_fraction * probe.elastic.step_limit)))
+        clock = []
+        truth, _ = reference(k, clock)
+        finer, _ = reference(2 * k)
+        references.append({
+            "scenario": name, "description": description, "length": length, "particles": n,
+            "seconds": cfg.elastic_frames * frame, "substeps": k, "dt": frame / k,
+            "step_limit": probe.elastic.step_limit, "self_error": trajectory_error(truth, finer, length),
+            "wall_s_per_s": float(np.min(clock)) * 24, "ns_per_particle_step": float(np.min(clock)) / (k * n) * 1e9})
+        log(f"elastic: {name}: reference {k} substeps (dt {frame / k:.2e} s, limit "
+            f"{probe.elastic.step_limit:.2e} s), self-error {references[-1]['self_error']:.1e}")
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        for label, options in cfg.elastic_settings:
+            for substeps in cfg.elastic_substeps:
+                solver = make_solver(_model(pts, counts, "float64", cfg.device), "elastic", gravity=G, **material,
+                                     **options)
+                clock = []
+                x, _ = sc.record(solver, cfg.elastic_frames, frame, substeps, roots=roots, clock=clock)
+                error = max(trajectory_error(x[:, i * n:(i + 1) * n] - [0.0, 0.0, 0.05 * i], truth, length)
+                            for i in range(copies))
+                rows.append({
+                    "scenario": name, "setting": label, "damping": options.get("damping", 0.0),
+                    "substeps": substeps, "dt": frame / substeps, "error": error,
+                    "max_stretch": float(max_stretch(x, counts, seg).max()),
+                    "wall_s_per_s": float(np.min(clock)) * 24,
+                    "ns_per_particle_step": float(np.min(clock)) / (substeps * n * copies) * 1e9,
+                })
+                log(f"elastic: {name} {label:22s} x{substeps:<4d} error {error:.3e} "
+                    f"cost {rows[-1]['ns_per_particle_step']:.3g} ns/particle-step")
+    return rows, references
+
+
 def run_study(cfg: StudyConfig, log=print) -> dict:
     """Run every sweep; returns the rows by sweep name plus timing."""
     started = time.perf_counter()
@@ -318,5 +398,6 @@ def run_study(cfg: StudyConfig, log=print) -> dict:
     out["groom"], out["stretch"], out["groom_reference_error"] = groom(cfg, log)
     out["modes"], out["mode_traces"] = modes(cfg, log)
     out["stability"] = stability(cfg, log)
+    out["elastic"], out["elastic_reference"] = elastic(cfg, log)
     out["seconds"] = time.perf_counter() - started
     return out
