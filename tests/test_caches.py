@@ -313,6 +313,55 @@ def test_a_failing_clip_writer_is_one_line_exit_2_and_no_output(tmp_path, capsys
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.usda"]
 
 
+def test_clips_of_several_writer_processes_fsyncd_equal_the_single_layer_output(tmp_path, monkeypatch):
+    from dftl_warp.output import clip_pool, clips
+
+    monkeypatch.setattr(clips, "WRITERS", 3)  # chunks spread over three processes, two prims per frame
+    monkeypatch.setattr(clips, "FSYNC", True)
+    src = groom(tmp_path / "in.usda")
+    simulate_usd(src, tmp_path / "one.usdc", device="cpu", no_clips=True)
+    simulate_usd(src, tmp_path / "clips.usdc", device="cpu", clips=2)
+    assert not clip_pool._EARLY  # the processes started early were the writer's
+    assert sorted(p.name for p in (tmp_path / "clips_clips").iterdir()) == [
+        *(f"clip.{i:04d}.usdc" for i in range(4)), "topology.usdc"]
+    a, b = Usd.Stage.Open(str(tmp_path / "one.usdc")), Usd.Stage.Open(str(tmp_path / "clips.usdc"))
+    for prim in ("/World/Hair", "/World/Fur"):
+        for name in ("points", "velocities", "extent"):
+            x, y = a.GetPrimAtPath(prim).GetAttribute(name), b.GetPrimAtPath(prim).GetAttribute(name)
+            assert x.GetTimeSamples() == y.GetTimeSamples() == [float(t) for t in range(1, 9)]
+            for t in range(1, 9):
+                assert np.array_equal(np.asarray(x.Get(t)), np.asarray(y.Get(t))), (prim, name, t)
+
+
+def test_a_clip_writer_process_that_dies_is_one_line_and_no_output(tmp_path):
+    from dftl_warp.errors import UserError
+    from dftl_warp.output.clips import create_clips
+    from dftl_warp.usd.read import read_scene
+
+    src = groom(tmp_path / "in.usda")
+    scene = read_scene(str(src))
+    frame = [(np.zeros((c.num_points, 3), np.float32), np.zeros((c.num_points, 3), np.float32)) for c in scene.curves]
+    with pytest.raises(UserError, match="clip writer process ended unexpectedly") as error:
+        with create_clips(tmp_path / "o.usdc", scene, frames=(1, 8), clip_frames=2) as writer:
+            writer.write_frame(1, frame)
+            for worker in writer._pool.workers:
+                worker.process.kill()
+                worker.process.wait()
+            for f in range(2, 9):
+                writer.write_frame(f, frame)
+            writer.commit()
+    assert "\n" not in str(error.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.usda"]
+
+
+def test_clip_writer_processes_follow_the_cores_and_the_memory():
+    from dftl_warp.output.clip_pool import MAX_WRITERS, slot_count, writer_count
+
+    assert [writer_count(n) for n in (1, 2, 4, 16, 64)] == [1, 2, 4, min(16, MAX_WRITERS), MAX_WRITERS]
+    assert slot_count(8, 40 << 20) == 18  # two frames per writer and two for the frame loop
+    assert slot_count(8, 1 << 40) == 2  # frames larger than the memory: two slots still
+
+
 def test_automatic_clips_and_no_clips(tmp_path, monkeypatch):
     from dftl_warp.output import clips
 

@@ -10,11 +10,13 @@ consumer therefore sees one animated stage. Next to it, in ``shot_clips/``:
   (``manifestAssetPath``);
 - ``clip.NNNN.usdc``: the time samples of chunk NNNN.
 
-Frames are gathered per chunk; a chunk is handed to a pool of writer threads as soon as its last
-frame is written, and each thread authors and saves its own crate layer while the frame loop goes
-on. Threads, not processes: authoring and saving a crate layer release the interpreter lock for
-most of their time, and processes were slower here (``scripts/bench_crate_gil.py``,
-docs/caches.md). Everything is written under hidden partial names and moved into place by
+The layers are authored by writer processes (:mod:`.clip_pool`, :mod:`.clip_process`), one per
+core (at most 8): each frame is copied into shared memory and authored into its
+chunk's layer by the process that holds the chunk while the frame loop goes on; when a chunk's
+last frame is in, its process saves it. Processes, not threads: authoring and ``Sdf.Layer.Save``
+hold Python's interpreter lock for most of their time, so threads took turns (docs/caches.md).
+``simulate`` starts the processes before its set-up (:func:`start_writers_early`).
+Everything is written under hidden partial names and moved into place by
 :meth:`ClipsWriter.commit` (the output layer last), so an interrupted run leaves no output.
 Records and QC live in the output layer. A writer failure is one :class:`UserError` line naming
 the chunk. ``batch`` resumes per finished chunk (:class:`ClipsWriter`, :meth:`ClipsWriter.reopen`).
@@ -26,21 +28,22 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-
-import numpy as np
 
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder
+from .clip_pool import ClipWriterPool
 from .usd import UsdWriter, check_output_path
 
 #: the clip set's name
 CLIP_SET = "default"
 #: ``--clips`` with no value: frames per clip chosen so that a clip holds about this many bytes
 AUTO_CLIP_BYTES = 256 << 20
-#: parallel clip writers
-WRITERS = 4
+#: writer processes; None: one per core, at most 8 (:func:`.clip_pool.writer_count`)
+WRITERS: int | None = None
+#: fsync each clip layer (in its writer process, while the next chunk is authored) before it
+#: counts as saved; off, like the single-layer writer: the disk takes the pages after the run
+FSYNC = False
 
 
 #: the output layer's record of the finished chunks (batch resume; removed at commit)
@@ -81,18 +84,28 @@ def auto_clips(scene, frames_written: int, output) -> int | None:
     return max(1, min(auto_clip_frames(scene), -(-frames_written // AUTO_MIN_CHUNKS)))
 
 
+def start_writers_early(scene, output, clips: int | None, frames_written: int) -> None:
+    """Start the writer processes now when ``output`` will be written as clips (``clips`` given,
+    or :func:`auto_clips` on ``scene``), so that their start overlaps the simulation's set-up
+    (:func:`.clip_pool.start_early`); the :class:`ClipsWriter` made next takes them."""
+    from .clip_pool import start_early
+
+    if clips is not None or auto_clips(scene, frames_written, output) is not None:
+        start_early(WRITERS)
+
+
 def auto_clip_frames(scene, velocities: bool = True) -> int:
     points = sum(c.num_points for c in scene.curves)
     per_frame = max(1, points * (24 if velocities else 12))
     return max(1, AUTO_CLIP_BYTES // per_frame)
 
 
-def _write_clip(path: Path, scene_paths, frames, velocities: bool) -> None:
+def _write_clip(path: Path, pool: ClipWriterPool, index: int) -> None:
     """:func:`_author_clip`; any failure becomes a one-line UserError naming the chunk."""
     from pxr import Tf
 
     try:
-        _author_clip(path, scene_paths, frames, velocities)
+        _author_clip(path, pool, index)
     except UserError:
         raise
     except Tf.ErrorException as exc:
@@ -103,37 +116,16 @@ def _write_clip(path: Path, scene_paths, frames, velocities: bool) -> None:
         raise UserError(f"{path}: cannot write the clip: {exc.strerror or exc}") from None
 
 
-def _author_clip(path: Path, scene_paths, frames, velocities: bool) -> None:
-    """One crate layer with the samples of ``frames``: [(time, [(points, velocities), ...])]."""
-    from pxr import Sdf, UsdGeom, Vt
-
-    final, path = Path(path), Path(path).with_name("." + Path(path).name + ".tmp.usdc")
-    with contextlib.suppress(FileNotFoundError):
-        path.unlink()
-    layer = Sdf.Layer.CreateNew(str(path))
-    with Sdf.ChangeBlock():
-        specs = []
-        for prim_path, widths in scene_paths:
-            prim = Sdf.CreatePrimInLayer(layer, prim_path)
-            prim.specifier = Sdf.SpecifierOver
-            names = [("points", Sdf.ValueTypeNames.Point3fArray), ("extent", Sdf.ValueTypeNames.Float3Array)]
-            if velocities:
-                names.append(("velocities", Sdf.ValueTypeNames.Vector3fArray))
-            for name, kind in names:
-                Sdf.AttributeSpec(prim, name, kind)
-            specs.append((Sdf.Path(prim_path), widths))
-        for time, samples in frames:
-            for (path_, widths), (p, v) in zip(specs, samples):
-                pts = Vt.Vec3fArray.FromNumpy(p)
-                layer.SetTimeSample(path_.AppendProperty("points"), time, pts)
-                e = UsdGeom.Curves.ComputeExtent(pts, widths) if widths is not None else UsdGeom.PointBased.ComputeExtent(pts)
-                layer.SetTimeSample(path_.AppendProperty("extent"), time, e)
-                if velocities and v is not None:
-                    layer.SetTimeSample(path_.AppendProperty("velocities"), time, Vt.Vec3fArray.FromNumpy(v))
-    if not layer.Save():
-        raise UserError(f"cannot write {final}")
-    del layer
-    os.replace(path, final)  # whole or absent under its own name (batch resume keeps whole chunks)
+def _author_clip(path: Path, pool: ClipWriterPool, index: int) -> None:
+    """The crate layer ``path`` of chunk ``index``, authored and saved by its writer process
+    (:mod:`.clip_process`): waits for it and raises the error the process met (OSError, or the USD
+    message)."""
+    error = pool.result(index)
+    if error is None:
+        return
+    if error[0] == "os":
+        raise OSError(error[1], error[2])
+    raise UserError(f"{path}: cannot write the clip: {error[1]}")
 
 
 class ClipsWriter(FrameWriter):
@@ -168,13 +160,20 @@ class ClipsWriter(FrameWriter):
             top = UsdWriter.create(output, scene, frames=frames, velocities=velocities, keep_partial=keep_partial)
         self.top = top
         self.targets = [(c.path, t.widths) for c, t in zip(scene.curves, self.top.targets)]
-        self._chunk: list = []
+        self._chunk: list[float] = []  # time codes of the chunk being handed over frame by frame
         self._chunk_index = None
         #: finished or handed-over chunks: (index, [time codes])
         self._clips: list[tuple[int, list[float]]] = list(chunks or [])
-        self._pool = ThreadPoolExecutor(WRITERS, thread_name_prefix="dftl-clip")
-        self._futures = []
+        #: handed-over chunks whose save is not yet confirmed: (index, path)
+        self._unconfirmed: list[tuple[int, Path]] = []
         self._written: list[float] = [t for _, times in self._clips for t in times]
+        try:
+            self._pool = ClipWriterPool(self.targets, [c.num_points for c in scene.curves], velocities,
+                                        writers=WRITERS, fsync=FSYNC, name=str(output))
+        except BaseException:
+            self.top.keep_partial = keep_partial
+            self.top.abort()
+            raise
 
     @classmethod
     def partial_path(cls, output) -> Path:
@@ -218,10 +217,8 @@ class ClipsWriter(FrameWriter):
         if self._chunk and index != self._chunk_index:
             self._submit()
         self._chunk_index = index
-        owned = [(np.array(p, dtype=np.float32, copy=True).reshape(-1, 3),
-                  None if v is None or not self.velocities else np.array(v, dtype=np.float32, copy=True).reshape(-1, 3))
-                 for p, v in samples]
-        self._chunk.append((float(time_code), owned))
+        self._pool.put_frame(index, self.partial_folder / _clip_name(index), time_code, samples)  # copied now
+        self._chunk.append(float(time_code))
         self._written.append(float(time_code))
         following = int(round(time_code)) + self.step
         if following > self.last or (following - self.first) // self.clip_frames != index:
@@ -238,11 +235,18 @@ class ClipsWriter(FrameWriter):
         return not self._chunk
 
     def _submit(self) -> None:
-        frames, index = self._chunk, self._chunk_index
+        times, index = self._chunk, self._chunk_index
         self._chunk = []
-        self._clips.append((index, [t for t, _ in frames]))
-        path = self.partial_folder / _clip_name(index)
-        self._futures.append(self._pool.submit(_write_clip, path, self.targets, frames, self.velocities))
+        self._clips.append((index, times))
+        self._pool.save(index)
+        self._unconfirmed.append((index, self.partial_folder / _clip_name(index)))
+        self._confirm(wait=False)  # a failed chunk stops the run early
+
+    def _confirm(self, wait: bool) -> None:
+        """Check the handed-over chunks' saves, in order (``wait``: all of them; else those answered)."""
+        while self._unconfirmed and (wait or self._pool.done(self._unconfirmed[0][0])):
+            index, path = self._unconfirmed.pop(0)
+            _write_clip(path, self._pool, index)
 
     def write_qc(self, time_code: float, qc: dict) -> None:
         self.top.write_qc(time_code, qc)
@@ -251,9 +255,7 @@ class ClipsWriter(FrameWriter):
         """Wait for the handed-over chunks, record them and save the output layer."""
         import json
 
-        for f in self._futures:
-            f.result()
-        self._futures = []
+        self._confirm(wait=True)
         self.top.set_record(CHUNKS_RECORD, {"clip_frames": self.clip_frames,
                                             "chunks": json.dumps([[i, times] for i, times in self._clips])})
         self.top.flush()
@@ -282,9 +284,8 @@ class ClipsWriter(FrameWriter):
         try:
             if self._chunk:
                 self._submit()
-            self._pool.shutdown(wait=True)
-            for f in self._futures:
-                f.result()
+            self._confirm(wait=True)
+            self._pool.close()
             with contextlib.suppress(KeyError):  # the chunk list is a batch record, not the output's
                 self.top.layer.customLayerData = {k: v for k, v in dict(self.top.layer.customLayerData).items()
                                                   if k != CHUNKS_RECORD}
@@ -328,7 +329,7 @@ class ClipsWriter(FrameWriter):
 
     def abort(self) -> None:
         """Drop the partial output (unless ``keep_partial``: batch resumes from its checkpoint)."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool.kill()  # before the partial folder goes: no process writes into it any more
         if self.top is not None and self.top.is_open:
             self.top.keep_partial = self.keep_partial
             self.top.abort()
