@@ -1,9 +1,9 @@
 """Hair-hair interaction (:class:`HairHair`) on a grid that follows the hair (Petrovic et al. 2005).
 
 Model data: the grid's node counts and cell size (m). Step scratch (:class:`Grid`): the grid's
-lower corner (m), density (particles per node) and momentum (m/s per node), rebuilt every substep
-(``kernels/features/grid.py``). USD: ``dftl:hairHair`` and ``dftl:hairHair*`` on the scene.
-Memory: 4 scalars per node.
+lower corner (m), density (particles per node) and momentum (m/s per node), rebuilt every
+``splat_interval`` substeps (``kernels/features/grid.py``, ``grid_strands.py``). USD:
+``dftl:hairHair`` and ``dftl:hairHair*`` on the scene. Memory: 4 scalars per node.
 """
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..kernels.features.grid import grid_bounds_kernel, grid_reset_kernel, grid_splat_kernel
-from .base import authored, nonnegative
+from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
+from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
+from .base import authored, find, nonnegative
 
 #: name -> (type, where: "scene", "curves" or "both", description)
 ATTRIBUTES = {
@@ -23,7 +24,12 @@ ATTRIBUTES = {
     "dftl:hairHairCellSize": (float, "scene", "grid cell size (stage units); default 4 x the mean segment length"),
     "dftl:hairHairFriction": (float, "scene", "rate (1/s) of relaxation toward the local mean velocity"),
     "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit density difference across a cell"),
+    "dftl:hairHairSplatInterval": (int, "scene", "substeps between rebuilds of the grid (1: every substep)"),
 }
+
+#: how the grid is splatted: "particles" (one thread per particle, one atomic per node and particle)
+#: or "strands" (one thread per strand, a strand's runs through one cell summed first)
+SPLATS = ("particles", "strands")
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,6 +41,13 @@ class HairHair:
     across one cell, pushing particles toward lower density. ``extent`` (3,), m: the grid's size,
     by default the rest bounds of the hair plus twice the longest strand on each axis, capped
     at ``max_cells`` nodes (particles outside the grid feel nothing).
+
+    ``splat_interval``: the grid is rebuilt on the first substep of each frame and every
+    ``splat_interval``-th substep after it (1: every substep; at least the substeps per frame:
+    once per frame); in between the particles sample the last grid, which was splatted with
+    each particle ``(splat_interval - 1) dt / 2`` ahead along its velocity (centred on the
+    substeps that use it). ``splat``: ``"particles"`` (one thread per particle) or ``"strands"``
+    (one per strand, fewer atomics; the same sums up to rounding), see :data:`SPLATS`.
     """
 
     cell_size: float
@@ -42,12 +55,19 @@ class HairHair:
     repulsion: float = 5.0
     extent: np.ndarray | None = None
     max_cells: int = 1 << 24
+    splat_interval: int = 1
+    splat: str = "particles"
 
     def __post_init__(self):
         if not float(self.cell_size) > 0:
             raise ValueError(f"hair-hair cell_size must be > 0 (m), got {self.cell_size}")
         nonnegative(self.friction, "hair-hair friction")
         nonnegative(self.repulsion, "hair-hair repulsion")
+        k = self.splat_interval
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise ValueError(f"hair-hair splat_interval must be an integer >= 1 (substeps), got {k!r}")
+        if self.splat not in SPLATS:
+            raise ValueError(f"hair-hair splat must be one of {', '.join(SPLATS)}, got {self.splat!r}")
 
     flags = frozenset({"hair_hair"})
 
@@ -80,37 +100,83 @@ def grid_dimensions(hh: HairHair, points, counts) -> tuple[tuple[int, int, int],
 
 
 class Grid:
-    """The step's grid: ``arrays`` ``lower`` (3,) m, ``density`` and ``momentum`` per node."""
+    """The step's grid: ``arrays`` ``lower`` (3,) m, ``density`` and ``momentum`` per node.
+
+    :meth:`rebuild` (the single-device step) finds the lower corner and splats every
+    ``splat_interval``-th substep of a frame; :meth:`bounds` and :meth:`splat` are its two
+    phases (a groom split across devices combines its parts' grids between them, every substep).
+    The substeps of a frame are counted from their root fractions, which grow across a frame and
+    start again at the next (a frame captured in a CUDA graph replays the rebuilds it captured).
+    """
 
     def __init__(self, model, shape, cell: float):
         self.model = model
         self.shape = tuple(shape)
         self.cell = float(cell)
+        hh = find(model.feature_data.features, HairHair) if model.feature_data is not None else None
+        self.interval = int(hh.splat_interval) if hh is not None else 1
+        self.by_strands = hh is not None and hh.splat == "strands"
+        #: splat (interval - 1) dt / 2 ahead (False: at the positions themselves; for measurements)
+        self.centred = True
+        self._last_alpha = None
+        self._substep = 0
         self.arrays = {
             "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
             "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
             "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),
         }
 
+    def _splat_kernel(self, ahead: bool):
+        s = self.model.scalar
+        return grid_splat_strands_kernel(s, ahead) if self.by_strands else grid_splat_kernel(s, ahead)
+
     def kernels(self) -> list:
         s = self.model.scalar
-        return [grid_reset_kernel(s), grid_bounds_kernel(s), grid_splat_kernel(s)]
+        return [grid_reset_kernel(s), grid_bounds_strands_kernel(s), self._splat_kernel(False),
+                self._splat_kernel(self.interval > 1)]
+
+    def due(self, root_alpha: float) -> bool:
+        """Whether the substep ending at root fraction ``root_alpha`` rebuilds the grid: the first
+        of a frame (``root_alpha`` not above the previous substep's) and every ``interval``-th after."""
+        alpha = float(root_alpha)
+        if self._last_alpha is None or alpha <= self._last_alpha:
+            self._substep = 0
+        else:
+            self._substep += 1
+        self._last_alpha = alpha
+        return self._substep % self.interval == 0
+
+    def rebuild(self, positions, velocities, dt: float, root_alpha: float) -> bool:
+        """Bounds and splat when :meth:`due` (the particles ``(interval - 1) dt / 2`` s ahead);
+        returns whether it did."""
+        if not self.due(root_alpha):
+            return False
+        self.bounds(positions)
+        self.splat(positions, velocities, 0.5 * (self.interval - 1) * float(dt) if self.centred else 0.0)
+        return True
 
     def bounds(self, positions) -> None:
-        """The lower corner from this model's particles (atomic min)."""
+        """The lower corner from this model's particles (atomic min of each strand's minimum)."""
         m, g = self.model, self.arrays
         wp.launch(grid_reset_kernel(m.scalar), dim=1, device=m.device, outputs=[g["lower"]])
-        wp.launch(grid_bounds_kernel(m.scalar), dim=m.num_slots, device=m.device, inputs=[positions],
-                  outputs=[g["lower"]])
+        wp.launch(grid_bounds_strands_kernel(m.scalar), dim=m.num_strands, device=m.device,
+                  inputs=[m.strand_base, m.strand_stride, m.strand_count, positions], outputs=[g["lower"]])
 
-    def splat(self, positions, velocities) -> None:
-        """Density and momentum of this model's particles onto the grid (from ``lower``)."""
+    def splat(self, positions, velocities, lead: float = 0.0) -> None:
+        """Density and momentum of this model's particles onto the grid (from ``lower``), each
+        particle ``lead`` seconds ahead along its velocity."""
         m, g = self.model, self.arrays
         g["density"].zero_()
         g["momentum"].zero_()
-        wp.launch(grid_splat_kernel(m.scalar), dim=m.num_slots, device=m.device,
-                  inputs=[positions, velocities, g["lower"], 1.0 / self.cell, *self.shape],
-                  outputs=[g["density"], g["momentum"]])
+        kernel = self._splat_kernel(lead != 0.0)
+        tail = [g["lower"], 1.0 / self.cell, float(lead), *self.shape]
+        if self.by_strands:
+            wp.launch(kernel, dim=m.num_strands, device=m.device,
+                      inputs=[m.strand_base, m.strand_stride, m.strand_count, positions, velocities, *tail],
+                      outputs=[g["density"], g["momentum"]])
+        else:
+            wp.launch(kernel, dim=m.num_slots, device=m.device, inputs=[positions, velocities, *tail],
+                      outputs=[g["density"], g["momentum"]])
 
     def fill_struct(self, st, hh: HairHair) -> None:
         g = self.arrays
@@ -131,5 +197,9 @@ def from_attributes(scene: dict, where: str, mean_segment: float) -> list:
     cell = authored(scene, "dftl:hairHairCellSize", where, float, 4.0 * mean_segment)
     if not cell > 0:
         raise ValueError(f"{where}: dftl:hairHairCellSize = {cell}: must be > 0")
+    interval = authored(scene, "dftl:hairHairSplatInterval", where, int, 1)
+    if interval < 1:
+        raise ValueError(f"{where}: dftl:hairHairSplatInterval = {interval}: must be >= 1")
     return [HairHair(cell_size=cell, friction=authored(scene, "dftl:hairHairFriction", where, float, 2.0),
-                     repulsion=authored(scene, "dftl:hairHairRepulsion", where, float, 5.0))]
+                     repulsion=authored(scene, "dftl:hairHairRepulsion", where, float, 5.0),
+                     splat_interval=interval)]

@@ -246,21 +246,23 @@ class FeatureStep:
         return st
 
     def launch(self, state_in, state_out, control, dt, root_alpha, head_inputs):
-        self.pose_and_bounds(state_in, control, root_alpha)
-        self.splat(state_in)
+        self.pose_and_bounds(state_in, control, root_alpha, grid=False)
+        if self._grid is not None:  # bounds and splat, every splat_interval-th substep of a frame
+            self._grid.rebuild(state_in.positions, state_in.velocities, dt, root_alpha)
         self.sweep(state_in, state_out, control, head_inputs)
 
     # the phases of :meth:`launch`; a split groom (dftl_warp.simulation.multi_device) combines its parts'
     # grids between them
 
-    def pose_and_bounds(self, state_in, control, root_alpha) -> None:
-        """This substep's collider poses; the grid's lower corner from this model's particles."""
+    def pose_and_bounds(self, state_in, control, root_alpha, grid: bool = True) -> None:
+        """This substep's collider poses; the grid's lower corner from this model's particles
+        (``grid=False``: the poses only)."""
         if control.features is None:
             raise ValueError("this control was made before the model had features; use model.control()")
         fc = control.features
         if fc.colliders is not None:
             fc.colliders.advance(root_alpha)
-        if self._grid is not None:
+        if grid and self._grid is not None:
             self._grid.bounds(state_in.positions)
 
     def splat(self, state_in) -> None:

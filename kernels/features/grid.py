@@ -1,11 +1,14 @@
 """Hair-hair interaction on a grid (DFTL paper sec. 5, after Petrovic, Henne and Anderson 2005).
 
-Each step, before the sweep:
+Before the sweep, every ``splat_interval``-th substep of a frame (every substep by default;
+:class:`~dftl_warp.features.hair_hair.Grid`):
 
-1. :func:`grid_bounds_kernel` finds the lower corner of the hair's bounding box (atomic min), so
-   the grid follows the hair wherever the roots take it;
+1. the lower corner of the hair's bounding box (atomic min), so the grid follows the hair wherever
+   the roots take it: :func:`grid_bounds_kernel` (one thread per particle), or
+   ``grid_strands.grid_bounds_strands_kernel`` (one per strand, the same minimum; the step's);
 2. :func:`grid_splat_kernel` splats every particle's *density* (trilinear weights, in particles
-   per node) and *momentum* (weight times velocity, m/s) onto the grid nodes with atomics.
+   per node) and *momentum* (weight times velocity, m/s) onto the grid nodes with atomics
+   (``grid_strands.grid_splat_strands_kernel``: the same sums, one thread per strand).
 
 During the sweep, :func:`grid_sample_func` gives each free particle, at its previous position:
 
@@ -110,26 +113,35 @@ def grid_cell_func(scalar):
 
 
 @functools.cache
-def grid_splat_kernel(scalar):
-    """Kernel splatting density (particles per node) and momentum (m/s per node) trilinearly."""
+def grid_splat_kernel(scalar, ahead: bool = False):
+    """Kernel splatting density (particles per node) and momentum (m/s per node) trilinearly;
+    ``ahead``: each particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused)."""
     vec3 = wp.types.vector(3, scalar)
     cell = grid_cell_func(scalar)
     one = scalar(1.0)
+    AHEAD = bool(ahead)
 
     @wp.kernel(enable_backward=False, module="unique")
     def grid_splat(
+        # Data in: particle positions (m) and velocities (m/s), device frame
         positions: wp.array(dtype=vec3),
         velocities: wp.array(dtype=vec3),
+        # Model: the grid (lower corner m, 1 / cell size 1/m, node counts); lead (s)
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
+        lead: scalar,
         nx: int,
         ny: int,
         nz: int,
+        # Data out: density (particles per node) and momentum (m/s per node), zeroed beforehand
         density: wp.array3d(dtype=scalar),
         momentum: wp.array3d(dtype=vec3),
     ):
         p = wp.tid()
-        ok, i, j, k, fx, fy, fz = cell(positions[p], lower, inv_h, nx, ny, nz)
+        x = positions[p]
+        if wp.static(AHEAD):
+            x = x + lead * velocities[p]
+        ok, i, j, k, fx, fy, fz = cell(x, lower, inv_h, nx, ny, nz)
         if not ok:
             return
         v = velocities[p]
