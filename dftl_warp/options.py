@@ -234,7 +234,7 @@ _RUN = [
            cli="--precision", toml="precision", api="precision"),
     Option("quality", str, None,
            "a measured preset of solver, substeps and precision (docs/accuracy.md); explicit flags "
-           "override its parts", choices=QUALITY_NAMES, cli="--quality", toml="quality"),
+           "override its parts", choices=QUALITY_NAMES, cli="--quality", toml="quality", api="quality"),
     Option("device", str, None,
            "cpu or cuda:N; a list (cuda:0,cuda:1) splits the strands across devices; unset: cuda:0 "
            "when Warp finds a CUDA device, else cpu ($DFTL_WARP_DEVICE overrides)",
@@ -277,6 +277,9 @@ _USD = [
            low=0.0, usd="dftl:hairHairFriction", scope="scene"),
     Option("hairHairRepulsion", float, 5.0, "acceleration per unit density difference across a cell",
            unit="stage units/s^2", low=0.0, usd="dftl:hairHairRepulsion", scope="scene"),
+    Option("hairHairSplatInterval", int, 1,
+           "substeps between rebuilds of the hair-hair grid (1: every substep; the substeps per frame or "
+           "more: once per frame)", unit="substeps", low=1, usd="dftl:hairHairSplatInterval", scope="scene"),
     Option("shapeStiffness", float, None, "retired (shape retention)", usd="dftl:shapeStiffness", scope="both",
            retired=SHAPE_STIFFNESS_RETIRED),
     Option("collisionIterations", int, 2, "collide-and-restore rounds per particle", low=1,

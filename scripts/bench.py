@@ -165,7 +165,8 @@ def bench_block_dim(device, timer, copy_bw, strands, count, block_dims=(64, 128,
             for k in range(steps):
                 wp.launch(solver._kernel, dim=m.num_strands, block_dim=block_dim, device=device,
                           inputs=[m.strand_base, m.strand_stride, m.strand_count, control.root_start,
-                                  control.root_end, 1.0, m.rest_lengths, solver.gravity, DT, 1.0,
+                                  control.root_end, control.root_deviation_start, control.root_deviation_end,
+                                  1.0, m.rest_lengths, solver.gravity, DT, 1.0,
                                   state.positions, state.velocities, state.corrections],
                           outputs=[state.positions, state.velocities, state.corrections])
         t = timer(graph_of(device, run)) / steps

@@ -8,7 +8,9 @@ stand for the head (sphere, mesh) or sit below it (capsule: a neck, box: shoulde
 deforming body (a bumpy closed head of 50800 triangles whose points change every frame, as a point
 cache's) runs twice: through exact mesh queries and through its signed distance field; its rows
 include the per-frame update (BVH refit, and the field's rebuild), which is also given on its own.
-Each row runs the same groom with one feature; the ratio is to the bare step timed in the same
+Each row runs the same groom with one feature; the last row runs the production scene of issue 20
+(the deforming body through its field, hair-hair, wind with curl noise and drag; DFTL strands, as
+the elastic solver does not support hair-hair yet). The ratio is to the bare step timed in the same
 run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
 path features take; the fused-substep figure is given for reference.
 
@@ -142,6 +144,15 @@ def scenarios(pts, counts, roots):
         ("wind + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0.0, 0.0))], {}),
         ("wind with curl noise + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], {}),
         ("hair-hair grid (1 cm cells)", [F.HairHair(cell_size=0.01)], {}),
+        # the production scene of issue 20 (with DFTL strands: the elastic solver has no hair-hair yet)
+        (f"production scene: deforming body ({len(body_tris)} triangles, field) + hair-hair + wind with curl "
+         "noise + drag", [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
+                          F.HairHair(cell_size=0.01), F.Drag(1.0),
+                          F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], deform),
+        ("production scene, hair-hair grid rebuilt every 5 substeps (splat_interval=5)",
+         [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
+          F.HairHair(cell_size=0.01, splat_interval=5), F.Drag(1.0),
+          F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], deform),
     ]
 
 

@@ -2,7 +2,7 @@
 """Check on a device that fused substeps (on chip and pipelined) equal the per-step path bitwise.
 
 A groom of 3000 strands of 1 to 159 vertices (on-chip, pipelined and single-vertex runs mixed),
-roots swinging inside every frame, 3 frames of k substeps, float32 and float64; k = 3 is not a
+roots swinging inside every frame on the C1 (Hermite) root path, 3 frames of k substeps, float32 and float64; k = 3 is not a
 pipeline width on CUDA and takes the per-step path. Prints one line per case; exits 1 on a
 mismatch. The CPU tests check the serial form of the pipeline; this checks the CUDA one.
 
@@ -48,9 +48,14 @@ def main() -> int:
                 model = dw.Model.from_strands(pts, counts, precision=precision, device=args.device)
                 solver = dw.DFTLSolver(model, fused=fused)
                 state, control = solver.state(), model.control()
+                duration = k / 240  # the frame: k substeps of 1/240 s
                 for frame in range(3):
                     offset = lambda a: 0.05 * np.array([np.sin(a), 1 - np.cos(a), 0.3 * a])  # noqa: E731
-                    control.set_root_targets(roots + offset(0.7 * frame), roots + offset(0.7 * frame + 0.7))
+                    # the root's velocity (units/s): the C1 root path inside the frame (Hermite)
+                    rate = lambda a: 0.05 * np.array([np.cos(a), np.sin(a), 0.3]) * 0.7 / duration  # noqa: E731
+                    v0, v1 = (np.broadcast_to(rate(a), roots.shape) for a in (0.7 * frame, 0.7 * frame + 0.7))
+                    control.set_root_targets(roots + offset(0.7 * frame), roots + offset(0.7 * frame + 0.7),
+                                             velocity_start=v0, velocity_end=v1, frame_duration=duration)
                     solver.advance(state, control, 1 / 240, k)
                 out.append((model.points_from_device(state.positions),
                             model.points_from_device(state.velocities, relative=False), state.corrections.numpy()))

@@ -5,14 +5,19 @@ scripts/elastic_study.py, started at its equilibrium (inverse statics), its root
 y = A (1 - cos 2 pi t) / 2 (A = 1 cm, 1 Hz), 8 substeps per 24 fps frame, 48 frames; p1 / median /
 p99 of |v| / |central difference| where the central difference is at least 10% of its largest.
 
-Two drives of the same root: the Control's (linear across each frame, so the root's velocity is
-the frame's mean and jumps every frame) and the exact path set before every substep.
+Three drives of the same root: the Control's linear path (no root velocities: the root's
+velocity is the frame's mean and jumps every frame), the Control's C1 path (root velocities at the
+frame's ends from the frames' positions, ``dftl_warp.core.state.frame_velocity``, as
+``simulate_usd`` sets them; docs/elastic.md, velocities) and the exact path set before every
+substep. World space (the Control's), not the written local velocities of a USD output
+(tests/test_root_path.py measures those).
 
-    python scripts/elastic_root_drive.py
+    python scripts/elastic_root_drive.py [--damping S]
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -27,20 +32,30 @@ SUBSTEPS = 8
 FRAMES = 48
 
 
-def ratios(per_substep: bool) -> np.ndarray:
+def ratios(drive: str, damping: float | None) -> np.ndarray:
+    from dftl_warp.core.state import frame_velocity
+
     _, _, _, _, lb = es.material()
-    model, solver, state, control = es.setup(es.straight([lb]), inverse_statics=True)
+    options = {} if damping is None else {"damping": damping}
+    model, solver, state, control = es.setup(es.straight([lb]), inverse_statics=True, **options)
     y = lambda t: AMPLITUDE * (1 - np.cos(2 * np.pi * t)) / 2  # noqa: E731
     root = lambda t: np.array([[0.0, y(t), 0.0]])  # noqa: E731
     h = 1.0 / (es.FPS * SUBSTEPS)
+    T = 1.0 / es.FPS
+    at_frame = lambda f: root(f * T)  # noqa: E731
     xs, vs = [], []
     for f in range(FRAMES):
-        if per_substep:
+        if drive == "exact":
             for k in range(SUBSTEPS):
                 control.set_root_targets(root((f + k / SUBSTEPS) / es.FPS), root((f + (k + 1) / SUBSTEPS) / es.FPS))
                 solver.advance(state, control, h, 1)
+        elif drive == "c1":   # the shot is frames 0 .. FRAMES
+            control.set_root_targets(at_frame(f), at_frame(f + 1), frame_duration=T,
+                                     velocity_start=frame_velocity(at_frame, f, 0, FRAMES, T),
+                                     velocity_end=frame_velocity(at_frame, f + 1, 0, FRAMES, T))
+            solver.advance(state, control, h, SUBSTEPS)
         else:
-            control.set_root_targets(root(f / es.FPS), root((f + 1) / es.FPS))
+            control.set_root_targets(at_frame(f), at_frame(f + 1))
             solver.advance(state, control, h, SUBSTEPS)
         xs.append(es.points(model, state, (es.N + 1, 3)))
         vs.append(model.points_from_device(state.velocities, relative=False).reshape(es.N + 1, 3))
@@ -52,10 +67,16 @@ def ratios(per_substep: bool) -> np.ndarray:
 
 
 def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--damping", type=float, default=None, help="the elastic solver's s (default: its default)")
+    args = ap.parse_args()
     wp.config.quiet = True
     wp.init()
-    for name, exact in (("linear across the frame (the Control)", False), ("exact at every substep", True)):
-        p1, med, p99 = ratios(exact)
+    print(f"damping: {'the solver default' if args.damping is None else args.damping}")
+    for name, drive in (("linear across the frame (the Control, no root velocities)", "linear"),
+                        ("on the Control's C1 path (root velocities from the frames)", "c1"),
+                        ("exact at every substep", "exact")):
+        p1, med, p99 = ratios(drive, args.damping)
         print(f"root {name}: |v| / |central difference| p1 {p1:.2f}, median {med:.2f}, p99 {p99:.2f}")
     return 0
 

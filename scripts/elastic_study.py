@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import time
 from datetime import date
@@ -212,7 +213,7 @@ def main() -> int:
     wp.config.quiet = True
     wp.init()
     E, rho, ei, w, lb = material()
-    res = {"date": str(date.today()), "machine": f"{platform.processor() or platform.machine()}, CPU device",
+    res = {"date": str(date.today()), "machine": f"{os.cpu_count()}-core CPU VM ({platform.machine()}), CPU device",
            "material": {"E (Pa)": E, "density (kg/m^3)": rho, "radius (m)": R, "l_b (m)": lb}}
     res["statics"], res["sag spread over 2/8/32 substeps (/L)"] = statics((0.5, 1.0, 2.0, 4.0), lb, ei, w)
     res["frequency (omega/omega1 - 1)"] = frequency(lb, ei, rho)

@@ -3,7 +3,7 @@
 ``dftl-warp simulate`` and measure the style metrics of issue 17 ("Real grooms").
 
     python scripts/groom_style_check.py GROOM.usda [--head auto|none|sphere|MESH.obj|MESH.ply]
-        [--motion static|turn] [--frames 48] [--shape-stiffness S] [--device cpu]
+        [--motion static|turn] [--frames 48] [--fps F [--resolution-every K]] [--shape-stiffness S] [--device cpu]
         [--json out.json] [--markdown out.md] [--sheet before_after.png] [--label NAME]
         [--keep DIR] [any other flag of `dftl-warp simulate`, e.g. --solver pbd --substeps 4]
 
@@ -37,6 +37,11 @@ the written time samples:
 - velocity consistency: |written velocity| / |central difference of written points| (both local,
   as USD defines velocities), over non-root points of inner frames whose central difference is at
   least 1% of its p99; p1, median and p99.
+
+With ``--fps F --resolution-every K`` (e.g. 96 and 4, with ``--frames`` and ``--substeps`` scaled
+to keep the run's length and substep) it also says whether F/K frames per second resolve the
+hair's local motion: the share of its velocity power above F/2K Hz, and the velocity ratio at
+every K-th frame against the central difference at F/K and at F frames per second.
 
 It writes the numbers as JSON (``--json``) and a markdown table row (``--markdown``, appended),
 prints both, and with ``--sheet`` renders frame 1 and the last frame side by side into one PNG
@@ -121,7 +126,7 @@ def write_wrapper(groom_path, folder, args):
     gstage, groot, curves = read_groom(groom_path)
     up = UsdGeom.GetStageUpAxis(gstage)
     mpu = UsdGeom.GetStageMetersPerUnit(gstage)
-    tcps = gstage.GetTimeCodesPerSecond()
+    tcps = args.fps or gstage.GetTimeCodesPerSecond()
     start = 1
     end = start + args.frames - 1
 
@@ -325,6 +330,41 @@ def measure(prims, up_index, fps):
     return res
 
 
+def resolution(prims, fps, every):
+    """Is the hair's local motion resolved by ``fps / every`` frames per second? For a run written
+    at ``fps``: the share of the non-root points' local velocity power (spectrum of the frame-to-frame
+    differences over the run) above the coarse rate's Nyquist frequency and above twice it, the share
+    of points with most of their power above it, and the velocity ratio (``measure``'s definition)
+    at every ``every``-th frame against the central difference at the coarse rate and at ``fps``."""
+    def ratio(v, cd):
+        nv, ncd = np.linalg.norm(v, axis=2).ravel(), np.linalg.norm(cd, axis=2).ravel()
+        keep = ncd >= 0.01 * np.percentile(ncd, 99)
+        return np.percentile(nv[keep] / ncd[keep], [1, 99]).tolist()
+
+    nyquist = fps / every / 2
+    power, share, coarse, fine = [], [], [], []
+    for d in prims:
+        first, _ = roots_tips(d["authored"], d["counts"])
+        nonroot = np.ones(len(d["authored"]), dtype=bool)
+        nonroot[first] = False
+        x, v = d["local"][:, nonroot], d["vel"][:, nonroot]
+        rate = np.diff(x, axis=0) * fps
+        spec = (np.abs(np.fft.rfft(rate - rate.mean(axis=0), axis=0)) ** 2).sum(axis=2)   # (freq, points)
+        freq = np.fft.rfftfreq(rate.shape[0], 1.0 / fps)
+        power.append([spec.sum(), spec[freq > nyquist].sum(), spec[freq > 2 * nyquist].sum()])
+        share.append(spec[freq > nyquist].sum(axis=0) > 0.5 * spec.sum(axis=0))
+        centre = np.arange(every, x.shape[0] - every, every)            # frames with a coarse neighbour each side
+        coarse.append((v[centre], (x[centre + every] - x[centre - every]) * (fps / every) / 2))
+        fine.append((v[centre], (x[centre + 1] - x[centre - 1]) * fps / 2))
+    total, above, above2 = np.sum(power, axis=0)
+    join = lambda pairs: ratio(np.concatenate([p[0] for p in pairs], axis=1),  # noqa: E731
+                               np.concatenate([p[1] for p in pairs], axis=1))
+    return dict(resolution_every=every, coarse_fps=fps / every,
+                power_above_nyquist=float(above / total), power_above_2nyquist=float(above2 / total),
+                points_mostly_above_nyquist=float(np.concatenate(share).mean()),
+                vel_ratio_coarse_p1_p99=join(coarse), vel_ratio_fine_p1_p99=join(fine))
+
+
 # ----------------------------------------------------------------------------- contact sheet
 
 def render_view(out_usd, folder, width):
@@ -415,6 +455,13 @@ def main(argv=None):
     ap.add_argument("--turn-degrees", type=float, default=60.0)
     ap.add_argument("--turn-period", type=float, default=2.0, help="seconds (default 2)")
     ap.add_argument("--frames", type=int, default=48, help="frames simulated, from 1 (default 48 = 2 s at 24 fps)")
+    ap.add_argument("--resolution-every", type=int, default=0, metavar="K",
+                    help="also measure whether fps/K frames per second resolve the hair's local motion "
+                         "(spectrum, ratio at every K-th frame against the coarse and the full-rate central "
+                         "difference; docs/grooms.md), e.g. 4 with --fps 96")
+    ap.add_argument("--fps", type=float, default=None,
+                    help="the wrapper's timeCodesPerSecond (default: the groom's); e.g. 96 with --frames 192 "
+                         "--substeps 2 for the same 2 s and substep as 24 fps x 8, sampled 4x as often")
     ap.add_argument("--device", default="cpu", help="for simulate and render (default cpu)")
     ap.add_argument("--label", default=None, help="row label (default: groom file name + settings)")
     ap.add_argument("--json", default=None)
@@ -442,6 +489,8 @@ def main(argv=None):
         prims = read_output(out_usd, meta["start"], meta["end"])
         up_index = 2 if meta["up"] == "Z" else 1
         res = measure(prims, up_index, meta["fps"])
+        if args.resolution_every:
+            res.update(resolution(prims, meta["fps"], args.resolution_every))
         res.update(label=label, groom=os.path.abspath(args.groom), motion=args.motion, head=meta["head"],
                    frames=args.frames, device=args.device,
                    simulate_flags=extra, sim_seconds=sim_s, command=" ".join(sys.argv if argv is None else argv))

@@ -275,7 +275,8 @@ def test_quality_preset_fills_unset_options(tmp_path):
         {"input": "b.usda", "output": "b.usdc", "solver": "pbd", "iterations": 6},
         {"input": "c.usda", "output": "c.usdc", "quality": "best"},
     ], defaults={"precision": "float64"}))
-    assert jobs[0].options == {"solver": "dftl", "damping": 1.0, "correction": "prior", "substeps": 4,
+    # the preset's solver stays with ``quality`` (chains take it; prims running the elastic solver keep it)
+    assert jobs[0].options == {"quality": "production", "damping": 1.0, "correction": "prior", "substeps": 4,
                                "precision": "float64"}
     assert jobs[1].options == {"precision": "float64", "solver": "pbd", "iterations": 6}
     assert "quality must be one of draft, production, reference" in jobs[2].error

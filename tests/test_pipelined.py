@@ -67,8 +67,9 @@ def test_streams_of_several_strands_per_group(groups, rng):
     scalars = wp.empty((groups * K, 2), dtype=model.scalar, device="cpu")
     for frame in range(2):
         swing_roots(control, roots, frame)
-        wp.launch(pipelined_serial_kernel(model.scalar), dim=groups, device="cpu",
-                  inputs=[0, 7, groups, 45, 0, 1, 32, 7, control.root_start, control.root_end, model.rest_lengths,
+        wp.launch(pipelined_serial_kernel(model.scalar, control.root_path_curved), dim=groups, device="cpu",
+                  inputs=[0, 7, groups, 45, 0, 1, 32, 7, control.root_start, control.root_end,
+                          control.root_deviation_start, control.root_deviation_end, model.rest_lengths,
                           solver.gravity, 1 / 240, solver.damping, K, vectors, scalars,
                           state.positions, state.velocities, state.corrections])
     assert np.array_equal(model.points_from_device(state.positions), ref[0])

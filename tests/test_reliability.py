@@ -402,11 +402,13 @@ def test_licence_is_an_spdx_string():
 def test_describe_quality():
     from dftl_warp.simulation.quality import describe_quality
 
-    assert describe_quality("production") == ("dftl-warp: quality production: solver dftl, 16 substeps per frame, "
-                                              "float32, damping 1, prior correction")
+    assert describe_quality("production").startswith(
+        "dftl-warp: quality production: solver dftl, 256 substeps per frame, float32, damping 1, prior correction; "
+        "measured 0.0169 of the strand length")
     line = describe_quality("draft", {"substeps": 4, "solver": None})
-    assert "4 substeps per frame (given; the preset has 1 substep per frame)" in line
-    assert describe_quality("reference").endswith("solver reference, 64 substeps per frame, float64")
+    assert "4 substeps per frame (given; the preset has 16 substeps per frame)" in line
+    assert "measured" not in line  # an override leaves the measured setting
+    assert "solver rattle, 16 substeps per frame, float32; measured 0.000264" in describe_quality("reference")
 
 
 def test_sigterm_to_a_batch_keeps_its_checkpoints(tmp_path):

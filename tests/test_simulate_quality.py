@@ -45,8 +45,8 @@ def test_quality_preset_sets_solver_substeps_and_precision(tmp_path, capsys):
     assert main(["simulate", str(scene), "-o", str(out), "--quality", "draft", "--quiet"]) == 0
     from dftl_warp.simulation.simulate import simulate_usd
 
-    reference = simulate_usd(str(scene), str(tmp_path / "explicit.usdc"), substeps=1, solver="dftl")
-    assert reference.groups[0]["substeps"] == 1
+    reference = simulate_usd(str(scene), str(tmp_path / "explicit.usdc"), substeps=16, solver="dftl")
+    assert reference.groups[0]["substeps"] == 16
     assert np.array_equal(written_points(out, 3), written_points(tmp_path / "explicit.usdc", 3))
     # an explicit flag overrides the preset's part
     out2 = tmp_path / "draft4.usdc"
@@ -63,3 +63,29 @@ def test_pbd_iterations_flag_changes_the_result(tmp_path):
                      "--quiet"]) == 0
         runs[k] = written_points(out, 3)
     assert np.isfinite(runs[1]).all() and not np.array_equal(runs[1], runs[8])
+
+
+def test_quality_preset_keeps_the_elastic_solver_of_prims_with_widths(tmp_path, capsys):
+    """A preset's solver is for the chains it was measured on: a prim with widths (an elastic rod by
+    default) keeps the elastic solver and takes the preset's substeps; a chain takes the preset's
+    solver. The run says so."""
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    path = tmp_path / "two.usda"
+    stage = new_stage(path, start=1, end=2)
+    pts = np.zeros((6, 3))
+    pts[:, 1] = -np.linspace(0.0, 0.02, 6)
+    add_curves(stage, "/World/Styled", pts, [6], widths=[8e-5] * 6, bending=None)   # elastic by default
+    add_curves(stage, "/World/Chain", pts + [0.1, 0, 0], [6])                        # no widths: the chain
+    stage.GetRootLayer().Save()
+    summary = simulate_usd(str(path), str(tmp_path / "out.usdc"), quality="draft", substeps=16, damping=1.0,
+                           correction="prior", precision="float32")
+    # one prim per group; only /World/Styled has widths, so the elastic group is it
+    assert sorted((g["solver"], g["substeps"], g["prims"]) for g in summary.groups) == [("dftl", 16, 1),
+                                                                                        ("elastic", 16, 1)]
+    assert any("1 prim(s) with widths keep the elastic solver" in w for w in summary.warnings)
+    reference = simulate_usd(str(path), str(tmp_path / "ref.usdc"), quality="reference", substeps=16,
+                             precision="float32")
+    assert {g["solver"] for g in reference.groups} == {"elastic", "rattle"}
+    # through the command line: the preset's note, then the run
+    assert main(["simulate", str(path), "-o", str(tmp_path / "cli.usdc"), "--quality", "draft", "--quiet"]) == 0

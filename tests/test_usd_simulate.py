@@ -36,8 +36,10 @@ def test_centimetre_z_up_scene_falls_like_the_metre_y_up_scene(tmp_path):
 
 
 def test_animated_parent_transform_carries_roots_and_results_are_local(tmp_path):
-    """Roots follow the animated (translating + turning) parent, linearly interpolated across
-    substeps; the result equals a world-space reference simulation and is written in local space."""
+    """Roots follow the animated (translating + turning) parent on the C1 root path across
+    substeps (cubic Hermite between the frames' roots, tangents their fourth-order differences
+    over the shot's frames, one-sided at its ends: docs/usd.md); the result equals a world-space
+    reference simulation and is written in local space."""
     frames, substeps, fps = 8, 4, 24.0
     stage = new_stage(tmp_path / "in.usda", start=1, end=frames)
     animated_xform(stage, "/World/Head", translate={1: (0, 0, 0), 4: (0.3, 0.1, 0), 8: (0.2, -0.2, 0.4)},
@@ -52,13 +54,25 @@ def test_animated_parent_transform_carries_roots_and_results_are_local(tmp_path)
     out = tmp_path / "out.usdc"
     simulate_usd(tmp_path / "in.usda", out, substeps=substeps)
 
-    # reference: world-space simulation with root targets interpolated linearly per substep
+    # reference: world-space simulation with the root targets of every substep on the C1 path
     starts = np.array([0, 6])
     m = {f: local_to_world(tmp_path / "in.usda", "/World/Head/Offset/Hair", f) for f in range(1, frames + 1)}
-    roots = [transform_points(m[1], local[starts])]
+    at = {f: transform_points(m[f], local[starts]) for f in m}
+    # fourth-order differences over 5 frames, the window kept inside the shot (frames 1..8)
+    stencils = {0: [-25, 48, -36, 16, -3], 1: [-3, -10, 18, -6, 1], 2: [1, -8, 0, 8, -1],
+                3: [-1, 6, -18, 10, 3], 4: [3, -16, 36, -48, 25]}
+    T = 1.0 / fps
+
+    def velocity(f):
+        lo = min(max(f - 2, 1), frames - 4)
+        return sum(w * at[lo + j] for j, w in enumerate(stencils[f - lo])) / (12.0 * T)
+
+    roots = [at[1]]
     for f in range(1, frames):
-        a, b = transform_points(m[f], local[starts]), transform_points(m[f + 1], local[starts])
-        roots += [a + (k / substeps) * (b - a) for k in range(1, substeps + 1)]
+        for k in range(1, substeps + 1):
+            u = k / substeps   # Hermite basis: h00 x0 + h10 T v0 + h01 x1 + h11 T v1
+            roots.append((2 * u**3 - 3 * u**2 + 1) * at[f] + (u**3 - 2 * u**2 + u) * T * velocity(f)
+                         + (3 * u**2 - 2 * u**3) * at[f + 1] + (u**3 - u**2) * T * velocity(f + 1))
     ref = simulate_strands(transform_points(m[1], local), [6, 4], steps=(frames - 1) * substeps,
                            dt=1.0 / (fps * substeps), gravity=(0.0, -9.81, 0.0), record_every=substeps,
                            roots=np.array(roots))

@@ -72,8 +72,8 @@ def run(args) -> int:
 
     preset = quality_preset(args.quality) if args.quality else {}
     given = {n: getattr(args, n) for n in ("solver", "substeps", "precision", "damping", "correction")}
-    for name in given:
-        if getattr(args, name) is None and name in preset:
+    for name in given:  # the preset's solver goes through ``quality``: prims running the elastic solver keep it
+        if getattr(args, name) is None and name in preset and name != "solver":
             setattr(args, name, preset[name])
     try:
         summary = _simulate(args, simulate_usd, preset, given, describe_quality)

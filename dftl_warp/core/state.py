@@ -6,6 +6,7 @@ in place with ``state_in is state_out``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -155,12 +156,74 @@ class State:
         return int(sum(a.capacity for a in arrays) // n)
 
 
+#: frames in the difference stencil of :func:`frame_velocity` (fourth order)
+VELOCITY_STENCIL = 5
+
+
+@functools.cache
+def stencil_weights(offsets: tuple) -> tuple:
+    """Weights ``w`` (exact fractions, as floats) of the finite difference ``sum w_k x(offset_k)``
+    that is the derivative at offset 0 (per unit of offset) of the polynomial through the points:
+    the derivatives at 0 of the Lagrange basis polynomials of the integer ``offsets``."""
+    from fractions import Fraction
+
+    out = []
+    for k, ok in enumerate(offsets):
+        total = Fraction(0)
+        for m, om in enumerate(offsets):
+            if m == k:
+                continue
+            term = Fraction(1, ok - om)
+            for j, oj in enumerate(offsets):
+                if j not in (k, m):
+                    term *= Fraction(-oj, ok - oj)
+            total += term
+        out.append(float(total))
+    return tuple(out)
+
+
+def frame_velocity(points_at, frame: int, first: int, last: float, frame_duration: float) -> np.ndarray:
+    """Velocity (units/s) at ``frame`` of points sampled once a frame (``points_at(f)``: (..., 3))
+    in a shot of frames ``first .. last``: the fourth-order difference over the 5 frames around it,
+    ``(x[f-2] - 8 x[f-1] + 8 x[f+1] - x[f+2]) / 12T`` inside the shot, the 5-frame window moved to
+    fit inside it near its ends (one-sided at them, e.g. ``(-25 x[f] + 48 x[f+1] - 36 x[f+2] +
+    16 x[f+3] - 3 x[f+4]) / 12T`` at the first frame); fewer frames in a shorter shot (three give
+    Catmull-Rom's central difference, two the chord, one zero). ``T`` is ``frame_duration`` (s).
+    A still point gets zero and a point moving at constant velocity that velocity, to round-off.
+
+    Why fourth order (docs/elastic.md, velocities): on a sinusoid of angular frequency w the
+    second-order central difference (Catmull-Rom's) is ``sin(wT) / wT`` of the velocity, 1.1 % low
+    at 1 Hz and 24 fps, and a hair's motion relative to its moving root (what its written local
+    velocity is) is often smaller than that error of the root's; the fourth-order one is low by
+    ``(wT)^4 / 30``, 1.6e-4 there."""
+    span = int(min(VELOCITY_STENCIL, last - first + 1))
+    lo = int(min(max(frame - VELOCITY_STENCIL // 2, first), last - span + 1))
+    here = np.asarray(points_at(frame), dtype=np.float64)
+    total = np.zeros_like(here)
+    # sum w_k (x_k - x_f): the weights sum to zero, so a still point gets exactly zero
+    for w, f in zip(stencil_weights(tuple(range(lo - frame, lo - frame + span))), range(lo, lo + span)):
+        if w != 0.0 and f != frame:
+            total += w * (np.asarray(points_at(f), dtype=np.float64) - here)
+    return total / float(frame_duration)
+
+
 @dataclass(eq=False)
 class Control:
-    """Kinematic root targets per device strand, relative to ``model.origin`` (m).
+    """Kinematic root targets per device strand, relative to ``model.origin`` (m), and the root's
+    path inside the frame.
 
-    During a frame the root moves linearly from ``root_start`` to ``root_end``; a step with
-    ``root_alpha`` places it at ``root_start + root_alpha (root_end - root_start)``.
+    Across a frame of ``frame_duration`` seconds a root moves from ``root_start`` to ``root_end``
+    on the cubic Hermite curve with the root's velocities at the frame's ends as tangents
+    (:mod:`dftl_warp.kernels.core.root_path`); a step with ``root_alpha`` places it at
+
+        root_start + a chord + a (1 - a) ((1 - a) root_deviation_start - a root_deviation_end)
+
+    (``a = root_alpha``, ``chord = root_end - root_start``), where the deviations are
+    ``T v - chord`` (m) for the root velocities ``v`` at the frame's start and end. Frames that
+    share their end velocities give the root a continuous velocity (C1). Without velocities
+    (:meth:`set_root_targets` or :meth:`bind_roots` called without them, the default) the
+    deviations are zero and the root moves linearly, ``root_start + a chord``, exactly as before
+    the path existed; ``frame_duration`` is then 0.
     """
 
     model: object
@@ -169,8 +232,24 @@ class Control:
     #: per-frame data of the model's features (:class:`~dftl_warp.features.step.FeatureControl`:
     #: collider poses, mesh points, wind, bound-root mesh points); None without features
     features: object = None
+    #: per device strand, ``T v0 - (root_end - root_start)`` (m): the Hermite tangent's deviation
+    #: from the chord at the frame's start; zeros (the default) for the linear path
+    root_deviation_start: wp.array | None = None
+    #: likewise at the frame's end, ``T v1 - (root_end - root_start)`` (m)
+    root_deviation_end: wp.array | None = None
+    #: the frame's duration ``T`` (s) the velocities were given for; 0 on the linear path
+    frame_duration: float = 0.0
     #: (the last ``end`` passed to :meth:`set_root_targets`, its device-order copy)
     _last_end: tuple | None = field(default=None, init=False, repr=False)
+    #: whether the deviations may be non-zero (so that going back to the linear path zeroes them)
+    _bent: bool = field(default=False, init=False, repr=False)
+
+    def __post_init__(self):
+        for name in ("root_deviation_start", "root_deviation_end"):
+            if getattr(self, name) is None:
+                setattr(self, name, wp.zeros_like(self.root_start))
+            else:
+                self._bent = True
 
     @classmethod
     def at_rest(cls, model) -> Control:
@@ -179,19 +258,62 @@ class Control:
             control.features = feature_hook("control")(model)
         return control
 
-    def bind_roots(self, start, end=None) -> None:
+    @property
+    def root_velocity_start(self) -> np.ndarray | None:
+        """The roots' velocities at the frame's start (S, 3), input strand order, model units/s
+        (``(deviation + chord) / T``); None on the linear path (no velocities were given)."""
+        return self._velocities(self.root_deviation_start)
+
+    @property
+    def root_velocity_end(self) -> np.ndarray | None:
+        """The roots' velocities at the frame's end (S, 3), input strand order, model units/s."""
+        return self._velocities(self.root_deviation_end)
+
+    def _velocities(self, deviation) -> np.ndarray | None:
+        if self.frame_duration <= 0:
+            return None
+        chord = self.root_end.numpy().astype(np.float64) - self.root_start.numpy().astype(np.float64)
+        device = (deviation.numpy().astype(np.float64) + chord) / self.frame_duration
+        out = np.empty_like(device)
+        out[self.model.layout.strand_order] = device
+        return out
+
+    def bind_roots(self, start, end=None, *, velocity_start=None, velocity_end=None,
+                   frame_duration: float | None = None) -> None:
         """Set the frame's root targets from the world points (P, 3) of the model's root-binding
         mesh at frame start and end (``end`` defaults to ``start``): the features compute the
         bound roots (:meth:`~dftl_warp.features.step.FeatureControl.bound_roots`), the Control
-        takes them."""
+        takes them. ``velocity_start``/``velocity_end`` (P, 3), the mesh points' velocities
+        (units/s) at the frame's start and end, with ``frame_duration`` (s), give the roots the C1
+        path (the bound roots' velocities are the same barycentric sums); without them the roots
+        move linearly."""
         if self.features is None:
             raise ValueError("the model has no RootBinding feature")
         root_start, root_end = self.features.bound_roots(start, end)
         wp.copy(self.root_start, root_start)
         wp.copy(self.root_end, root_end)
+        if velocity_start is None:
+            self._linear(velocity_end, frame_duration)
+            return
+        duration = _check_duration(frame_duration)
+        v0, v1 = self.features.binding.bound_velocities(velocity_start, velocity_end)
+        from ..kernels.core.root_path import path_deviation_kernel
 
-    def set_root_targets(self, start, end=None) -> None:
+        m = self.model
+        wp.launch(path_deviation_kernel(m.scalar), dim=m.num_strands, device=m.device,
+                  inputs=[self.root_start, self.root_end, v0, v1, duration],
+                  outputs=[self.root_deviation_start, self.root_deviation_end])
+        self.frame_duration = duration
+        self._bent = True
+
+    def set_root_targets(self, start, end=None, *, velocity_start=None, velocity_end=None,
+                         frame_duration: float | None = None) -> None:
         """Set the frame's root targets from world positions (S, 3) in input strand order.
+
+        ``velocity_start`` and ``velocity_end`` (S, 3; ``end`` defaults to ``start``), the roots'
+        velocities (units/s) at the frame's start and end, with ``frame_duration`` (s), make the
+        root's path inside the frame the C1 Hermite curve (the class docstring); without them the
+        roots move linearly from ``start`` to ``end``.
 
         Passing the previous call's ``end`` array as ``start`` (frame after frame, unchanged)
         reuses its conversion to device order."""
@@ -203,3 +325,41 @@ class Control:
         self.root_start.assign(device_start)
         self.root_end.assign(device_end)
         self._last_end = (end, device_end)
+        if velocity_start is None:
+            self._linear(velocity_end, frame_duration)
+            return
+        duration = _check_duration(frame_duration)
+        velocity_end = velocity_start if velocity_end is None else velocity_end
+        order = m.layout.strand_order
+        chord = device_end.astype(np.float64) - device_start.astype(np.float64)
+        dtype = device_start.dtype
+        for name, v in (("root_deviation_start", velocity_start), ("root_deviation_end", velocity_end)):
+            v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+            if v.shape[0] != m.num_strands or not np.isfinite(v).all():
+                raise ValueError(f"root velocities must be {m.num_strands} finite (3,) rows, one per strand")
+            getattr(self, name).assign((duration * v[order] - chord).astype(dtype))
+        self.frame_duration = duration
+        self._bent = True
+
+    @property
+    def root_path_curved(self) -> bool:
+        """Whether the roots' path inside the frame has non-zero deviations from the linear one
+        (root velocities were given); kernels may specialise on it (``wp.static``)."""
+        return self._bent
+
+    def _linear(self, velocity_end, frame_duration) -> None:
+        """Back to the linear path (zero deviations)."""
+        if velocity_end is not None or frame_duration is not None:
+            raise ValueError("root velocities: give velocity_start (and velocity_end, frame_duration) together")
+        if self._bent:
+            self.root_deviation_start.zero_()
+            self.root_deviation_end.zero_()
+            self._bent = False
+        self.frame_duration = 0.0
+
+
+def _check_duration(frame_duration) -> float:
+    """``frame_duration`` as a float; ValueError unless it is a finite number of seconds > 0."""
+    if frame_duration is None or not np.isfinite(frame_duration) or float(frame_duration) <= 0:
+        raise ValueError(f"root velocities need frame_duration, a finite number of seconds > 0, got {frame_duration!r}")
+    return float(frame_duration)

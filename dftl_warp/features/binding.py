@@ -4,8 +4,10 @@ Model data: each device strand's triangle (three point indices) and barycentric 
 Control (:class:`BindingControl`): the mesh's points at frame start and end (m, device
 coordinates); :meth:`BindingControl.bound_roots` returns the roots they place, and the caller sets
 them as the Control's root targets (:meth:`dftl_warp.core.state.Control.bind_roots`): the feature
-never writes the Control. USD: ``dftl:rootMesh`` on a curves prim (closest point at rest). Costs
-one small kernel per frame (``kernels/features/binding.py``), nothing per step.
+never writes the Control. With the mesh points' velocities (:meth:`BindingControl.bound_velocities`)
+the roots follow the Control's C1 path inside a frame. USD: ``dftl:rootMesh`` on a curves prim
+(closest point at rest). Costs one small kernel per frame (``kernels/features/binding.py``; two
+more with velocities: the same sums of them, then the path's deviations), nothing per step.
 """
 
 from __future__ import annotations
@@ -86,13 +88,16 @@ def build(rb: RootBinding, ctx) -> dict:
 
 
 class BindingControl:
-    """The binding mesh's points at frame start and end, and the roots they place."""
+    """The binding mesh's points at frame start and end, and the roots they place (and, for the
+    roots' C1 path, the points' velocities and the roots' velocities they give)."""
 
     def __init__(self, model, binding: dict):
         self.model = model
         self.binding = binding
         self.points = [wp.zeros(binding["num_points"], dtype=model.vec3, device=model.device) for _ in range(2)]
         self.roots = [wp.zeros(model.num_strands, dtype=model.vec3, device=model.device) for _ in range(2)]
+        #: the mesh points' and the bound roots' velocities at frame start and end (made on first use)
+        self.velocities = self.root_velocities = None
 
     def bound_roots(self, start, end=None) -> tuple:
         """The roots (device strand order, m relative to ``model.origin``; Warp arrays reused by
@@ -108,6 +113,25 @@ class BindingControl:
                   inputs=[b["triangle"], b["weights"], *self.points], outputs=self.roots)
         return self.roots[0], self.roots[1]
 
+    def bound_velocities(self, start, end=None) -> tuple:
+        """The bound roots' velocities (device strand order, units/s; Warp arrays reused by the
+        next call) at frame start and end, from the mesh points' velocities (P, 3) then: the same
+        barycentric sums as the roots (velocities are not shifted by the origin)."""
+        m, b = self.model, self.binding
+        if self.velocities is None:
+            self.velocities = [wp.zeros_like(p) for p in self.points]
+            self.root_velocities = [wp.zeros_like(r) for r in self.roots]
+        f = numpy_type(m.precision)
+        for dst, v in zip(self.velocities, (start, start if end is None else end)):
+            v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+            if v.shape[0] != b["num_points"] or not np.isfinite(v).all():
+                raise ValueError(f"root binding mesh: expected {b['num_points']} finite point velocities, "
+                                 f"got {v.shape[0]}")
+            dst.assign(v.astype(f))
+        wp.launch(bind_roots_kernel(m.scalar), dim=m.num_strands, device=m.device,
+                  inputs=[b["triangle"], b["weights"], *self.velocities], outputs=self.root_velocities)
+        return self.root_velocities[0], self.root_velocities[1]
+
 
 def from_scene(curves, frame) -> list:
     """The RootBinding of curves prims bound to one ``dftl:rootMesh`` (grouped by it), at ``frame``."""
@@ -115,8 +139,30 @@ def from_scene(curves, frame) -> list:
     return [] if mesh is None else [RootBinding(mesh.world_points(frame), mesh.triangles)]
 
 
-def update_from_scene(curves, control, frame, nxt) -> None:
-    """Roots of an animated ``dftl:rootMesh`` for the frame ``frame`` -> ``nxt`` (time codes)."""
+def update_from_scene(curves, control, frame, nxt, shot=None, time_codes_per_second=None) -> None:
+    """Roots of an animated ``dftl:rootMesh`` for the frame ``frame`` -> ``nxt = frame + 1`` (time
+    codes).
+
+    With ``shot`` (first, last frame simulated) and ``time_codes_per_second`` the roots follow the
+    C1 path (:class:`~dftl_warp.core.state.Control`): the mesh points' velocities at ``frame`` and
+    ``nxt`` are central differences over the neighbouring frames (one-sided at the shot's ends,
+    :func:`~dftl_warp.core.state.frame_velocity`); without them the roots move linearly."""
     mesh = curves[0].root_mesh
-    if mesh is not None and mesh.animated:
-        control.bind_roots(mesh.world_points(frame), mesh.world_points(nxt))
+    if mesh is None or not mesh.animated:
+        return
+    start, end = mesh.world_points(frame), mesh.world_points(nxt)
+    if shot is None or time_codes_per_second is None:
+        control.bind_roots(start, end)
+        return
+    from ..core.state import frame_velocity
+
+    duration = (nxt - frame) / float(time_codes_per_second)
+    points = {frame: start, nxt: end}
+
+    def points_at(f):
+        if f not in points:
+            points[f] = mesh.world_points(f)
+        return points[f]
+
+    control.bind_roots(start, end, velocity_start=frame_velocity(points_at, frame, *shot, duration),
+                       velocity_end=frame_velocity(points_at, nxt, *shot, duration), frame_duration=duration)

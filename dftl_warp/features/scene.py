@@ -72,9 +72,10 @@ def group_features(scene, curves, frame) -> tuple[list, np.ndarray | None]:
     return feats, np.concatenate([np.zeros(c.num_points) if w is None else w for c, w in zip(curves, widths)])
 
 
-def update_frame(scene, curves, control, frame: int, nxt: int) -> None:
+def update_frame(scene, curves, control, frame: int, nxt: int, shot=None) -> None:
     """Set ``control``'s per-frame feature data for the frame ``frame`` -> ``nxt`` (time codes):
-    collider poses and mesh points, the wind's time, and the roots of a bound mesh."""
+    collider poses and mesh points, the wind's time, and the roots of a bound mesh (on the C1
+    root path when ``shot``, the first and last frame simulated, is given)."""
     fc = control.features
     if fc is None:
         return
@@ -82,7 +83,8 @@ def update_frame(scene, curves, control, frame: int, nxt: int) -> None:
     if fc.wind is not None:
         tcps = scene.stage.time_codes_per_second
         fc.set_frame_time(frame / tcps, nxt / tcps)
-    binding.update_from_scene(curves, control, frame, nxt)
+    binding.update_from_scene(curves, control, frame, nxt, shot=shot,
+                              time_codes_per_second=scene.stage.time_codes_per_second)
 
 
 def feature_names(flags) -> list[str]:

@@ -137,16 +137,23 @@ class SplitControl:
         has = [c.features is not None for c in self.parts]
         self.features = _Broadcast(c.features for c in self.parts) if all(has) else None
 
-    def set_root_targets(self, start, end=None) -> None:
+    def set_root_targets(self, start, end=None, *, velocity_start=None, velocity_end=None,
+                         frame_duration=None) -> None:
+        """Every part's root targets (and root velocities, for the C1 path), sliced by strands."""
         start = np.asarray(start)
         end = start if end is None else np.asarray(end)
+        v0 = None if velocity_start is None else np.asarray(velocity_start)
+        v1 = v0 if velocity_end is None else np.asarray(velocity_end)
         for c, (s0, s1) in zip(self.parts, self.strand_ranges):
-            c.set_root_targets(start[s0:s1], end[s0:s1])
+            path = {} if v0 is None else {"velocity_start": v0[s0:s1], "velocity_end": v1[s0:s1],
+                                          "frame_duration": frame_duration}
+            c.set_root_targets(start[s0:s1], end[s0:s1], **path)
 
-    def bind_roots(self, start, end=None) -> None:
-        """Every part's root targets from the root-binding mesh's world points (shared)."""
+    def bind_roots(self, start, end=None, **path) -> None:
+        """Every part's root targets from the root-binding mesh's world points (shared; and the
+        points' velocities, for the C1 path: :meth:`~dftl_warp.core.state.Control.bind_roots`)."""
         for c in self.parts:
-            c.bind_roots(start, end)
+            c.bind_roots(start, end, **path)
 
 
 def _copy(dest, src) -> None:
@@ -217,6 +224,11 @@ class SplitSolver:
         self.exchange = None
         if all(step is not None and step.grid is not None for step in steps):
             self.exchange = GridExchange(steps)
+            if any(step._grid.interval > 1 for step in steps):
+                import warnings
+
+                warnings.warn("hair-hair: a groom split across devices rebuilds its grid every substep "
+                              "(dftl:hairHairSplatInterval > 1 applies on one device only)", stacklevel=2)
 
     @property
     def carries_corrections(self) -> bool:

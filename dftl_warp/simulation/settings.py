@@ -51,6 +51,10 @@ class SimulationOptions:
     monitor: bool = field(default=default("monitor"))
     #: seconds of settling at the first frame's pose before the shot (dftl_warp.features.clean_start)
     preroll: float = field(default=default("preroll"))
+    #: a quality preset (dftl_warp.simulation.quality): its solver for the prims that would run the plain
+    #: chain; prims that run the elastic solver by default keep it (the preset's substeps and precision
+    #: come through ``substeps`` and ``precision``, as the command line fills them)
+    quality: str | None = None
 
     def __post_init__(self):
         for f in fields(self):
@@ -128,10 +132,15 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int, toleran
     solver = pick(options.solver, s.solver, None)
     if solver is None:
         solver = automatic_solver(scene, options, index, tolerance)
+        if solver == DEFAULT_SOLVER and options.quality is not None:
+            from .quality import quality_preset
+
+            solver = quality_preset(options.quality)["solver"]
     return GroupSettings(
         solver=solver,
-        # the elastic solver's velocities need no correction: its damping defaults to 0 (elastic.py)
-        damping=float(pick(options.damping, s.damping, 0.0 if solver == "elastic" else DEFAULT_DAMPING)),
+        # every solver's damping defaults to the table's 1 (the elastic solver's too: with s < 1 it does
+        # not converge to the constrained dynamics, docs/elastic/convergence.md)
+        damping=float(pick(options.damping, s.damping, DEFAULT_DAMPING)),
         correction=pick(options.correction, s.correction, DEFAULT_CORRECTION),
         substeps=int(pick(options.substeps, s.substeps, DEFAULT_SUBSTEPS)),
         inverse_statics=bool(pick(None, s.inverse_statics, default("inverse_statics"))),

@@ -7,15 +7,20 @@
   :meth:`~dftl_warp.output.base.FrameWriter.reopen`.
 
 Simulation happens in world space, in stage units. Each frame is ``substeps`` solver steps of
-``dt = 1 / (timeCodesPerSecond * substeps)`` seconds; roots move linearly from where the prim's
-(possibly animated) local-to-world transform puts them at the frame's start to where it puts them
-at its end. Results go back to each prim's local space: points through the inverse transform;
-velocities are the motion *relative to the prim's frame* expressed in local space,
-``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity an animated
-transform gave a point fixed in the prim over the last frame. That is what USD's ``velocities``
-mean (the derivative of the local ``points``): renderers add the transform's own motion blur on
-top. For a static transform it is just the linear part's inverse. The first frame is the input at
-rest: zero velocities.
+``dt = 1 / (timeCodesPerSecond * substeps)`` seconds; roots move from where the prim's (possibly
+animated) local-to-world transform puts them at the frame's start to where it puts them at its
+end, on the Control's C1 root path (:class:`~dftl_warp.core.state.Control`, :mod:`.root_paths`):
+a cubic Hermite curve whose end velocities are the roots' fourth-order differences over the
+neighbouring frames (:func:`~dftl_warp.core.state.frame_velocity`; one-sided at the shot's ends,
+the first frame and :attr:`Simulation.last_frame`), so a root's velocity does not jump at frames.
+Roots bound to a mesh and the elastic solver's clamp ghosts take the same path; colliders still
+move linearly between their frame poses (position lerp, rotation slerp: a start note says so).
+Results go back to each prim's local space: points through the inverse transform; velocities are the motion *relative to the prim's frame* expressed
+in local space, ``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity
+the transform's own path (the roots') gave a point fixed in the prim over the last substep. That
+is what USD's ``velocities`` mean (the derivative of the local ``points``): renderers add the
+transform's own motion blur on top. For a static transform it is just the linear part's inverse.
+The first frame is the input at rest: zero velocities.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from ..core.devices import parse_devices, resolve_device
 from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
+from . import root_paths
 from .group import Group
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
@@ -106,6 +112,11 @@ class Simulation:
         self.scene = scene
         self.options = options
         self.frame = int(frame)
+        #: the shot: its first frame (this one; a resumed run is made at it too, then loads its
+        #: state) and its last (set by :func:`run_frames`; None: unknown). The roots' velocities
+        #: are one-sided there (:meth:`advance`)
+        self.first_frame = int(frame)
+        self.last_frame: int | None = None
         devices = []
         for name in parse_devices(resolve_device(options.device)):  # a list splits the strands (multi_device)
             try:
@@ -128,6 +139,10 @@ class Simulation:
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         #: group index -> (frame, world root targets at that frame): the last advance's end targets
         self._end_roots: dict = {}
+        #: (what, group index, frame) -> world roots or clamp ghosts at that frame (root_paths)
+        self._at_frame: dict = {}
+        #: group index -> substeps of its last advance (the frame's velocity over the last substep)
+        self._last_substeps: dict = {}
         self._matrices = {}
         #: True until the first advance: the state is the input at rest (zero velocities)
         self._at_rest = True
@@ -140,6 +155,9 @@ class Simulation:
         #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
         #: with the device line and kept in Summary.warnings
         self.start_notes: list[str] = self._clean_start()
+        note = root_paths.collider_note(scene)   # colliders keep their linear path between frames
+        if note is not None:
+            self.start_notes.append(note)
         #: ``--tolerance``: substeps (and solvers) chosen per frame (simulation.tolerance), else None
         self.tolerance = None
         if tolerance is not None:
@@ -204,6 +222,7 @@ class Simulation:
 
     def _forget_before(self, frame: int) -> None:
         self._matrices = {k: v for k, v in self._matrices.items() if k[1] >= frame}
+        self._at_frame = {k: v for k, v in self._at_frame.items() if k[2] >= frame}
 
     def _roots_world(self, group: Group, frame: int) -> np.ndarray:
         return np.concatenate([
@@ -254,27 +273,19 @@ class Simulation:
         (no host copy: :func:`run_frames` writes them before it fetches again)."""
         self.check_energy()
         out: list = [None] * len(self.scene.curves)
-        for g in self.groups:
+        for index, g in enumerate(self.groups):
             to_local = np.empty((len(g.members), 4, 4))
             rate = np.zeros((len(g.members), 4, 4))
+            substeps = self._last_substeps.get(index, g.settings.substeps)
             for k, i in enumerate(g.members):
                 to_local[k] = np.linalg.inv(self._matrix(i, self.frame)).T
                 if self.scene.curves[i].animated and not self._at_rest:
-                    rate[k] = self._matrix_rate(i, self.frame).T
+                    rate[k] = root_paths.matrix_rate(self, i, self.frame, substeps).T
             points, velocities = g.local_samples(to_local, rate, owned)
             for k, i in enumerate(g.members):
                 a, b = g.point_offsets[k], g.point_offsets[k + 1]
                 out[i] = (points[a:b], velocities[a:b])
         return out
-
-    def _matrix_rate(self, index: int, frame: int) -> np.ndarray:
-        """How fast the prim's local-to-world matrix moved over the last frame, per second.
-
-        Roots move linearly in world space from frame to frame, so this backward difference is
-        exactly the velocity the simulation gave them: their local velocity comes out zero.
-        """
-        m1, m0 = self._matrix(index, frame), self._matrix(index, frame - 1)
-        return (m1 - m0) * self.scene.stage.time_codes_per_second
 
     def advance(self) -> None:
         """Simulate from the current frame to the next one. On a GPU this only launches the work
@@ -287,20 +298,20 @@ class Simulation:
 
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
+            shot = (self.first_frame, math.inf if self.last_frame is None else self.last_frame)
             for k, g in enumerate(self.groups):
                 if any(self.scene.curves[i].animated for i in g.members):
-                    # this frame's roots are the last frame's end targets: computed once, passed as
-                    # the same array, so the Control reuses their device-order copy too
-                    frame, start = self._end_roots.get(k, (None, None))
-                    if frame != self.frame:
-                        start = self._roots_world(g, self.frame)
-                    end = self._roots_world(g, nxt)
+                    # the C1 path from the roots at this frame, the next and their neighbours, each
+                    # computed once (this frame's are the last frame's end targets, the same array,
+                    # so the Control reuses their device-order copy too)
+                    path = root_paths.frame_path(self, "roots", k, g, self.frame, nxt)
+                    start, end = path["start"], path["end"]
                     self._end_roots[k] = (nxt, end)
-                    g.control.set_root_targets(start, end)
+                    g.control.set_root_targets(**path)
                     if g.clamps is not None:   # the elastic clamp turns with the roots' transforms
-                        g.solver.set_clamp_targets(g.clamps.world(self._matrix, g.members, self.frame),
-                                                   g.clamps.world(self._matrix, g.members, nxt))
-                update_frame(self.scene, g.curves, g.control, self.frame, nxt)  # colliders, wind, bound roots
+                        g.solver.set_clamp_targets(**root_paths.frame_path(self, "clamps", k, g, self.frame, nxt))
+                # colliders, wind, bound roots (the latter on the C1 path too)
+                update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
                 substeps, dt = g.settings.substeps, g.dt
                 if self.tolerance is not None:   # --tolerance: from the error estimate on sampled strands
                     frame_dt = 1.0 / self.scene.stage.time_codes_per_second
@@ -309,9 +320,10 @@ class Simulation:
                                                        self.frame, nxt)
                     dt = frame_dt / substeps
                 g.solver.advance(g.state, g.control, dt, substeps)
+                self._last_substeps[k] = substeps
         self.frame = nxt
         self._at_rest = False
-        self._forget_before(nxt - 1)
+        self._forget_before(nxt - 3)   # the root path's differences reach 3 frames back (root_paths)
 
     # -- state for batch / resume ----------------------------------------------------------------
 
@@ -389,6 +401,7 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
     ``progress`` (optional) is called with the number of frames done after each one. Returns
     seconds spent simulating (launching and waiting for results), writing and on QC.
     """
+    sim.last_frame = int(last_frame)   # the shot's end: the roots' velocities are one-sided there
     t_sim = t_write = t_qc = 0.0
     pending = None  # (time code, samples, qc) fetched but not yet written
     step = max(1, int(frame_step))
@@ -477,6 +490,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     from ..options import OUTPUT_OPTIONS, check_api
     from ..output import provenance
     from ..output.qc import FrameQC, parse_gates
+    from ..output.clips import start_writers_early
 
     parse_gates(options.get("check"))  # a bad gate in the gates' words
     out_opts = {k: check_api(k, options.pop(k, None)) for k in OUTPUT_OPTIONS}
@@ -486,14 +500,21 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     guides = {k: check_api(k, options.pop(k, None)) for k in GUIDE_OPTIONS}  # guides.scene (issue 22)
     if "device" in options and options["device"] is None:
         options = {**options, "device": resolve_device(None)}
-    opts = SimulationOptions(**options)
+    opts = SimulationOptions(**options, quality=quality)
     gates = parse_gates(out_opts["check"])
     init_warp()
     t0 = time.perf_counter()
     check_output_path(output, input)
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
+    if not out_opts["no_clips"]:  # clips: their writer processes start while the simulation sets up
+        start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides)
+    elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
+    if quality is not None and elastic:
+        sim.start_notes.append(f"quality {quality}: {elastic} prim(s) with widths keep the elastic solver, with the "
+                               f"preset's substeps and precision (its error under a preset is not measured yet: "
+                               f"the presets are measured on chains, docs/accuracy-h200/front.md)")
     if sim.guides is not None and sim.guides.output == "binding" and out_opts["clips"] is not None:
         raise UserError(f"{output}: --guides-output binding cannot be written as --clips")
     step = out_opts["frame_step"] or 1

@@ -1,46 +1,63 @@
-"""``--tolerance LENGTH``: substeps (and solver) chosen per frame from an a-posteriori error estimate.
+"""``--tolerance LENGTH``: substeps (solver, precision) chosen per frame from an a-posteriori error estimate.
 
-The estimator is step doubling on a deterministic sample of the group's strands (:func:`sample_strands`:
-evenly spaced, about 3 %, at least 8), run beside the simulation:
+The estimator is step doubling on a deterministic sample of the group's strands
+(:mod:`.tolerance_sample`: evenly spaced, about 3 %, at least 8), starting from the group's state
+after its clean start:
 
-- the *trial*: each frame, a copy of the sample's current state (taken from the simulation) is
-  advanced with the frame's ``k`` substeps; it is what the simulation itself computes for those
-  strands;
-- the *shadow*: a persistent copy of the sample that has run every frame with twice the
-  simulation's substeps since the start.
+- the *trial*: the sample advanced with the frame's ``k`` substeps, in the group's precision: what
+  the simulation computes for those strands (strands step independently; with hair-hair the
+  sample feels only itself);
+- the *shadow*: a persistent copy of the sample in float64 that has run every frame with twice the
+  trial's substeps since the start (float64, so that the estimate holds float32's rounding too,
+  which step doubling in one precision cannot see).
 
-Both share the scene's roots, colliders and wind. Their difference estimates the *global* error of
-the run (accumulated since the first frame, not one frame's local error), by Richardson:
-``err(k) ~ |x_k - x_2k| / (1 - 2^-p)`` with ``p`` the solver's order (:data:`ORDER`: 2 for
-rattle, 4/3 |x_k - x_2k|; about 0.7 for DFTL, measured on the falling chain against the
-reference, 2.6 |x_k - x_2k|). The error of a frame is the RMS over the sample's particles of that
-difference (stage units: the RMS position error over strand length, as the accuracy study measures
-it); the run's error is its maximum over frames.
+Both take the group's root path (``simulation/root_paths.py``), colliders and wind; each run of a
+frame starts from the frame's collider poses (:meth:`~.tolerance_sample.Lane.rewind_colliders`),
+and DFTL's carried correction is rescaled whenever ``k`` changes (``kernels/simulation/tolerance.py``),
+in the sample and in the group. Their difference estimates the *global* error of the run
+(accumulated since the first frame, not one frame's local error), by Richardson:
+``err(k) ~ |x_k - x_2k| / (1 - 2^-p)`` with ``p`` the solver's order
+(:data:`~.tolerance_sample.ORDER`: 2 for rattle, 4/3 |x_k - x_2k|; 0.7 for DFTL, measured on the
+falling chain against the reference, 2.6 |x_k - x_2k|; on the collider scene of
+``tests/test_tolerance.py`` DFTL converges at order 1, so there the estimate is about 1.3 x the
+error). The error of a frame is the RMS over the sample's particles of that difference (stage
+units: the RMS position error over strand length, as the accuracy study measures it); the run's
+error is its maximum over frames.
 
-The choice per frame (:meth:`ToleranceController.choose`), from the ladder 1, 2, 4, ... 1024:
-while the estimate at the end of the frame would exceed ``GROW`` x tolerance, double ``k`` (stop
-when doubling no longer helps: the error is inherited from earlier frames); when it is below
-``SHRINK`` x tolerance for ``HOLD`` frames and ``k / 2`` would stay below ``GROW / 2`` x tolerance,
-halve it. The error already made cannot be undone, so growing is early (``GROW`` < 1).
+The choice (:class:`ToleranceController`), from the ladder 1, 2, 4, ... 1024, is planned on the
+sample up to :data:`WINDOW` frames ahead of the simulation, because an error made now can grow
+later (hair dragged by a head that turns back: choosing frame by frame, the collider scene ends
+at 2.0 x the tolerance 0.005 and 18 x 0.0005; docs/tolerance.md). Per planned frame: while the estimate at the
+end of the frame would exceed ``GROW`` x tolerance (or grow by more than ``RATE`` x tolerance in the
+frame), double ``k``, while doubling lowers the estimate by a fifth at least (else the error is
+inherited, and ``k`` stays); when it is below ``SHRINK`` x tolerance for ``HOLD`` frames and ``k / 2``
+would stay below ``GROW / 2`` x tolerance, halve it. When a planned frame's estimate still exceeds
+``LIMIT`` x tolerance, the plan goes back to the frame the simulation is at, doubles the substeps
+of every frame from there to the offending one (a first-order error then halves) and plans again,
+until the estimate stops falling by ``FALL`` or the substeps reach the top of the ladder. The
+simulation takes each frame's ``k`` from the plan.
 
 The solver (``solver`` unset): each candidate (rattle, then dftl; rattle only without features)
-runs the controller on the sample alone over the first frames (a pilot, from the scene's own roots
-and colliders), its cost per substep measured; the cheapest total cost wins
-(:func:`pick_solver`).
+runs the controller on the sample alone over the first :data:`PILOT_FRAMES` frames (a pilot, from
+the scene's own roots and colliders), its cost per substep measured; the cheapest total cost wins
+(:func:`pick_solver`). The precision: where the plan in float32 goes past the tolerance and the plan in
+float64 stays within it, the group runs in float64 (a line says so; the run's precision option is then not
+what ran: the record's ``group0.precision`` is). Why: with colliders float32 has an error floor that
+grows with the substeps (contact and friction resolve displacements of order ``g dt^2``, near
+float32's resolution): on the collider scene DFTL errs by 0.0028 at 64 substeps, 0.0077 at 256 and
+0.031 at 1024 in float32, against 0.0023, 0.0006 and 0.00014 in float64 (docs/tolerance.md).
 """
 
 from __future__ import annotations
 
-import math
-import time
 from dataclasses import replace
 
 import numpy as np
 
+from .tolerance_sample import SampleRun, copy_state, rescale_corrections, sample_strands
+
 #: substeps per frame the controller may choose
 LADDER = tuple(2 ** i for i in range(11))
-#: convergence order of each solver's position error (measured; docs in the module string)
-ORDER = {"dftl": 0.7, "ftl": 0.7, "pbd": 1.0, "elastic": 1.0, "rattle": 2.0, "reference": 2.0}
 #: grow when the end-of-frame estimate would exceed GROW x tolerance, or grow by more than RATE x
 #: tolerance over the frame (the error made cannot be undone: it is spent slowly)
 GROW = 0.8
@@ -48,9 +65,12 @@ RATE = 0.15
 #: shrink when below SHRINK x tolerance for HOLD frames in a row (and k/2 stays below GROW/2)
 SHRINK = 0.15
 HOLD = 3
-#: share of strands sampled, and the least number
-SAMPLE_SHARE = 0.03
-SAMPLE_MIN = 8
+#: frames planned ahead of the simulation (0.5 s at 24 fps)
+WINDOW = 12
+#: a planned estimate above LIMIT x tolerance sends the plan back to raise earlier substeps; it goes
+#: back again only while that lowered the offending frame's estimate by FALL
+LIMIT = 1.0
+FALL = 0.8
 #: frames the solver pilot runs
 PILOT_FRAMES = 12
 #: the candidates of the automatic solver choice, in order of preference at equal cost
@@ -59,170 +79,147 @@ CANDIDATES = ("rattle", "dftl")
 RECORD = "dftl:tolerance"
 
 
-def richardson(solver: str) -> float:
-    """Factor from |x_k - x_2k| to the error of the k run: 1 / (1 - 2^-p)."""
-    return 1.0 / (1.0 - 2.0 ** -ORDER.get(solver, 1.0))
-
-
-def sample_strands(num_strands: int, share: float = SAMPLE_SHARE, least: int = SAMPLE_MIN) -> np.ndarray:
-    """Evenly spaced strand indices: ``share`` of them, at least ``least`` (all when fewer)."""
-    n = min(num_strands, max(least, int(math.ceil(share * num_strands))))
-    return np.unique(np.linspace(0, num_strands - 1, n).round().astype(np.int64))
-
-
-def sample_features(features, idx: np.ndarray, num_strands: int) -> list:
-    """The features of strands ``idx``: per-strand values picked, scene-wide ones shared."""
-    from ..features import Drag, RootBinding
-
-    def pick(values):
-        v = np.asarray(values)
-        return values if v.ndim == 0 or v.shape[0] != num_strands else v[idx]
-
-    out = []
-    for f in features:
-        if isinstance(f, RootBinding) and f.triangles is not None:
-            f = replace(f, triangles=pick(f.triangles), weights=pick(f.weights))
-        elif isinstance(f, Drag):
-            f = replace(f, rate=pick(f.rate))
-        out.append(f)
-    return out
-
-
-class SampleRun:
-    """One solver on the sample strands of a group: a trial state, a persistent shadow, a control."""
-
-    def __init__(self, group, scene, frame: int, solver: str, idx: np.ndarray, precision: str):
-        import warp as wp
-
-        from ..core.model import Model
-        from ..features import group_features
-        from ..solvers import carries_corrections, make_solver
-        from ..usd.scene import transform_points
-
-        self.group, self.scene, self.idx, self.name = group, scene, idx, solver
-        settings = group.settings
-        counts = np.concatenate([c.counts for c in group.curves])
-        starts = np.concatenate([[0], np.cumsum(counts)])
-        self.points_idx = np.concatenate([np.arange(starts[s], starts[s + 1]) for s in idx])
-        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in group.curves])
-        features, widths = group_features(scene, group.curves, frame)
-        device = group.model.device
-        with wp.ScopedDevice(device):
-            self.model = Model.from_strands(
-                points[self.points_idx], counts[idx], device=device, precision=precision, origin=group.model.origin,
-                widths=None if widths is None else widths[self.points_idx],
-                features=sample_features(features, idx, len(counts)),
-                corrections=carries_corrections(solver, settings.correction))
-            self.solver = make_solver(self.model, solver, damping=settings.damping, correction=settings.correction,
-                                      gravity=scene.gravity)
-            self.trial, self.shadow, self.work = (self.solver.state() for _ in range(3))
-            self.control = self.model.control()
-        self.factor = richardson(solver)
-        #: seconds per substep measured on the sample (wall clock, device synchronized)
-        self.seconds_per_substep: list[float] = []
-
-    def load(self, state, model) -> None:
-        """The trial starts from the sample strands of a full-group ``state`` of ``model``."""
-        m = self.model
-        for name, relative in (("positions", True), ("velocities", False), ("corrections", False)):
-            if getattr(self.trial, name) is None:
-                continue
-            src = getattr(state, name, None)
-            if src is None:
-                self.trial.write(name, None, zero=True)
-                continue
-            pts = model.points_from_device(src, relative=relative)[self.points_idx]
-            self.trial.write(name, m.points_to_device(pts, relative=relative), layout=m.layout)
-
-    def set_frame(self, roots, frame: int, nxt: int) -> None:
-        """Root targets (world, the group's strands in input order, or None: still) and features."""
-        from ..features import update_frame
-
-        if roots is not None:
-            self.control.set_root_targets(roots[0][self.idx], roots[1][self.idx])
-        update_frame(self.scene, self.group.curves, self.control, frame, nxt)
-
-    def run(self, source, out, frame_dt: float, k: int) -> None:
-        import warp as wp
-
-        out.assign(source)
-        a = time.perf_counter()
-        self.solver.advance(out, self.control, frame_dt / k, k)
-        wp.synchronize_device(self.model.device)
-        self.seconds_per_substep.append((time.perf_counter() - a) / k)
-
-    def estimate(self, frame_dt: float, k: int, start) -> tuple[float, object]:
-        """Estimated error at the frame's end of ``start`` advanced by ``k`` substeps (the trial
-        state, which is left there) against the shadow advanced by ``2 k`` (left in ``work``)."""
-        scratch = self.solver.state()
-        scratch.assign(start)
-        self.run(scratch, self.trial, frame_dt, k)
-        self.run(self.shadow, self.work, frame_dt, 2 * k)
-        a = self.model.points_from_device(self.trial.positions)
-        b = self.model.points_from_device(self.work.positions)
-        return self.factor * float(np.sqrt(((a - b) ** 2).sum(-1).mean())), scratch
-
-
 class ToleranceController:
-    """Chooses a group's substeps per frame so that the estimated error stays below ``tolerance``."""
+    """Chooses a group's substeps per frame so that the estimated error stays below ``tolerance``.
 
-    def __init__(self, run: SampleRun, tolerance: float, k: int = 1):
+    ``roots(f)``: the group's root targets over the frame ``f`` -> ``f + 1`` (keyword arguments of
+    ``Control.set_root_targets``, or None: still); ``last``: the last frame (nothing is planned past
+    it); ``shot``: passed on to ``update_frame`` (None: not); ``carried``: the substeps of the group
+    state's last step."""
+
+    def __init__(self, run: SampleRun, tolerance: float, roots, last: int, k: int = 1, carried: int = 1,
+                 shot=None):
         self.sample, self.tolerance = run, float(tolerance)
+        self.roots, self.last, self.shot = roots, int(last), shot
         self.k = int(k)
-        self.below = 0
-        #: per frame (the frame reached): (frame, substeps, estimated error)
+        #: substeps per frame of the group state's last step (its carried corrections are for it)
+        self.carried = int(carried)
+        #: per frame (the frame reached): (frame, substeps, estimated error), as simulated
         self.history: list[tuple[int, int, float]] = []
         #: lines saying what changed
         self.changes: list[str] = []
-        self._started = False
+        #: planned frame -> (substeps, estimated error); frame -> least substeps (raised by going back)
+        self.plan: dict[int, tuple[int, float]] = {}
+        self.floor: dict[int, int] = {}
+        #: frame -> the sample and the controller at its start (to go back to)
+        self._marks: dict[int, tuple] = {}
+        #: offending frame -> its estimate when the plan last went back for it
+        self._offended: dict[int, float] = {}
+        #: no going back for frames before this one (going back stopped helping)
+        self._futile_until = -1
+        self._cursor = None
+        self._below = 0
+        self._prev = 0.0
+        self._frame_dt = None
+        self._chosen = None
 
-    def choose(self, frame_dt: float, roots, frame: int, nxt: int, state=None, model=None) -> int:
-        """Substeps for the frame ``frame`` -> ``nxt``; ``state`` / ``model``: the group's current
-        state (None: the sample's own trial continues, as in the pilot)."""
+    # -- planning on the sample ------------------------------------------------------------------
+
+    def start(self, frame: int, frame_dt: float, state=None, model=None) -> None:
+        """Start at ``frame`` from the group's ``state`` of ``model`` (None: the sample's own start)."""
         s = self.sample
-        if not self._started:
-            s.load(state, model) if state is not None else None
-            s.shadow.assign(s.trial)
-            self._started = True
-        elif state is not None:
+        if state is not None:
             s.load(state, model)
-        s.set_frame(roots, frame, nxt)
-        start = s.trial
-        k, tol = self.k, self.tolerance
-        err, start = s.estimate(frame_dt, k, start)
-        old = k
-        prev = self.history[-1][2] if self.history else 0.0
+            s.trial_carried = self.carried
+        s.shadow_from_trial()
+        self._frame_dt = float(frame_dt)
+        self._cursor = int(frame)
+        self._mark(self._cursor)
+
+    def _mark(self, g: int) -> None:
+        self._marks[g] = (self.sample.snapshot(), self.k, self._below, self._prev)
+
+    def _back_to(self, g: int) -> None:
+        snap, self.k, self._below, self._prev = self._marks[g]
+        self.sample.restore(snap)
+        for h in [h for h in self.plan if h >= g]:
+            del self.plan[h]
+        for h in [h for h in self._marks if h > g]:
+            del self._marks[h]
+        self._cursor = g
+
+    def _plan_frame(self, g: int) -> None:
+        """Choose the substeps of frame ``g`` -> ``g + 1`` (the sample at its start) and step to its end."""
+        s, tol, prev, dt = self.sample, self.tolerance, self._prev, self._frame_dt
+        s.set_frame(self.roots(g), g, g + 1, self.shot)
+        least = self.floor.get(g, LADDER[0])
+        k = first = max(self.k, least)
+        err, start = s.estimate(dt, k, s.trial)
 
         def too_much(e):
             return e > GROW * tol or e - prev > RATE * tol
 
         while too_much(err) and k < LADDER[-1]:
-            err2, _ = s.estimate(frame_dt, 2 * k, start)
-            helped = err2 < 0.8 * err
-            k, err = 2 * k, err2
-            if not helped:
+            kept = s.results()
+            err2, _ = s.estimate(dt, 2 * k, start)
+            if err2 >= 0.8 * err:   # inherited: a finer step in this frame does not help; keep k
+                s.results(kept)
                 break
-        if k == old and err < SHRINK * tol and err - prev < 0.25 * RATE * tol and k > LADDER[0]:
-            self.below += 1
-            if self.below >= HOLD:
-                trial = s.solver.state()
-                trial.assign(s.trial)
-                shadow = s.solver.state()
-                shadow.assign(s.work)
-                err_half, _ = s.estimate(frame_dt, k // 2, start)
+            k, err = 2 * k, err2
+        if k == first and err < SHRINK * tol and err - prev < 0.25 * RATE * tol and k // 2 >= least:
+            self._below += 1
+            if self._below >= HOLD:
+                self._below = 0
+                kept = s.results()
+                err_half, _ = s.estimate(dt, k // 2, start)
                 if err_half < 0.5 * GROW * tol and err_half - prev < 0.5 * RATE * tol:
                     k, err = k // 2, err_half
-                    self.below = 0
                 else:   # keep k: put its trial and shadow back
-                    s.trial.assign(trial)
-                    s.work.assign(shadow)
-                    self.below = 0
+                    s.results(kept)
         else:
-            self.below = 0
+            self._below = 0
         s.shadow.assign(s.work)
-        if k != self.k or not self.history:
-            self.changes.append(f"frame {frame}: {s.name} {k} substeps (estimated error {err:.3g})")
-        self.k = k
+        s.trial_carried, s.shadow_carried = k, 2 * k
+        self.k, self._prev = k, err
+        self.plan[g] = (k, err)
+        self._cursor = g + 1
+        self._mark(g + 1)
+
+    def look_ahead(self, frame: int) -> None:
+        """Plan up to :data:`WINDOW` frames past ``frame`` (the frame the simulation is at), going
+        back to ``frame`` to raise the substeps where a planned estimate passes the tolerance."""
+        upto = max(frame, min(frame + WINDOW, self.last) - 1)
+        while self._cursor <= upto:
+            g = self._cursor
+            self._plan_frame(g)
+            err = self.plan[g][1]
+            if err <= LIMIT * self.tolerance:
+                continue
+            if g < self._futile_until:
+                continue
+            before = self._offended.get(g)
+            if before is not None and err > FALL * before:
+                # going back did not help enough (the error is the solver's floor, or inherited from
+                # frames already simulated): not again for a window
+                self._futile_until = g + WINDOW
+                continue
+            window = range(frame, g + 1)
+            if min(self.plan[h][0] for h in window) >= LADDER[-1]:
+                continue
+            self._offended[g] = err
+            for h in window:   # a first-order error halves where every step does
+                self.floor[h] = min(LADDER[-1], max(self.floor.get(h, 1), 2 * self.plan[h][0]))
+            self._back_to(frame)
+
+    def planned_max(self) -> float:
+        """The largest estimate simulated or planned so far."""
+        return max([e for _, _, e in self.history] + [e for _, e in self.plan.values()], default=0.0)
+
+    # -- the simulation's frames -------------------------------------------------------------------
+
+    def choose(self, frame_dt: float, roots, frame: int, nxt: int, state=None, model=None) -> int:
+        """Substeps for the frame ``frame`` -> ``nxt`` (from the plan); ``state`` / ``model``: the
+        group's state at the first frame (None: the sample's own start, as in the pilot).
+        ``roots`` is unused (the controller's ``roots(f)`` gives every frame's)."""
+        if self._cursor is None:
+            self.start(frame, frame_dt, state, model)
+        self.look_ahead(frame)
+        k, err = self.plan.pop(frame)
+        self._marks.pop(frame, None)
+        self.floor.pop(frame, None)
+        if k != self._chosen:
+            self.changes.append(f"frame {frame}: {self.sample.name} {k} substeps (estimated error {err:.3g})")
+        self._chosen = self.carried = k
         self.history.append((nxt, k, err))
         return k
 
@@ -236,24 +233,27 @@ class ToleranceController:
         return per_step * sum(k for _, k, _ in self.history)
 
 
-def pick_solver(group, scene, frame: int, last: int, tolerance: float, precision: str, roots) -> tuple[str, list[str]]:
+def pick_solver(group, scene, frame: int, last: int, tolerance: float, precision: str, roots,
+                shot=None) -> tuple[str, list[str]]:
     """The candidate solver with the lowest measured cost over a pilot of the first frames, and the
-    lines saying so. ``roots(f)``: the group's world roots at frame ``f`` (None when still)."""
+    lines saying so. ``roots``, ``shot``: as :class:`ToleranceController` takes them."""
     idx = sample_strands(group.num_strands)
     frame_dt = 1.0 / scene.stage.time_codes_per_second
-    results = []
+    last = min(last, frame + PILOT_FRAMES)
+    runs = []
     for name in CANDIDATES:
         try:
-            run = SampleRun(group, scene, frame, name, idx, precision)
+            runs.append((name, SampleRun(group, scene, frame, name, idx, precision)))
         except ValueError:   # rattle refuses features
             continue
-        ctl = ToleranceController(run, tolerance)
-        for f in range(frame, min(last, frame + PILOT_FRAMES)):
-            r0, r1 = roots(f), roots(f + 1)
-            ctl.choose(frame_dt, None if r0 is None else (r0, r1), f, f + 1)
+    if len(runs) < 2:
+        return (runs[0][0] if runs else group.settings.solver), []
+    results = []
+    for name, run in runs:
+        ctl = ToleranceController(run, tolerance, roots, last, shot=shot)
+        for f in range(frame, last):
+            ctl.choose(frame_dt, None, f, f + 1)
         results.append((ctl.cost(), name, ctl))
-    if not results:
-        return group.settings.solver, []
     results.sort(key=lambda r: r[0])
     lines = [f"tolerance {tolerance:g}: pilot of {len(idx)} strands: " + ", ".join(
         f"{name} up to {max((k for _, k, _ in c.history), default=1)} substeps, {cost * 1e3:.3g} ms"
@@ -271,8 +271,13 @@ class Tolerance:
         self.notes: list[str] = []
 
     def substeps(self, index: int, group, frame_dt: float, roots, frame: int, nxt: int) -> int:
-        """Substeps of group ``index`` for the frame ``frame`` -> ``nxt`` (its control already set)."""
-        return self.controllers[index].choose(frame_dt, roots, frame, nxt, group.state, group.model)
+        """Substeps of group ``index`` for the frame ``frame`` -> ``nxt`` (its control already set);
+        the group's carried corrections are rescaled to them."""
+        c = self.controllers[index]
+        carried = c.carried
+        k = c.choose(frame_dt, roots, frame, nxt, group.state, group.model)
+        rescale_corrections(group.model, group.state, carried, k)
+        return k
 
     def lines(self) -> list[str]:
         """What was chosen: the pilot's lines, each change, and one summary line per group."""
@@ -294,6 +299,7 @@ class Tolerance:
                             "Richardson from k and 2k substeps (stage units)"}
         for i, c in enumerate(self.controllers):
             rec[f"group{i}.solver"] = c.sample.name
+            rec[f"group{i}.precision"] = str(c.sample.model.precision)
             rec[f"group{i}.strands_sampled"] = int(len(c.sample.idx))
             rec[f"group{i}.frames"] = " ".join(str(int(f)) for f, _, _ in c.history)
             rec[f"group{i}.substeps"] = " ".join(str(int(k)) for _, k, _ in c.history)
@@ -303,12 +309,17 @@ class Tolerance:
 
 
 def setup(sim, tolerance: float) -> Tolerance:
-    """Pick each group's solver (where none is set) by a pilot and attach a controller per group."""
+    """Pick each group's solver (where none is set) by a pilot and its precision by the plan, and
+    attach a controller per group."""
     from ..errors import UserError
+    from . import root_paths
     from .group import Group
+    from .settings import resolve_frames
 
     t = Tolerance(tolerance)
     scene, options, frame = sim.scene, sim.options, sim.frame
+    last = resolve_frames(scene, options.start, options.end)[1]
+    frame_dt = 1.0 / scene.stage.time_codes_per_second
     for k, g in enumerate(sim.groups):
         if len(g.devices) > 1:
             raise UserError("--tolerance runs on one device for now (give one --device)")
@@ -316,15 +327,38 @@ def setup(sim, tolerance: float) -> Tolerance:
             raise UserError("--tolerance does not drive the elastic solver yet")
         animated = any(scene.curves[i].animated for i in g.members)
 
-        def roots(f, g=g, animated=animated):
-            return sim._roots_world(g, f) if animated else None
+        def roots(f, g=g, k=k, animated=animated):
+            """The group's root targets over the frame ``f`` -> ``f + 1``, as the simulation sets them."""
+            return root_paths.frame_path(sim, "roots", k, g, f, f + 1) if animated else None
+
+        def rebuilt(g, settings, precision):
+            new = Group(settings, g.members, scene, frame, replace(options, precision=precision))
+            copy_state(g.state, g.model, new.state, new.model)   # the clean start's push-out and preroll kept
+            return new
 
         auto = options.solver is None and all(scene.curves[i].settings.solver is None for i in g.members)
         if auto:
-            name, lines = pick_solver(g, scene, frame, frame + PILOT_FRAMES, tolerance, options.precision, roots)
+            name, lines = pick_solver(g, scene, frame, last, tolerance, options.precision, roots,
+                                      root_paths.shot(sim))
             t.notes += lines
             if name != g.settings.solver:
-                g = sim.groups[k] = Group(replace(g.settings, solver=name), g.members, scene, frame, options)
-        run = SampleRun(g, scene, frame, g.settings.solver, sample_strands(g.num_strands), options.precision)
-        t.controllers.append(ToleranceController(run, tolerance))
+                g = sim.groups[k] = rebuilt(g, replace(g.settings, solver=name), options.precision)
+
+        def controller(g, precision):
+            run = SampleRun(g, scene, frame, g.settings.solver, sample_strands(g.num_strands), precision)
+            c = ToleranceController(run, tolerance, roots, last, carried=g.settings.substeps,
+                                    shot=root_paths.shot(sim))
+            c.start(frame, frame_dt, g.state, g.model)
+            c.look_ahead(frame)
+            return c
+
+        c = controller(g, options.precision)
+        if options.precision == "float32" and c.planned_max() > LIMIT * tolerance:
+            wide = controller(g, "float64")
+            if wide.planned_max() <= LIMIT * tolerance:
+                t.notes.append(f"tolerance {tolerance:g}: group {k} runs in float64: planned in float32 the "
+                               f"estimate reaches {c.planned_max():.3g}, in float64 {wide.planned_max():.3g}")
+                g = sim.groups[k] = rebuilt(g, g.settings, "float64")
+                c = wide
+        t.controllers.append(c)
     return t

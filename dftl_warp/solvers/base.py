@@ -4,9 +4,10 @@ A solver advances a :class:`~dftl_warp.core.state.State` by substeps of ``dt`` s
 
 - ``state()``: a rest State with exactly the arrays the solver needs;
 - ``step(state_in, state_out, control, dt, root_alpha=1.0)``: one substep (``state_out`` may be
-  ``state_in``), roots at ``control``'s targets interpolated by ``root_alpha`` in [0, 1];
-- ``advance(state, control, dt, substeps)``: a frame's substeps in place, roots moving linearly
-  across them (on CUDA captured once in a CUDA graph and replayed);
+  ``state_in``), roots ``root_alpha`` in [0, 1] of the way along ``control``'s root path (from
+  its start to its end targets: linear, or the C1 Hermite curve of :class:`~dftl_warp.core.state.Control`);
+- ``advance(state, control, dt, substeps)``: a frame's substeps in place, roots moving along that
+  path (on CUDA captured once in a CUDA graph and replayed);
 - ``diagnostics(state)``: energy per unit particle mass (J/kg), max relative stretch, max speed (m/s).
 
 A new solver subclasses :class:`Solver`, decorates itself with :func:`register`, and is imported
@@ -141,7 +142,7 @@ class Solver:
             self.step(state, state, control, dt, float(real(k + 1) / real(substeps)))
 
     def advance(self, state, control, dt: float, substeps: int) -> None:
-        """``substeps`` steps of ``dt`` in place, roots moving linearly across them.
+        """``substeps`` steps of ``dt`` in place, roots moving along the Control's root path.
 
         On CUDA the substeps are captured once per (state, control, dt, substeps) in a CUDA graph
         and replayed afterwards.
@@ -153,14 +154,15 @@ class Solver:
         self.launch_frame(state, control, dt, substeps, lambda: self.substeps(state, control, dt, substeps),
                           self.kernels)
 
-    def launch_frame(self, state, control, dt: float, substeps: int, run, kernels) -> None:
+    def launch_frame(self, state, control, dt: float, substeps: int, run, kernels, variant=()) -> None:
         """``run()`` directly on the CPU; on CUDA through a graph cached per (state, control, dt,
-        substeps), the kernels that ``kernels()`` lists compiled before the capture."""
+        substeps, ``variant``: what else picks the kernels), the kernels that ``kernels()`` lists
+        compiled before the capture."""
         m = self.model
         if not m.device.is_cuda:
             run()
             return
-        key = (id(state), id(control), float(dt), int(substeps))
+        key = (id(state), id(control), float(dt), int(substeps), *variant)
         graph = self._graphs.get(key)
         if graph is None:
             for kernel in kernels():

@@ -99,7 +99,7 @@ class DFTLSolver(Solver):
     def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``).
 
-        Roots are placed at ``control``'s targets interpolated by ``root_alpha`` in [0, 1].
+        Roots are placed ``root_alpha`` in [0, 1] of the way along ``control``'s root path.
         """
         m = self.model
         if self.carries_corrections and (state_in.corrections is None or state_out.corrections is None):
@@ -110,7 +110,7 @@ class DFTLSolver(Solver):
             return
         inputs = [
             m.strand_base, m.strand_stride, m.strand_count,
-            control.root_start, control.root_end, root_alpha,
+            control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end, root_alpha,
             m.rest_lengths, self.gravity, dt, self.damping,
             state_in.positions, state_in.velocities,
         ]
@@ -125,10 +125,11 @@ class DFTLSolver(Solver):
         <dftl_warp.features.step.FeatureStep.sweep>`)."""
         m = self.model
         return [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
-                root_alpha, m.rest_lengths, self.gravity, dt, self.damping]
+                control.root_deviation_start, control.root_deviation_end, root_alpha, m.rest_lengths, self.gravity,
+                dt, self.damping]
 
     def advance(self, state, control, dt: float, substeps: int) -> None:
-        """``substeps`` steps of ``dt`` in place, roots moving linearly across them: fused into one
+        """``substeps`` steps of ``dt`` in place, roots moving along the Control's root path: fused into one
         launch per run of strands where that pays (:func:`fused_pays`), else one launch per
         substep. On CUDA the frame is captured once in a CUDA graph and replayed afterwards.
         """
@@ -146,11 +147,13 @@ class DFTLSolver(Solver):
             else:
                 self.substeps(state, control, dt, substeps)
 
+        curved = control.root_path_curved
+
         def kernels():
-            pipelined = [pipelined_kernel(m.scalar, substeps)] if use_fused and self._pipelined_runs else []
+            pipelined = [pipelined_kernel(m.scalar, substeps, curved)] if use_fused and self._pipelined_runs else []
             return self.kernels() + pipelined
 
-        self.launch_frame(state, control, dt, substeps, run, kernels)
+        self.launch_frame(state, control, dt, substeps, run, kernels, variant=(curved,))
 
     def kernels(self) -> list:
         kernels = self._features.kernels() if self._features is not None else [self._kernel]
@@ -166,20 +169,23 @@ class DFTLSolver(Solver):
                 dim=size,
                 block_dim=block_dim,
                 inputs=[first, m.strand_base, m.strand_stride, m.strand_count, control.root_start,
-                        control.root_end, m.rest_lengths, self.gravity, dt, self.damping, substeps,
+                        control.root_end, control.root_deviation_start, control.root_deviation_end, m.rest_lengths,
+                        self.gravity, dt, self.damping, substeps,
                         state.positions, state.velocities, state.corrections],
                 device=m.device,
             )
         for run in self._pipelined_runs:
             head = [run.first, run.strands, run.groups, run.count, run.base, run.strand_step, run.chunk, run.stride,
-                    control.root_start, control.root_end, m.rest_lengths, self.gravity, dt, self.damping]
+                    control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
+                    m.rest_lengths, self.gravity, dt, self.damping]
             tail = [state.positions, state.velocities, state.corrections]
             if m.device.is_cuda:
-                wp.launch(pipelined_kernel(m.scalar, substeps), dim=run.groups * substeps, block_dim=PIPELINED_BLOCK,
+                wp.launch(pipelined_kernel(m.scalar, substeps, control.root_path_curved), dim=run.groups * substeps,
+                          block_dim=PIPELINED_BLOCK,
                           inputs=head + tail, device=m.device)
             else:
                 vectors, scalars = self._lanes(run.groups * substeps)
-                wp.launch(pipelined_serial_kernel(m.scalar), dim=run.groups,
+                wp.launch(pipelined_serial_kernel(m.scalar, control.root_path_curved), dim=run.groups,
                           inputs=head + [substeps, vectors, scalars] + tail, device=m.device)
 
     def _lanes(self, rows: int):

@@ -136,7 +136,9 @@ class ElasticSolver(Solver):
             ``widths`` where it has them, else 40e-6.
         twist_modulus: the frame chain's twist modulus (default :data:`TWIST_G`).
         inverse_statics: the authored shape is the equilibrium under ``gravity`` (default True).
-        damping: DFTL's ``s`` in [0, 1] (default 0: the scheme's velocities need no correction).
+        damping: DFTL's ``s`` in [0, 1] (default 1: the share of the follow-the-leader correction
+            removed from the velocities; with s < 1 the error against the constrained dynamics stops
+            falling with the step, docs/elastic/convergence.md).
         correction: ``"prior"`` or ``"posterior"``.
         drag: linear drag (1/s), implicit; 0 by default.
         gravity: acceleration (3,).
@@ -155,7 +157,7 @@ class ElasticSolver(Solver):
 
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, youngs_modulus: float = HAIR_E,
                  density: float = HAIR_DENSITY, radius=None, twist_modulus: float = TWIST_G,
-                 inverse_statics: bool = True, damping: float = 0.0, correction: str = "prior",
+                 inverse_statics: bool = True, damping: float = 1.0, correction: str = "prior",
                  drag: float = 0.0, compute_precision: str | None = None, stiffness_scale=None,
                  rest_shape=None):
         check_features(model)
@@ -231,6 +233,9 @@ class ElasticSolver(Solver):
         self._clamp_offset = wp.array((self._rest_ghost - roots).astype(st), dtype=model.vec3, device=dev)
         self._clamp_start = wp.clone(self._clamp_offset)
         self._clamp_end = wp.clone(self._clamp_offset)
+        #: the ghosts' path deviations (``T v - chord``, Control's form), zero on a linear path
+        self._clamp_deviation_start = wp.zeros_like(self._clamp_offset)
+        self._clamp_deviation_end = wp.zeros_like(self._clamp_offset)
         self._clamp_relative = 1
         self._gravity_real = vec3r(*self.gravity64)
         n = model.num_slots
@@ -280,19 +285,41 @@ class ElasticSolver(Solver):
         out[self.model.layout.strand_order] = self._rest_ghost
         return out + self.model.origin
 
-    def set_clamp_targets(self, start=None, end=None) -> None:
+    def set_clamp_targets(self, start=None, end=None, *, velocity_start=None, velocity_end=None,
+                          frame_duration: float | None = None) -> None:
         """Clamp ghosts of the frame: world positions (S, 3) in input strand order at frame start
-        and end (``end`` defaults to ``start``), moving linearly across the frame like the roots.
-        ``start=None`` returns to the default: the authored ghosts moved with the roots' translation."""
+        and end (``end`` defaults to ``start``). They move like the roots
+        (:class:`~dftl_warp.core.state.Control`): linearly across the frame, or, given their
+        velocities (S, 3; units/s) at the frame's start and end and ``frame_duration`` (s), on the
+        C1 Hermite curve with those tangents. ``start=None`` returns to the default: the authored
+        ghosts moved with the roots' translation (on the roots' path)."""
+        self._clamp_deviation_start.zero_()
+        self._clamp_deviation_end.zero_()
         if start is None:
             wp.copy(self._clamp_start, self._clamp_offset)
             self._clamp_relative = 1
             return
         m = self.model
         end = start if end is None else end
-        self._clamp_start.assign(m.roots_to_device(start))
-        self._clamp_end.assign(m.roots_to_device(end))
+        device_start, device_end = m.roots_to_device(start), m.roots_to_device(end)
+        self._clamp_start.assign(device_start)
+        self._clamp_end.assign(device_end)
         self._clamp_relative = 0
+        if velocity_start is None:
+            if velocity_end is not None or frame_duration is not None:
+                raise ValueError("clamp velocities: give velocity_start (and velocity_end, frame_duration) together")
+            return
+        if frame_duration is None or not np.isfinite(frame_duration) or float(frame_duration) <= 0:
+            raise ValueError(f"clamp velocities need frame_duration, a finite number of seconds > 0, "
+                             f"got {frame_duration!r}")
+        velocity_end = velocity_start if velocity_end is None else velocity_end
+        chord = device_end.astype(np.float64) - device_start.astype(np.float64)
+        order = m.layout.strand_order
+        for target, v in ((self._clamp_deviation_start, velocity_start), (self._clamp_deviation_end, velocity_end)):
+            v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
+            if v.shape[0] != m.num_strands or not np.isfinite(v).all():
+                raise ValueError(f"clamp velocities must be {m.num_strands} finite (3,) rows, one per strand")
+            target.assign((float(frame_duration) * v[order] - chord).astype(device_start.dtype))
 
     # -- stepping --------------------------------------------------------------------------------
 
@@ -323,7 +350,9 @@ class ElasticSolver(Solver):
                 m.strand_base, m.strand_stride, m.strand_count,
                 f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],
                 f["rest_rotation"], self._clamp_direction, self._curved,
-                control.root_start, control.root_end, self._clamp_start, self._clamp_end, self._clamp_relative,
+                control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
+                self._clamp_start, self._clamp_end, self._clamp_deviation_start, self._clamp_deviation_end,
+                self._clamp_relative,
                 float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag, features,
                 state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,
                 state_in.tensions, state_in.frames, state_in.clamps,

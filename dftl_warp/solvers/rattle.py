@@ -141,7 +141,8 @@ class RattleSolver(Solver):
             wp.copy(state_out.positions, state_in.positions)
             wp.copy(state_out.velocities, state_in.velocities)
         common = [m.strand_base, m.strand_stride, m.strand_count, control.root_start, control.root_end,
-                  alpha_first, alpha_step, int(substeps), m.rest_lengths, self.gravity, dt,
+                  control.root_deviation_start, control.root_deviation_end, alpha_first, alpha_step, int(substeps),
+                  m.rest_lengths, self.gravity, dt,
                   self.newton_iterations, self.fallback, self.accept, self.max_halvings,
                   state_out.positions, state_out.velocities]
         for kernel, first, size in self._runs:

@@ -104,7 +104,7 @@ class ReferenceSolver(Solver):
             dim=m.num_strands,
             inputs=[
                 m.strand_base, m.strand_stride, m.strand_count,
-                control.root_start, control.root_end,
+                control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
                 float(alpha_first), float(alpha_step), int(substeps),
                 m.rest_lengths, self._gravity64, float(dt), self.tolerance, self.accept, self.max_iterations,
                 state_in.positions, state_in.velocities,

@@ -189,7 +189,8 @@ class ElasticReference:
             dim=m.num_strands,
             inputs=[
                 m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, *self.arrays,
-                control.root_start, control.root_end, float(alpha_first), float(alpha_step), int(substeps),
+                control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
+                float(alpha_first), float(alpha_step), int(substeps),
                 solver._gravity64, float(dt), self.drag, solver.tolerance, solver.accept, solver.max_iterations,
                 self.frame_tolerance, self.frame_iterations,
                 state_in.positions, state_in.velocities,

@@ -75,12 +75,12 @@ def elastic_markdown(results: dict, img: str, number: int = 9) -> str:
                             f"{verdict}.")
             last_order[(name, label)] = last
     stall = [name for (name, label), p in last_order.items() if label.startswith("elastic s=0") and p < 0.2
-             and last_order.get((name, "elastic s=1"), 0.0) > 0.5]
+             and last_order.get((name, "elastic s=1 (default)"), 0.0) > 0.5]
     if stall:
         findings.append(
-            f"On {', '.join(stall)} the solver's default (s = 0: no follow-the-leader velocity correction) stops "
-            "converging where s = 1 keeps going: the signature of DFTL's s < 1 in section 1 (docs/elastic.md, "
-            "\"The reference with elastic energy\").")
+            f"On {', '.join(stall)} s = 0 (no follow-the-leader velocity correction) stops converging where the "
+            "default s = 1 keeps going: the signature of DFTL's s < 1 in section 1 (docs/elastic.md, "
+            "\"The reference with elastic energy\"; docs/elastic/convergence.md).")
     return f"""## {number}. Elastic strands: the elastic solver against the elastic reference
 
 The `elastic` solver (docs/elastic.md; backward Euler with an implicit bending solve, first order)

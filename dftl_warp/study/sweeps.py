@@ -98,7 +98,7 @@ class StudyConfig:
     elastic_frames: int = 12  # 0.5 s at 24 fps
     elastic_substeps: list = field(default_factory=lambda: [8, 32, 128, 512, 2048])
     elastic_settings: list = field(default_factory=lambda: [
-        ("elastic s=0 (default)", {}), ("elastic s=1", {"damping": 1.0})])
+        ("elastic s=0", {"damping": 0.0}), ("elastic s=1 (default)", {})])
     elastic_strands: int = 8  # copies side by side: the elastic solver's wall time measures computation
     elastic_reference_fraction: float = 0.5  # the reference's step, as a fraction of its stability limit
 

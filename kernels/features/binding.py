@@ -11,7 +11,8 @@ def bind_roots_kernel(scalar):
     """Kernel: root targets of each device strand from the mesh points at frame start and end.
 
     ``root = w0 p[i0] + w1 p[i1] + w2 p[i2]`` with the strand's triangle ``(i0, i1, i2)`` and
-    barycentric weights ``w``; points and roots in device coordinates (m)."""
+    barycentric weights ``w``; points and roots in device coordinates (m). The sums are linear,
+    so the same kernel gives the roots' velocities (m/s) from the points' velocities."""
     vec3 = wp.types.vector(3, scalar)
 
     @wp.kernel(enable_backward=False, module="unique")

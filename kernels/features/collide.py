@@ -9,8 +9,10 @@ A particle of radius ``radius`` (m, half the hair width) is in contact when its 
 1. *continuous* (``ccd``): the particle's path from its previous position (in the collider's
    previous pose) to its new one (in the current pose) is swept against the surface (sphere
    tracing for the analytic shapes, :func:`analytic_collide_func`; a ray query for meshes,
-   ``kernels/features/mesh.py``), and the particle stops at the first contact, so a fast particle
-   cannot tunnel through;
+   ``kernels/features/mesh.py``), and the particle stops where it first crosses the surface, so a
+   fast particle cannot tunnel through (a path within the contact distance that does not cross the
+   surface is left to step 2: stopping it at the contact distance froze sliding particles for the
+   rest of their substep, and DFTL draped on a sphere then did not converge as the substeps shrank);
 2. *projection*: it is moved along the outward normal to ``d = radius``;
 3. *Coulomb friction* (position-based): the tangential displacement relative to the collider
    surface during the step is removed up to ``friction * depth`` (static friction below that,
@@ -250,17 +252,21 @@ def analytic_collide_func(scalar, sdf_factory, name: str):
         if ccd:
             path = q - q_old
             length = wp.length(path)
-            # the SDF is 1-Lipschitz: a path ending farther than its length from contact never touched
-            if dist - radius < length and length > tiny:
+            # the SDF is 1-Lipschitz: a path ending farther than its length from the surface never crossed it
+            stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
+            if dist < length and length > tiny:
                 d_old, n_old = sdf(q_old, size, axis)
-                if d_old > radius:
-                    # sphere-trace the relative path q_old -> q; stop at the first contact
+                if d_old > stop:
+                    # sphere-trace the relative path q_old -> q; stop where it first reaches the surface
+                    # (not the contact distance: a particle sliding within the hair radius of the
+                    # surface is left to the projection below; stopping it there froze it for the
+                    # rest of the substep, a stickiness that grew as the substeps shrank)
                     direction = path / length
                     t = zero
                     for _ in range(TRACE_ITERATIONS):
                         d, n_t = sdf(q_old + t * direction, size, axis)
-                        gap = d - radius
-                        if gap <= radius * scalar(1.0e-3) + scalar(1.0e-6):
+                        gap = d
+                        if gap <= stop:
                             q = q_old + t * direction
                             dist, n = sdf(q, size, axis)
                             moved = True

@@ -45,6 +45,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct
 
@@ -212,11 +213,16 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         rest_rotation: wp.array(dtype=quat),
         clamp_direction: wp.array(dtype=vec3),
         curved: wp.array(dtype=wp.int32),
-        # Control (per device strand): roots, clamp ghosts (offsets from the root when relative)
+        # Control (per device strand): roots and their path's deviations, clamp ghosts (offsets from
+        # the root when relative) and theirs (root_on_path; unused when relative)
         root_start: wp.array(dtype=vec3s),
         root_end: wp.array(dtype=vec3s),
+        root_deviation_start: wp.array(dtype=vec3s),
+        root_deviation_end: wp.array(dtype=vec3s),
         clamp_start: wp.array(dtype=vec3s),
         clamp_end: wp.array(dtype=vec3s),
+        clamp_deviation_start: wp.array(dtype=vec3s),
+        clamp_deviation_end: wp.array(dtype=vec3s),
         clamp_relative: wp.int32,
         root_alpha: real,
         gravity: vec3,
@@ -253,12 +259,14 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         k0s = particle(base, stride, 0)
         root_old = ld(positions_in[k0s])
         ra = ld(root_start[s])
-        root_new = ra + root_alpha * (ld(root_end[s]) - ra)
+        root_new = root_on_path(ra, ld(root_end[s]) - ra, ld(root_deviation_start[s]), ld(root_deviation_end[s]),
+                                root_alpha)
         ghost_old = ld(clamps_in[s])
         ca = ld(clamp_start[s])
         ghost_new = root_new + ca
         if clamp_relative == 0:
-            ghost_new = ca + root_alpha * (ld(clamp_end[s]) - ca)
+            ghost_new = root_on_path(ca, ld(clamp_end[s]) - ca, ld(clamp_deviation_start[s]),
+                                     ld(clamp_deviation_end[s]), root_alpha)
         v0 = (root_new - root_old) / h
         positions_out[k0s] = st(root_new)
         velocities_out[k0s] = st(v0)

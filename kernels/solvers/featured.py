@@ -33,6 +33,7 @@ import warp as wp
 
 from ..core.arith import madd
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
 from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct  # noqa: F401  (re-exported)
@@ -65,6 +66,8 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         root_alpha: scalar,
         rest_lengths: wp.array(dtype=scalar),
         gravity: vec3,
@@ -85,7 +88,8 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
         inv_dt = one / dt
         gdt2 = gravity * (dt * dt)
         k = particle(base, stride, 0)
-        root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+        root = root_on_path(root_start[s], root_end[s] - root_start[s], root_deviation_start[s],
+                            root_deviation_end[s], root_alpha)
         leader_old = positions_in[k]
         positions_out[k] = root
         velocities_out[k] = (root - leader_old) * inv_dt

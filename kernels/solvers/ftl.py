@@ -2,8 +2,9 @@
 
 Each kernel advances every strand by one substep ``dt`` (s):
 
-1. the root (particle 0) is placed on its kinematic target, interpolated between the frame's
-   start and end targets by ``root_alpha``;
+1. the root (particle 0) is placed on its kinematic target, ``root_alpha`` of the way along the
+   frame's root path (:func:`~dftl_warp.kernels.core.root_path.root_on_path`: from the start to the
+   end target, linear unless the Control gave the roots velocities);
 2. every other particle is predicted, ``p_i = x_i + dt v_i + dt^2 g`` (``g`` in m/s^2, or stage
    units/s^2), then pulled behind its leader,
    ``x_i = x_{i-1} + l_i (p_i - x_{i-1}) / |p_i - x_{i-1}|``;
@@ -26,6 +27,7 @@ import warp as wp
 
 from ..core.arith import madd, norm2, rsqrt
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 
 CORRECTIONS = ("prior", "posterior")
 
@@ -99,6 +101,8 @@ def bare_step_kernel(scalar, correction: str):
             strand_count: wp.array(dtype=wp.int32),
             root_start: wp.array(dtype=vec3),
             root_end: wp.array(dtype=vec3),
+            root_deviation_start: wp.array(dtype=vec3),
+            root_deviation_end: wp.array(dtype=vec3),
             root_alpha: scalar,
             rest_lengths: wp.array(dtype=scalar),
             gravity: vec3,
@@ -118,7 +122,8 @@ def bare_step_kernel(scalar, correction: str):
             inv_dt = scalar(1.0) / dt
             gdt2 = gravity * (dt * dt)
             k = particle(base, stride, 0)
-            root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+            root = root_on_path(root_start[s], root_end[s] - root_start[s], root_deviation_start[s],
+                                root_deviation_end[s], root_alpha)
             leader_old = positions_in[k]
             positions_out[k] = root
             velocities_out[k] = (root - leader_old) * inv_dt
@@ -146,6 +151,8 @@ def bare_step_kernel(scalar, correction: str):
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         root_alpha: scalar,
         rest_lengths: wp.array(dtype=scalar),
         gravity: vec3,
@@ -163,7 +170,8 @@ def bare_step_kernel(scalar, correction: str):
         inv_dt = scalar(1.0) / dt
         gdt2 = gravity * (dt * dt)
         k = particle(base, stride, 0)
-        root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+        root = root_on_path(root_start[s], root_end[s] - root_start[s], root_deviation_start[s],
+                            root_deviation_end[s], root_alpha)
         leader_old = positions_in[k]
         positions_out[k] = root
         velocities_out[k] = (root - leader_old) * inv_dt

@@ -15,8 +15,9 @@ by the last substep; positions once at the end. Global memory is read and writte
 launch instead of once per substep.
 
 The arithmetic is that of :mod:`.ftl`'s step kernels, operation for operation (only computed at
-another point of the loop), so the results are identical to the unfused path. Roots move by
-linear interpolation inside the loop: substep ``j`` places them at ``alpha = (j + 1) / substeps``.
+another point of the loop), so the results are identical to the unfused path. Roots move on the
+frame's root path inside the loop (:func:`~dftl_warp.kernels.core.root_path.root_on_path`, the
+unfused kernels' helper): substep ``j`` places them at ``alpha = (j + 1) / substeps``.
 
 A strand with fewer than ``N`` vertices may use a capacity-``N`` kernel (``exact=False``): rows
 past its count are skipped. ``exact=True`` kernels serve strands of exactly ``N`` vertices and
@@ -30,6 +31,7 @@ import warp as wp
 from ..core.arith import madd
 from .ftl import CORRECTIONS, STEP_MODULE_OPTIONS, follow_func
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 
 
 #: CUDA launch bounds (threads per block, blocks per SM) of the fused kernels, by precision and
@@ -46,7 +48,9 @@ REST_ON_CHIP_MAX = 32
 #: (precision, capacity) whose on-chip rest lengths live in shared memory rather than registers:
 #: at 32 vertices the 224 register values per thread spilled; this frees 32 of them (H200 probe
 #: runs, 2026-11-21, k = 8: 3.4x -> 3.7-3.8x the per-step floor, bitwise the same results). The
-#: root targets join them (6 registers fewer through the substep loop).
+#: root targets and their path's deviations join them (12 registers fewer through the substep
+#: loop; 44 slots x 256 threads x 4 B = 44 KiB of the 48 KiB a block may hold statically; the
+#: deviations' 12 KiB cost nothing measurable on an H200, docs/benchmarks.md, 2026-11-24).
 REST_IN_SHARED = {(wp.float32, 32)}
 
 # A private row of scalars per thread in shared memory, laid out [slot][thread] so that a warp
@@ -107,8 +111,9 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     rest_on_chip = N <= REST_ON_CHIP_MAX
     rest_shared = (scalar, N) in REST_IN_SHARED
     if rest_shared:
-        # slots 0..N-1: rest lengths; N..N+2: the root's start target; N+3..N+5: its end target
-        rest_row = shared_row_func(scalar, N + 6, fused_block_dim(scalar, N))
+        # slots 0..N-1: rest lengths; N..N+2: the root's start target; N+3..N+5: its end target;
+        # N+6..N+8, N+9..N+11: its path's deviations at the frame's start and end
+        rest_row = shared_row_func(scalar, N + 12, fused_block_dim(scalar, N))
 
         @wp.func
         def row_vec(slot: wp.int32):
@@ -117,12 +122,13 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                         rest_row(slot + 2, scalar(0.0), 0))
 
     @wp.func
-    def root_at(alpha: scalar, r0: vec3, r1: vec3):
-        """The root target at ``alpha`` in [0, 1], from the shared row when it holds them."""
+    def root_at(alpha: scalar, r0: vec3, r1: vec3, d0: vec3, d1: vec3):
+        """The root on its path at ``alpha`` in [0, 1], from the shared row when it holds the
+        targets and deviations."""
         if wp.static(rest_shared):
             a = row_vec(N)
-            return a + alpha * (row_vec(N + 3) - a)
-        return r0 + alpha * (r1 - r0)
+            return root_on_path(a, row_vec(N + 3) - a, row_vec(N + 6), row_vec(N + 9), alpha)
+        return root_on_path(r0, r1 - r0, d0, d1, alpha)
 
     @wp.func
     def sweep_prior(leader: vec3, leader_old: vec3, x_old: vec3, p: vec3, rest: scalar, dt: scalar,
@@ -142,6 +148,8 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         rest_lengths: wp.array(dtype=scalar),
         gravity: vec3,
         dt: scalar,
@@ -176,17 +184,21 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                         b[i - 1] = madd(-damping, corrections[k], b[i - 1])
         r0 = root_start[s]
         r1 = root_end[s]
+        d0 = root_deviation_start[s]
+        d1 = root_deviation_end[s]
         if wp.static(rest_shared):
-            # kept in shared memory with the rest lengths: 6 registers fewer through the loop
+            # kept in shared memory with the rest lengths: 12 registers fewer through the loop
             for c in range(3):
                 rest_row(N + c, r0[c], 1)
                 rest_row(N + 3 + c, r1[c], 1)
+                rest_row(N + 6 + c, d0[c], 1)
+                rest_row(N + 9 + c, d1[c], 1)
         # all substeps but the last: registers only, no global memory
         for j in range(substeps - 1):
             # opaque to the compiler (see the last substep), so rest-length addresses are not hoisted
             base_j = base + wp.int32(scalar(0.0) * x[0][0])
             alpha = scalar(j + 1) / scalar(substeps)
-            root = root_at(alpha, r0, r1)
+            root = root_at(alpha, r0, r1, d0, d1)
             leader_old = x[0]
             x[0] = root
             leader = root
@@ -220,7 +232,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         # math; int(NaN) is 0): otherwise it keeps every particle's addresses live through the
         # loop, three 64-bit pointers per particle, and runs out of registers.
         base = base + wp.int32(scalar(0.0) * x[0][0])
-        root = root_at(scalar(substeps) / scalar(substeps), r0, r1)
+        root = root_at(scalar(substeps) / scalar(substeps), r0, r1, d0, d1)
         leader_old = x[0]
         positions[base] = root
         velocities[base] = (root - leader_old) * inv_dt

@@ -2,7 +2,8 @@
 
 One step of ``dt`` (s) (Mueller et al. 2007, equal unit masses, kinematic root):
 
-1. the root is placed on its target; every other particle is predicted,
+1. the root is placed on its target on the frame's root path
+   (:func:`~dftl_warp.kernels.core.root_path.root_on_path`); every other particle is predicted,
    ``p_i = x_i + dt v_i + dt^2 g``;
 2. ``iterations`` Gauss-Seidel sweeps root -> tip project each segment to its rest length,
    moving both ends by equal shares (the root, of infinite mass, does not move);
@@ -20,6 +21,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 
 
 @functools.cache
@@ -34,6 +36,8 @@ def pbd_kernel(scalar):
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         root_alpha: scalar,
         rest_lengths: wp.array(dtype=scalar),
         gravity: vec3,
@@ -50,7 +54,8 @@ def pbd_kernel(scalar):
         n = strand_count[s]
         inv_dt = scalar(1.0) / dt
         k0 = particle(base, stride, 0)
-        root = root_start[s] + root_alpha * (root_end[s] - root_start[s])
+        root = root_on_path(root_start[s], root_end[s] - root_start[s], root_deviation_start[s],
+                            root_deviation_end[s], root_alpha)
         velocities_out[k0] = (root - positions_in[k0]) * inv_dt
         positions_out[k0] = root
         for i in range(1, n):

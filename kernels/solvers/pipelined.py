@@ -13,7 +13,12 @@ count ``n``). Lane ``j`` sweeps stream particle ``q`` at time ``t = q + 2 j``; w
 - ``r``: its rest length (m);
 
 a root hands on ``root_start`` and ``root_end - root_start`` instead, from which every lane
-places it at its own ``alpha = (j + 1) / K`` (and finds where the previous lane put it).
+places it on the frame's root path at its own ``alpha = (j + 1) / K`` (and finds where the
+previous lane put it), :func:`~dftl_warp.kernels.core.root_path.root_on_path`. The path's
+deviations (the Control's) come as two more arguments after the root targets, read by each lane
+from global memory when it reaches a root (two vectors per strand and lane: 1.2x the kernel's time
+on an H200, docs/benchmarks.md); both kernels are specialised on ``root_path`` and never read them
+for the linear path.
 
 Lane 0 takes particles from global memory, lane ``K - 1`` writes them back: global memory is read
 and written once per launch, and no lane holds more than two particles, whatever the strand
@@ -40,6 +45,7 @@ import warp as wp
 from ..core.arith import madd
 from .ftl import STEP_MODULE_OPTIONS, follow_func
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 
 #: substeps per launch (lanes per group) of the CUDA kernel: a group must fit a warp evenly
 CUDA_LANES = (2, 4, 8, 16, 32)
@@ -126,9 +132,11 @@ def pipeline_funcs(scalar):
 
     @wp.func
     def sweep_particle(i: wp.int32, j: wp.int32, substeps: wp.int32, x_in: vec3, b_in: vec3, rest: scalar,
-                       root_in: vec3, leader: vec3, leader_old: vec3, dt: scalar, inv_dt: scalar, gdt2: vec3):
+                       root_in: vec3, deviation_start: vec3, deviation_end: vec3, leader: vec3, leader_old: vec3,
+                       dt: scalar, inv_dt: scalar, gdt2: vec3):
         """Substep ``j`` of ``substeps`` on particle ``i`` as handed over (:func:`as_handed`; after
-        lane 0 a root arrives as ``(root_start, root_end - root_start)``).
+        lane 0 a root arrives as ``(root_start, root_end - root_start)``; a root's path deviations
+        are its strand's, zero for the linear path).
 
         Returns the new position, velocity and correction, the position before this substep, and
         the particle in hand-over form for the next lane: a follower's position and next prediction
@@ -137,10 +145,10 @@ def pipeline_funcs(scalar):
         if i == 0:
             # the root at alpha = (j + 1) / K; it was at alpha = j / K (lane 0: where the launch found it)
             root_start = wp.where(j == 0, root_in, x_in)
-            x = root_start + (scalar(j + 1) / scalar(substeps)) * b_in
+            x = root_on_path(root_start, b_in, deviation_start, deviation_end, scalar(j + 1) / scalar(substeps))
             x_old = x_in
             if j > 0:
-                x_old = root_start + (scalar(j) / scalar(substeps)) * b_in
+                x_old = root_on_path(root_start, b_in, deviation_start, deviation_end, scalar(j) / scalar(substeps))
             v = (x - x_old) * inv_dt
             return x, v, vec3(), x_old, root_start, b_in
         x = follow(leader, b_in, rest, leader_old, x_in)
@@ -174,10 +182,13 @@ def _shuffles(scalar):
 
 
 @functools.cache
-def pipelined_kernel(scalar, substeps: int):
+def pipelined_kernel(scalar, substeps: int, root_path: bool = True):
     """CUDA kernel: ``substeps`` prior-form substeps of one run of ``strands`` strands of ``n``
     vertices, in ``groups`` groups (at most ``strands``) of ``substeps`` neighbouring threads.
-    Launch with ``dim = groups * substeps`` and a block of a multiple of 32 threads."""
+    Launch with ``dim = groups * substeps`` and a block of a multiple of 32 threads. It takes the
+    roots' path deviations after ``root_end`` (module docstring); ``root_path=False`` never reads
+    them (the linear path: a Control without root velocities), which the uncoalesced per-lane reads
+    cost about a fifth of this kernel's throughput on an H200 (docs/benchmarks.md)."""
     K = int(substeps)
     if K not in CUDA_LANES:
         raise ValueError(f"pipelined substeps must be one of {CUDA_LANES}, got {substeps}")
@@ -201,6 +212,8 @@ def pipelined_kernel(scalar, substeps: int):
         stride: wp.int32,
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         rest_lengths: wp.array(dtype=scalar),
         gravity: vec3,
         dt: scalar,
@@ -260,7 +273,14 @@ def pipelined_kernel(scalar, substeps: int):
                     in_x = from_x
                     in_b = from_b
                     in_r = from_r
-                x, v, c, x_old, hx, hb = sweep_particle(i, j, wp.static(K), in_x, in_b, in_r, in_root, leader,
+                d0 = vec3()
+                d1 = vec3()
+                if wp.static(root_path):
+                    if i == 0:   # the lane's strand (clamped: lanes also sweep before and after the stream)
+                        rs = first + wp.clamp(group + m * groups, 0, strands - 1)
+                        d0 = root_deviation_start[rs]
+                        d1 = root_deviation_end[rs]
+                x, v, c, x_old, hx, hb = sweep_particle(i, j, wp.static(K), in_x, in_b, in_r, in_root, d0, d1, leader,
                                                         leader_old, dt, inv_dt, gdt2)
                 if last and q >= 0 and q < stream:
                     kq = particle(run_strand_base(run_base, group + m * groups, strand_step, chunk), stride, i)
@@ -288,12 +308,14 @@ def pipelined_kernel(scalar, substeps: int):
 
 
 @functools.cache
-def pipelined_serial_kernel(scalar):
+def pipelined_serial_kernel(scalar, root_path: bool = True):
     """Any device: the pipelined substeps with one thread per group running its ``substeps``
     lanes in turn, last lane first. Launch with ``dim = groups``; ``lane_vectors``
-    (``groups * substeps`` x 6) and ``lane_scalars`` (x 2) are scratch."""
+    (``groups * substeps`` x 6) and ``lane_scalars`` (x 2) are scratch. The kernel takes the
+    roots' path deviations after ``root_end`` (module docstring); ``root_path=False`` never reads
+    them (the linear path), as :func:`pipelined_kernel`."""
     vec3 = wp.types.vector(3, scalar)
-    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    lanes = serial_lanes_func(scalar, bool(root_path))
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_pipelined_serial(
@@ -307,6 +329,8 @@ def pipelined_serial_kernel(scalar):
         stride: wp.int32,
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         rest_lengths: wp.array(dtype=scalar),
         gravity: vec3,
         dt: scalar,
@@ -318,7 +342,47 @@ def pipelined_serial_kernel(scalar):
         velocities: wp.array(dtype=vec3),
         corrections: wp.array(dtype=vec3),
     ):
-        group = wp.tid()
+        lanes(wp.tid(), first, strands, groups, n, run_base, strand_step, chunk, stride, root_start, root_end,
+              root_deviation_start, root_deviation_end, rest_lengths, gravity, dt, damping, substeps,
+              lane_vectors, lane_scalars, positions, velocities, corrections)
+
+    return dftl_pipelined_serial
+
+
+@functools.cache
+def serial_lanes_func(scalar, root_path: bool):
+    """``serial_lanes(group, ...)``: the body of :func:`pipelined_serial_kernel` for lane group
+    ``group`` (the kernel's arguments follow it); the deviations are read only with ``root_path``."""
+    vec3 = wp.types.vector(3, scalar)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    ROOT_PATH = bool(root_path)
+
+    @wp.func
+    def serial_lanes(
+        group: wp.int32,
+        first: wp.int32,
+        strands: wp.int32,
+        groups: wp.int32,
+        n: wp.int32,
+        run_base: wp.int32,
+        strand_step: wp.int32,
+        chunk: wp.int32,
+        stride: wp.int32,
+        root_start: wp.array(dtype=vec3),
+        root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
+        rest_lengths: wp.array(dtype=scalar),
+        gravity: vec3,
+        dt: scalar,
+        damping: scalar,
+        substeps: wp.int32,
+        lane_vectors: wp.array2d(dtype=vec3),
+        lane_scalars: wp.array2d(dtype=scalar),
+        positions: wp.array(dtype=vec3),
+        velocities: wp.array(dtype=vec3),
+        corrections: wp.array(dtype=vec3),
+    ):
         inv_dt = scalar(1.0) / dt
         gdt2 = gravity * (dt * dt)
         stream = ((strands - group + groups - 1) / groups) * n
@@ -344,7 +408,13 @@ def pipelined_serial_kernel(scalar):
                         in_b = lane_vectors[row - 1, 5]
                         in_r = lane_scalars[row - 1, 1]
                         in_root = vec3()
-                    x, v, c, x_old, hx, hb = sweep_particle(i, j, substeps, in_x, in_b, in_r, in_root,
+                    d0 = vec3()
+                    d1 = vec3()
+                    if wp.static(ROOT_PATH):
+                        if i == 0:
+                            d0 = root_deviation_start[first + r]
+                            d1 = root_deviation_end[first + r]
+                    x, v, c, x_old, hx, hb = sweep_particle(i, j, substeps, in_x, in_b, in_r, in_root, d0, d1,
                                                             lane_vectors[row, 0], lane_vectors[row, 1], dt,
                                                             inv_dt, gdt2)
                     if j == substeps - 1:
@@ -364,4 +434,4 @@ def pipelined_serial_kernel(scalar):
                     lane_vectors[row, 5] = lane_vectors[row, 3]
                     lane_scalars[row, 1] = lane_scalars[row, 0]
 
-    return dftl_pipelined_serial
+    return serial_lanes

@@ -3,8 +3,9 @@
 The scheme is the reference's (:mod:`.reference`): RATTLE (Andersen 1983), the constrained velocity
 Verlet, with kinematic roots and unit masses. One step of ``h`` (s):
 
-1. kick-drift: ``q_i = x_i + h v_i + h^2/2 g``; the root is put on its target (interpolated by
-   ``alpha`` like DFTL's roots);
+1. kick-drift: ``q_i = x_i + h v_i + h^2/2 g``; the root is put on its target (``alpha`` of the
+   way along the frame's root path like DFTL's roots,
+   :func:`~dftl_warp.kernels.core.root_path.root_on_path`);
 2. position constraints: ``x'_i = q_i + mu_i r_i - mu_{i+1} r_{i+1}`` (``r_j = x_j - x_{j-1}``, old
    segments) with ``mu`` solving ``F_j(mu) = (|d_j|^2 - l_j^2)/2 = 0`` (``d_j`` the new segments) by a
    FIXED number of Newton iterations (``iterations``, no data-dependent loop), each Newton system
@@ -21,7 +22,8 @@ Verlet, with kinematic roots and unit masses. One step of ``h`` (s):
    ``J M^-1 J^T``, exact in one pass).
 
 Steps 1, 2 and 4 are RATTLE: symplectic, time-reversible, second order, no numerical damping. The
-root's velocity is ``(target - x_0)/h``, exact for the piecewise-linear root path.
+root's velocity is ``(target - x_0)/h``: exact for a linear root path, the substep's mean on the
+C1 path (the root moves along the substep's chord; pieces of a split substep along it too).
 
 Cost per substep: ``2 * iterations + 5`` sweeps over the strand (DFTL: one). The substep loop runs
 inside the kernel (one launch per frame); positions and velocities are updated in place in the
@@ -40,6 +42,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 from .ftl import follow_func
 
 
@@ -62,6 +65,8 @@ def rattle_kernel(scalar):
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         alpha_first: scalar,
         alpha_step: scalar,
         substeps: wp.int32,
@@ -89,6 +94,8 @@ def rattle_kernel(scalar):
         m = n - 1  # constraints j = 1..m, constraint j kept at particle j's slot
         r0 = root_start[s]
         r1 = root_end[s]
+        d0 = root_deviation_start[s]
+        d1 = root_deviation_end[s]
         k0 = particle(base, stride, 0)
         units = wp.int32(1) << depth  # a substep is split into pieces of whole units
         zero = scalar(0.0)
@@ -99,7 +106,7 @@ def rattle_kernel(scalar):
         if n < 2:
             # a lone root: kinematic, nothing to solve
             if n == 1:
-                root = r0 + (alpha_first + scalar(substeps - 1) * alpha_step) * (r1 - r0)
+                root = root_on_path(r0, r1 - r0, d0, d1, alpha_first + scalar(substeps - 1) * alpha_step)
                 v[k0] = (root - x[k0]) / (dt * scalar(substeps))
                 x[k0] = root
             return
@@ -107,7 +114,7 @@ def rattle_kernel(scalar):
             lo[particle(base, stride, i)] = vec3()
         for step in range(substeps):
             alpha = alpha_first + scalar(step) * alpha_step
-            target = r0 + alpha * (r1 - r0)
+            target = root_on_path(r0, r1 - r0, d0, d1, alpha)
             begin = x[k0] + lo[k0]
             done = wp.int32(0)
             size = units
@@ -116,7 +123,7 @@ def rattle_kernel(scalar):
                 h = dt * (scalar(size) / scalar(units))
                 inv_h = scalar(1.0) / h
                 half_h_g = gravity * (scalar(0.5) * h)
-                # the root moves linearly across the substep
+                # the root moves along the substep's chord
                 root = target
                 if done + size < units:
                     root = begin + (scalar(done + size) / scalar(units)) * (target - begin)

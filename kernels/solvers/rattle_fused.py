@@ -28,6 +28,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 from .ftl import follow_func
 
 #: capacities of the on-chip kernels (vertices); longer strands take the global-memory kernel
@@ -72,6 +73,8 @@ def rattle_fused_kernel(scalar, capacity: int):
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         alpha_first: scalar,
         alpha_step: scalar,
         substeps: wp.int32,
@@ -94,6 +97,8 @@ def rattle_fused_kernel(scalar, capacity: int):
         m = n - 1
         r0 = root_start[s]
         r1 = root_end[s]
+        d0 = root_deviation_start[s]
+        d1 = root_deviation_end[s]
         k0 = particle(base, stride, 0)
         units = wp.int32(1) << depth
         zero = scalar(0.0)
@@ -103,7 +108,7 @@ def rattle_fused_kernel(scalar, capacity: int):
         dropped = fallbacks[s]
         if n < 2:
             if n == 1:
-                root = r0 + (alpha_first + scalar(substeps - 1) * alpha_step) * (r1 - r0)
+                root = root_on_path(r0, r1 - r0, d0, d1, alpha_first + scalar(substeps - 1) * alpha_step)
                 velocities[k0] = (root - positions[k0]) / (dt * scalar(substeps))
                 positions[k0] = root
             return
@@ -122,7 +127,7 @@ def rattle_fused_kernel(scalar, capacity: int):
                 rest[i] = rest_lengths[k]
         for step in range(substeps):
             alpha = alpha_first + scalar(step) * alpha_step
-            target = r0 + alpha * (r1 - r0)
+            target = root_on_path(r0, r1 - r0, d0, d1, alpha)
             begin = x[0] + lo[0]
             done = wp.int32(0)
             size = units

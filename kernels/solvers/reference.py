@@ -20,9 +20,12 @@ along the old segment directions once a segment turns too far in one step), the 
 as two halves, recursively (down to ``dt * 1e-6``); the piece length doubles again after each
 success. Converged steps are untouched by this, so the scheme stays RATTLE wherever it can.
 
-The root is kinematic (infinite mass): it sits on its target, and its velocity is the target's
-finite difference ``(x_0' - x_0)/dt``, exact for the piecewise-linear root path that
-:class:`~dftl_warp.core.state.Control` describes.
+The root is kinematic (infinite mass): it sits on its target on the frame's root path that
+:class:`~dftl_warp.core.state.Control` describes (:func:`~dftl_warp.kernels.core.root_path.root_on_path`),
+and its velocity is the target's finite difference ``(x_0' - x_0)/dt``: exact for a linear path,
+the substep's mean on the C1 one (inside a substep, and its split pieces, the root moves along
+the substep's chord: a difference of O(dt^2) from the path, which vanishes as the reference
+converges).
 
 Scratch memory, float64, in the model's particle layout (the same ``particle()`` indexing):
 three vec3 arrays (current positions, velocities, predictions: 72 bytes per particle) and three
@@ -36,6 +39,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 
 
 @wp.func
@@ -61,6 +65,8 @@ def rattle_kernel(scalar):
         strand_count: wp.array(dtype=wp.int32),
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         alpha_first: wp.float64,
         alpha_step: wp.float64,
         substeps: wp.int32,
@@ -93,18 +99,20 @@ def rattle_kernel(scalar):
             v[k] = _to_d(velocities_in[k])
         r0 = _to_d(root_start[s])
         r1 = _to_d(root_end[s])
+        d0 = _to_d(root_deviation_start[s])
+        d1 = _to_d(root_deviation_end[s])
         k0 = particle(base, stride, 0)
         worst = f64(0.0)
         for step in range(substeps):
             alpha = alpha_first + f64(step) * alpha_step
-            target = r0 + alpha * (r1 - r0)
+            target = root_on_path(r0, r1 - r0, d0, d1, alpha)
             begin = x[k0]
             elapsed = f64(0.0)
             h = dt
             while elapsed < dt:
                 if elapsed + h >= dt:
                     h = dt - elapsed
-                # the root moves linearly across the substep
+                # the root moves along the substep's chord
                 root = target
                 if elapsed + h < dt:
                     root = begin + ((elapsed + h) / dt) * (target - begin)

@@ -50,6 +50,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
+from ..core.root_path import root_on_path
 from .reference import _to_d
 
 F64 = wp.float64
@@ -262,6 +263,8 @@ def rattle_elastic_kernel(scalar):
         # Control:
         root_start: wp.array(dtype=vec3),
         root_end: wp.array(dtype=vec3),
+        root_deviation_start: wp.array(dtype=vec3),
+        root_deviation_end: wp.array(dtype=vec3),
         alpha_first: f64,
         alpha_step: f64,
         substeps: wp.int32,
@@ -316,9 +319,11 @@ def rattle_elastic_kernel(scalar):
                       gravity, rho, acc)
         r0 = _to_d(root_start[s])
         r1 = _to_d(root_end[s])
+        d0 = _to_d(root_deviation_start[s])
+        d1 = _to_d(root_deviation_end[s])
         for step in range(substeps):
             alpha = alpha_first + f64(step) * alpha_step
-            target = r0 + alpha * (r1 - r0)
+            target = root_on_path(r0, r1 - r0, d0, d1, alpha)
             begin = x[k0]
             elapsed = f64(0.0)
             h = dt

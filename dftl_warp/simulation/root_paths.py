@@ -1,0 +1,91 @@
+"""The C1 root path of a :class:`~dftl_warp.simulation.simulate.Simulation` (docs/elastic.md).
+
+Across the frame ``f -> f + 1`` an animated prim's roots (and the elastic solver's clamp ghosts)
+follow the Control's cubic Hermite curve (:class:`~dftl_warp.core.state.Control`,
+:mod:`dftl_warp.kernels.core.root_path`) whose end velocities are fourth-order differences of
+their positions over the 5 frames around (the window moved inside the shot near its ends,
+one-sided at them: :func:`~dftl_warp.core.state.frame_velocity`; the shot is the first frame and
+``Simulation.last_frame``): the velocity a root is given no longer jumps at every frame. The
+prim's local-to-world matrix follows the same curve (the roots are linear in it), and
+:func:`matrix_rate` is its velocity over the frame's last substep, which turns the written world
+velocities into local ones. Colliders are not on it: their poses still move linearly
+(translation lerp, rotation slerp) between frames (:func:`collider_note`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def shot(sim) -> tuple:
+    """The shot's first and last frame (``inf`` while the last is unknown)."""
+    return sim.first_frame, math.inf if sim.last_frame is None else sim.last_frame
+
+
+def group_points(sim, what: str, k: int, group, frame: int):
+    """Group ``k``'s world roots (``what="roots"``) or clamp ghosts (``"clamps"``) at ``frame``,
+    computed once per frame (``sim._at_frame``, forgotten with old frames)."""
+    key = (what, k, frame)
+    points = sim._at_frame.get(key)
+    if points is None:
+        points = sim._at_frame[key] = (sim._roots_world(group, frame) if what == "roots"
+                                       else group.clamps.world(sim._matrix, group.members, frame))
+    return points
+
+
+def frame_path(sim, what: str, k: int, group, frame: int, nxt: int) -> dict:
+    """Targets and velocities of the C1 path of group ``k``'s roots or clamp ghosts over the frame
+    ``frame -> nxt = frame + 1``: keyword arguments of ``Control.set_root_targets`` and
+    ``ElasticSolver.set_clamp_targets``. This frame's start is the last frame's end: the same array."""
+    from ..core.state import frame_velocity
+
+    duration = (nxt - frame) / sim.scene.stage.time_codes_per_second
+    first, last = shot(sim)
+
+    def points_at(f):
+        return group_points(sim, what, k, group, f)
+
+    return {"start": points_at(frame), "end": points_at(nxt),
+            "velocity_start": frame_velocity(points_at, frame, first, last, duration),
+            "velocity_end": frame_velocity(points_at, nxt, first, last, duration), "frame_duration": duration}
+
+
+def matrix_rate(sim, index: int, frame: int, substeps: int) -> np.ndarray:
+    """How fast prim ``index``'s local-to-world matrix moved over the last of ``substeps``
+    substeps of the frame ending at ``frame``, per second.
+
+    The matrix follows the roots' path (the Hermite curve with the same difference tangents:
+    linear in the matrix), and a root's written velocity is its last substep's backward
+    difference, so this backward difference of the matrix's path is the velocity the simulation
+    gave a point fixed in the prim: the roots' local velocity comes out zero (to the model
+    precision's round-off). With ``u = 1 - 1/K``, ``H(1) - H(u) = (1 - u) chord - u (1 - u)
+    ((1 - u) d0 - u d1)`` (:mod:`dftl_warp.kernels.core.root_path`); on a linear path (``d = 0``)
+    it is ``chord / T``.
+    """
+    from ..core.state import frame_velocity
+
+    duration = 1.0 / sim.scene.stage.time_codes_per_second
+    first, last = shot(sim)
+
+    def matrix_at(f):
+        return sim._matrix(index, f)
+
+    m0, m1 = matrix_at(frame - 1), matrix_at(frame)
+    chord = m1 - m0
+    d0 = duration * frame_velocity(matrix_at, frame - 1, first, last, duration) - chord
+    d1 = duration * frame_velocity(matrix_at, frame, first, last, duration) - chord
+    u = 1.0 - 1.0 / substeps
+    return (chord / substeps - u * (1.0 - u) * ((1.0 - u) * d0 - u * d1)) * (substeps / duration)
+
+
+def collider_note(scene) -> str | None:
+    """The start note of a scene whose animated roots follow the C1 path while animated colliders
+    move linearly between frame poses (None when not both are animated)."""
+    roots = any(c.animated or (c.root_mesh is not None and c.root_mesh.animated) for c in scene.curves)
+    if not (roots and any(c.animated for c in scene.colliders)):
+        return None
+    return ("root path: animated roots move on a C1 (Hermite) path inside each frame, animated colliders "
+            "linearly between their frame poses; mid-frame they can part by up to about 1/8 of a frame's "
+            "change of velocity times the frame (docs/elastic.md, velocities)")

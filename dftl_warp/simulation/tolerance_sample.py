@@ -1,0 +1,221 @@
+"""The sample of ``--tolerance`` (:mod:`.tolerance`): one solver on a few evenly spaced strands of
+a group, a *trial* state advanced ``k`` substeps per frame in the group's precision and a
+persistent *shadow* advanced ``2 k`` in float64, with the scene's roots, colliders and wind; their
+difference is the error estimate.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+
+import numpy as np
+
+#: convergence order of each solver's position error (measured; docs in :mod:`.tolerance`)
+ORDER = {"dftl": 0.7, "ftl": 0.7, "pbd": 1.0, "elastic": 1.0, "rattle": 2.0, "reference": 2.0}
+#: share of strands sampled, and the least number
+SAMPLE_SHARE = 0.03
+SAMPLE_MIN = 8
+
+
+def richardson(solver: str) -> float:
+    """Factor from |x_k - x_2k| to the error of the k run: 1 / (1 - 2^-p)."""
+    return 1.0 / (1.0 - 2.0 ** -ORDER.get(solver, 1.0))
+
+
+def sample_strands(num_strands: int, share: float = SAMPLE_SHARE, least: int = SAMPLE_MIN) -> np.ndarray:
+    """Evenly spaced strand indices: ``share`` of them, at least ``least`` (all when fewer)."""
+    n = min(num_strands, max(least, int(math.ceil(share * num_strands))))
+    return np.unique(np.linspace(0, num_strands - 1, n).round().astype(np.int64))
+
+
+def sample_features(features, idx: np.ndarray, num_strands: int) -> list:
+    """The features of strands ``idx``: per-strand values picked, scene-wide ones shared."""
+    from ..features import Drag, RootBinding
+
+    def pick(values):
+        v = np.asarray(values)
+        return values if v.ndim == 0 or v.shape[0] != num_strands else v[idx]
+
+    out = []
+    for f in features:
+        if isinstance(f, RootBinding) and f.triangles is not None:
+            f = replace(f, triangles=pick(f.triangles), weights=pick(f.weights))
+        elif isinstance(f, Drag):
+            f = replace(f, rate=pick(f.rate))
+        out.append(f)
+    return out
+
+
+def rescale_corrections(model, state, old: int, new: int) -> None:
+    """The prior form's carried correction of ``state``, last stepped at ``old`` substeps per frame,
+    made the one of a step at ``new``: times ``(old / new)^2`` (a force times the step squared;
+    ``kernels/simulation/tolerance.py`` says why and what it costs not to)."""
+    if state.corrections is None or old == new or model.num_strands == 0:
+        return
+    import warp as wp
+
+    from ..kernels.simulation.tolerance import scale_corrections_kernel
+
+    wp.launch(scale_corrections_kernel(model.scalar), dim=model.num_strands, device=model.device,
+              inputs=[model.strand_base, model.strand_stride, model.strand_count, (old / new) ** 2],
+              outputs=[state.corrections])
+
+
+def copy_state(src, src_model, dst, dst_model, points=None) -> None:
+    """``dst`` (a State of ``dst_model``) made ``src`` (of ``src_model``), through the host: points
+    ``points`` of ``src_model`` (input order; None: all) are ``dst_model``'s points, in any precision."""
+    for name, relative in (("positions", True), ("velocities", False), ("corrections", False)):
+        if getattr(dst, name, None) is None:
+            continue
+        values = getattr(src, name, None)
+        if values is None:
+            dst.write(name, None, zero=True)
+            continue
+        host = src_model.points_from_device(values, relative=relative)
+        host = host if points is None else host[points]
+        dst.write(name, dst_model.points_to_device(host, relative=relative), layout=dst_model.layout)
+
+
+class Lane:
+    """The sample strands as one model in one precision: model, solver, control."""
+
+    def __init__(self, group, scene, frame: int, solver: str, idx: np.ndarray, points_idx, precision: str):
+        import warp as wp
+
+        from ..core.model import Model
+        from ..features import group_features
+        from ..solvers import carries_corrections, make_solver
+        from ..usd.scene import transform_points
+
+        settings = group.settings
+        counts = np.concatenate([c.counts for c in group.curves])
+        points = np.concatenate([transform_points(c.transform(frame), c.points) for c in group.curves])
+        features, widths = group_features(scene, group.curves, frame)
+        device = group.model.device
+        with wp.ScopedDevice(device):
+            self.model = Model.from_strands(
+                points[points_idx], counts[idx], device=device, precision=precision, origin=group.model.origin,
+                widths=None if widths is None else widths[points_idx],
+                features=sample_features(features, idx, len(counts)),
+                corrections=carries_corrections(solver, settings.correction))
+            self.solver = make_solver(self.model, solver, damping=settings.damping, correction=settings.correction,
+                                      gravity=scene.gravity)
+            self.control = self.model.control()
+
+    def rewind_colliders(self) -> None:
+        """Colliders back at the frame's start, for the previous substep too. The control's poses
+        advance with each substep (the continuous test and friction use the motion since the
+        previous one), so every run of a frame (``k``, ``2 k`` substeps) must start from the same
+        poses: without this the second run's first substep swept the colliders back across the
+        whole frame."""
+        from ..features.colliders.device import inverse_poses
+
+        c = None if self.control.features is None else self.control.features.colliders
+        if c is None:
+            return
+        start = c.pose_start.numpy()
+        inverse = inverse_poses(start).astype(start.dtype)
+        for a, v in ((c.pose, start), (c.pose_prev, start), (c.inv_pose, inverse), (c.inv_pose_prev, inverse)):
+            a.assign(v)
+
+
+class SampleRun:
+    """One solver on the sample strands of a group: a *trial* state in the group's ``precision``,
+    a persistent *shadow* (and ``work``, the shadow at the frame's end) in float64, so that the
+    estimate also holds the trial's rounding error (float32's contact floor: :mod:`.tolerance`)."""
+
+    def __init__(self, group, scene, frame: int, solver: str, idx: np.ndarray, precision: str):
+        self.group, self.scene, self.idx, self.name = group, scene, idx, solver
+        counts = np.concatenate([c.counts for c in group.curves])
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        self.points_idx = np.concatenate([np.arange(starts[s], starts[s + 1]) for s in idx])
+        self.lane = Lane(group, scene, frame, solver, idx, self.points_idx, precision)
+        wide = precision == "float64"
+        self.wide = self.lane if wide else Lane(group, scene, frame, solver, idx, self.points_idx, "float64")
+        self.model, self.solver = self.lane.model, self.lane.solver
+        self.trial = self.solver.state()
+        self.shadow, self.work = self.wide.solver.state(), self.wide.solver.state()
+        self.factor = richardson(solver)
+        #: substeps per frame of the last step of the trial's and the shadow's states (their carried
+        #: corrections are for that step: :func:`rescale_corrections`)
+        self.trial_carried = self.shadow_carried = 1
+        #: seconds per substep measured on the trial (wall clock, device synchronized)
+        self.seconds_per_substep: list[float] = []
+
+    def load(self, state, model) -> None:
+        """The trial starts from the sample strands of a full-group ``state`` of ``model``."""
+        copy_state(state, model, self.trial, self.model, self.points_idx)
+
+    def shadow_from_trial(self) -> None:
+        """The shadow starts where the trial is."""
+        copy_state(self.trial, self.model, self.shadow, self.wide.model)
+        self.shadow_carried = self.trial_carried
+
+    def set_frame(self, roots, frame: int, nxt: int, shot=None) -> None:
+        """Root targets and features of the frame ``frame`` -> ``nxt``. ``roots``: the keyword
+        arguments of :meth:`~dftl_warp.core.state.Control.set_root_targets` for the whole group
+        (per-strand arrays in input order, picked here), or None (still roots); ``shot``: the first
+        and last frame, for roots bound to a mesh (None: not passed)."""
+        from ..features import update_frame
+
+        if roots is not None:
+            n = self.group.num_strands
+            roots = {key: (v[self.idx] if isinstance(v, np.ndarray) and v.ndim == 2 and len(v) == n else v)
+                     for key, v in roots.items()}
+        extra = {} if shot is None else {"shot": shot}
+        for lane in {id(self.lane): self.lane, id(self.wide): self.wide}.values():
+            if roots is not None:
+                lane.control.set_root_targets(**roots)
+            update_frame(self.scene, self.group.curves, lane.control, frame, nxt, **extra)
+
+    def run(self, lane, source, out, frame_dt: float, k: int, carried: int) -> None:
+        """``out``: ``source`` (last stepped at ``carried`` substeps per frame) advanced one frame
+        by ``k`` substeps on ``lane``."""
+        import warp as wp
+
+        out.assign(source)
+        rescale_corrections(lane.model, out, carried, k)
+        lane.rewind_colliders()
+        a = time.perf_counter()
+        lane.solver.advance(out, lane.control, frame_dt / k, k)
+        wp.synchronize_device(lane.model.device)
+        if lane is self.lane:
+            self.seconds_per_substep.append((time.perf_counter() - a) / k)
+
+    def estimate(self, frame_dt: float, k: int, start) -> tuple[float, object]:
+        """Estimated error at the frame's end of ``start`` advanced by ``k`` substeps (the trial
+        state, which is left there) against the shadow advanced by ``2 k`` (left in ``work``)."""
+        scratch = self.solver.state()
+        scratch.assign(start)
+        self.run(self.lane, scratch, self.trial, frame_dt, k, self.trial_carried)
+        self.run(self.wide, self.shadow, self.work, frame_dt, 2 * k, self.shadow_carried)
+        a = self.model.points_from_device(self.trial.positions)
+        b = self.wide.model.points_from_device(self.work.positions)
+        return self.factor * float(np.sqrt(((a - b) ** 2).sum(-1).mean())), scratch
+
+    def results(self, kept=None) -> tuple:
+        """Copies of the frame's results (the trial, and the shadow at the frame's end), or
+        ``kept`` put back."""
+        if kept is not None:
+            self.trial.assign(kept[0])
+            self.work.assign(kept[1])
+            return kept
+        trial, work = self.solver.state(), self.wide.solver.state()
+        trial.assign(self.trial)
+        work.assign(self.work)
+        return trial, work
+
+    def snapshot(self) -> tuple:
+        """Copies of the trial and the shadow, with the substeps their corrections carry."""
+        trial, shadow = self.solver.state(), self.wide.solver.state()
+        trial.assign(self.trial)
+        shadow.assign(self.shadow)
+        return trial, shadow, self.trial_carried, self.shadow_carried
+
+    def restore(self, snap: tuple) -> None:
+        """Back to a :meth:`snapshot` (which stays valid)."""
+        trial, shadow, self.trial_carried, self.shadow_carried = snap
+        self.trial.assign(trial)
+        self.shadow.assign(shadow)
