@@ -45,7 +45,7 @@ def fall(pts, counts, frames, substeps, **hair_hair):
 def test_interval_1_is_todays_pipeline_bit_for_bit():
     """Every substep: lower corner (one thread per particle), clear, splat, sweep, as before."""
     pts, counts = head_groom(40, 12)
-    feats = [F.HairHair(cell_size=0.02, friction=3.0, repulsion=20.0)]
+    feats = [F.HairHair(cell_size=0.02, friction=3.0, repulsion=20.0, splat="particles")]
     substeps, dt = 5, 1.0 / FPS / 5
     runs = []
     for by_hand in (False, True):
@@ -166,7 +166,7 @@ def test_bad_splat_interval_is_refused(tmp_path, capsys):
         F.HairHair(cell_size=0.01, splat="cells")
     hh = features_from_attributes({"dftl:hairHair": True, "dftl:hairHairSplatInterval": 4}, [{}], [1],
                                   mean_segment=0.01)[0]
-    assert hh.splat_interval == 4 and hh.splat == "particles"
+    assert hh.splat_interval == 4 and hh.splat == "strands"  # the default splat
     stage = new_stage(tmp_path / "in.usda")
     scene = UsdPhysics.Scene.Define(stage, "/World/Physics").GetPrim()
     scene.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
