@@ -157,12 +157,11 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
         start, end = options.get("start"), options.get("end")
         if start is not None and end is not None and end < start:
             raise ValueError(f"frame range {start}..{end} is empty (end before start)")
-        if "quality" in options:  # a preset fills the options the job and [defaults] leave unset; its
-            from ..simulation.quality import quality_preset  # solver goes through ``quality`` (elastic prims keep theirs)
+        if "quality" in options:  # a preset fills the options the job and [defaults] leave unset
+            from ..simulation.quality import preset_settings
 
-            for key, value in quality_preset(options["quality"]).items():
-                if key != "solver":
-                    options.setdefault(key, value)
+            for key, value in preset_settings(options["quality"]).items():
+                options.setdefault(key, value)
         job.device = options.pop("device", None)
         if "prim" in options:
             options["prims"] = options.pop("prim")

@@ -67,16 +67,16 @@ def _gates(text):
 
 def run(args) -> int:
     from ..output.qc import QCError
-    from ..simulation.quality import describe_quality, quality_preset
+    from ..simulation.quality import describe_quality, preset_settings
     from ..simulation.simulate import simulate_usd
 
-    preset = quality_preset(args.quality) if args.quality else {}
+    preset = preset_settings(args.quality) if args.quality else {}
     given = {n: getattr(args, n) for n in ("solver", "substeps", "precision", "damping", "correction")}
-    for name in given:  # the preset's solver goes through ``quality``: prims running the elastic solver keep it
-        if getattr(args, name) is None and name in preset and name != "solver":
+    for name in given:
+        if getattr(args, name) is None and name in preset:
             setattr(args, name, preset[name])
     try:
-        summary = _simulate(args, simulate_usd, preset, given, describe_quality)
+        summary = _simulate(args, simulate_usd, given, describe_quality)
     except QCError as exc:  # a --check gate broken: one line, exit status 3, no output left
         print(f"dftl-warp: error: {exc}", file=sys.stderr)
         return 3
@@ -96,7 +96,7 @@ def run(args) -> int:
     return 0
 
 
-def _simulate(args, simulate_usd, preset, given, describe_quality):
+def _simulate(args, simulate_usd, given, describe_quality):
     return simulate_usd(
         args.input,
         args.output,

@@ -46,6 +46,13 @@ def quality_preset(name: str) -> dict:
     return dict(QUALITY_PRESETS[name])
 
 
+def preset_settings(name: str) -> dict:
+    """The preset ``name`` less its solver: what a command line or a batch job fills in where it
+    leaves a setting unset. The solver goes through ``quality`` (:class:`~dftl_warp.simulation.settings.SimulationOptions`): the
+    prims that would run the plain chain take it, those running the elastic solver keep theirs."""
+    return {k: v for k, v in quality_preset(name).items() if k != "solver"}
+
+
 def describe_quality(preset, overrides: dict | None = None) -> str:
     """The line ``--quality`` prints: what the preset ``preset`` (a name, or its dict) chose and,
     for a named preset, what it measured, e.g. ``dftl-warp: quality production: solver dftl, 256

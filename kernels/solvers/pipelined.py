@@ -315,7 +315,8 @@ def pipelined_serial_kernel(scalar, root_path: bool = True):
     roots' path deviations after ``root_end`` (module docstring); ``root_path=False`` never reads
     them (the linear path), as :func:`pipelined_kernel`."""
     vec3 = wp.types.vector(3, scalar)
-    lanes = serial_lanes_func(scalar, bool(root_path))
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    ROOT_PATH = bool(root_path)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
     def dftl_pipelined_serial(
@@ -342,47 +343,7 @@ def pipelined_serial_kernel(scalar, root_path: bool = True):
         velocities: wp.array(dtype=vec3),
         corrections: wp.array(dtype=vec3),
     ):
-        lanes(wp.tid(), first, strands, groups, n, run_base, strand_step, chunk, stride, root_start, root_end,
-              root_deviation_start, root_deviation_end, rest_lengths, gravity, dt, damping, substeps,
-              lane_vectors, lane_scalars, positions, velocities, corrections)
-
-    return dftl_pipelined_serial
-
-
-@functools.cache
-def serial_lanes_func(scalar, root_path: bool):
-    """``serial_lanes(group, ...)``: the body of :func:`pipelined_serial_kernel` for lane group
-    ``group`` (the kernel's arguments follow it); the deviations are read only with ``root_path``."""
-    vec3 = wp.types.vector(3, scalar)
-    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
-    ROOT_PATH = bool(root_path)
-
-    @wp.func
-    def serial_lanes(
-        group: wp.int32,
-        first: wp.int32,
-        strands: wp.int32,
-        groups: wp.int32,
-        n: wp.int32,
-        run_base: wp.int32,
-        strand_step: wp.int32,
-        chunk: wp.int32,
-        stride: wp.int32,
-        root_start: wp.array(dtype=vec3),
-        root_end: wp.array(dtype=vec3),
-        root_deviation_start: wp.array(dtype=vec3),
-        root_deviation_end: wp.array(dtype=vec3),
-        rest_lengths: wp.array(dtype=scalar),
-        gravity: vec3,
-        dt: scalar,
-        damping: scalar,
-        substeps: wp.int32,
-        lane_vectors: wp.array2d(dtype=vec3),
-        lane_scalars: wp.array2d(dtype=scalar),
-        positions: wp.array(dtype=vec3),
-        velocities: wp.array(dtype=vec3),
-        corrections: wp.array(dtype=vec3),
-    ):
+        group = wp.tid()
         inv_dt = scalar(1.0) / dt
         gdt2 = gravity * (dt * dt)
         stream = ((strands - group + groups - 1) / groups) * n
@@ -434,4 +395,4 @@ def serial_lanes_func(scalar, root_path: bool):
                     lane_vectors[row, 5] = lane_vectors[row, 3]
                     lane_scalars[row, 1] = lane_scalars[row, 0]
 
-    return serial_lanes
+    return dftl_pipelined_serial
