@@ -8,10 +8,10 @@ stand for the head (sphere, mesh) or sit below it (capsule: a neck, box: shoulde
 deforming body (a bumpy closed head of 50800 triangles whose points change every frame, as a point
 cache's) runs twice: through exact mesh queries and through its signed distance field; its rows
 include the per-frame update (BVH refit, and the field's rebuild), which is also given on its own.
-Each row runs the same groom with one feature; the last row runs the production scene of issue 20
-(the deforming body through its field, hair-hair, wind with curl noise and drag; DFTL strands, as
-the elastic solver does not support hair-hair yet). The ratio is to the bare step timed in the same
-run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
+Each row runs the same groom with one feature; the last rows run the production scene of issue 20
+(the deforming body through its field, hair-hair, wind with curl noise and drag) with DFTL strands
+and with elastic strands (``ELASTIC``: 100 um hair, float32 arithmetic), beside the elastic strands
+with gravity only. The ratio is to the bare step timed in the same run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
 path features take; the fused-substep figure is given for reference.
 
     python scripts/bench_features.py --device cpu --out docs/bench/features-cpu
@@ -144,7 +144,7 @@ def scenarios(pts, counts, roots):
         ("wind + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0.0, 0.0))], {}),
         ("wind with curl noise + drag", [F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], {}),
         ("hair-hair grid (1 cm cells)", [F.HairHair(cell_size=0.01)], {}),
-        # the production scene of issue 20 (with DFTL strands: the elastic solver has no hair-hair yet)
+        # the production scene of issue 20, with DFTL strands, then with elastic strands
         (f"production scene: deforming body ({len(body_tris)} triangles, field) + hair-hair + wind with curl "
          "noise + drag", [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
                           F.HairHair(cell_size=0.01), F.Drag(1.0),
@@ -153,7 +153,17 @@ def scenarios(pts, counts, roots):
          [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
           F.HairHair(cell_size=0.01, splat_interval=5), F.Drag(1.0),
           F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], deform),
+        ("elastic strands, gravity only (float32 arithmetic)", [], dict(ELASTIC)),
+        (f"production scene with elastic strands (float32 arithmetic): deforming body ({len(body_tris)} triangles, "
+         "field) + hair-hair + wind with curl noise + drag",
+         [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
+          F.HairHair(cell_size=0.01), F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)],
+         dict(deform, **ELASTIC)),
     ]
+
+
+#: the elastic rows' solver: the elastic rod solver (the groom's widths: 100 um hair), float32 arithmetic
+ELASTIC = dict(solver="elastic", solver_options=dict(compute_precision="float32"))
 
 
 def time_frames(fn, device, repeats):
@@ -308,7 +318,10 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
     for name, feats, extra in scenarios(pts, counts, roots):
         with wp.ScopedDevice(device):
             model = dw.Model.from_strands(pts, counts, device=device, widths=1e-4, features=feats)
-            solver = dw.DFTLSolver(model, gravity=G, fused=False)
+            if extra.get("solver", "dftl") == "dftl":
+                solver = dw.DFTLSolver(model, gravity=G, fused=False)
+            else:
+                solver = dw.make_solver(model, extra["solver"], gravity=G, **extra.get("solver_options", {}))
             state, control = solver.state(), model.control()
             binding = model.feature_data is not None and model.feature_data.binding is not None
             frames = extra.get("body_frames")

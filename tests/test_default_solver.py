@@ -51,13 +51,17 @@ def test_widths_mean_elastic_hair_unless_bending_is_off(tmp_path):
     assert _solver(tmp_path / "a" / "in.usda", solver="pbd")[0] == "pbd"
 
 
-@pytest.mark.parametrize("case,reason", [("hair_hair", "hair-hair interaction"), ("devices", "several devices")])
-def test_unsupported_scenes_stay_dftl_and_say_why(tmp_path, case, reason):
-    path = _scene(tmp_path, hair_hair=case == "hair_hair")
-    options = {"device": "cpu,cpu"} if case == "devices" else {}
-    solver, warnings = _solver(path, **options)
+def test_unsupported_scenes_stay_dftl_and_say_why(tmp_path):
+    solver, warnings = _solver(_scene(tmp_path), device="cpu,cpu")
     assert solver == "dftl"
-    assert any("/World/Hair: has widths but runs as a plain DFTL chain" in w and reason in w for w in warnings), warnings
+    assert any("/World/Hair: has widths but runs as a plain DFTL chain" in w and "several devices" in w
+               for w in warnings), warnings
+
+
+def test_hair_hair_keeps_hair_elastic(tmp_path):
+    solver, warnings = _solver(_scene(tmp_path, hair_hair=True))
+    assert solver == "elastic"
+    assert not any("plain DFTL chain" in w for w in warnings), warnings
 
 
 def test_a_curl_with_widths_keeps_its_shape_by_default(tmp_path, capsys):

@@ -211,11 +211,10 @@ def test_wind_blows_a_hanging_strand_downstream(noise):
 
 
 @pytest.mark.parametrize("feature,name", [
-    (lambda: F.HairHair(cell_size=0.01), "hair-hair"),
     (lambda: F.RootBinding(np.array([[0.0, 0, -1], [1, 0, 1], [-1, 0, 1]]), np.array([[0, 1, 2]])), "root binding"),
 ])
 def test_unsupported_features_are_refused_by_name(feature, name):
     rest = np.stack([np.linspace(0, LB, N + 1), np.zeros(N + 1), np.zeros(N + 1)], 1)
     model = dw.Model.from_strands(rest, [N + 1], features=[F.Colliders([F.Sphere(radius=0.01)]), feature()])
-    with pytest.raises(ValueError, match=f"supports colliders, drag and wind only.*{name}"):
+    with pytest.raises(ValueError, match=f"supports colliders, drag, wind and hair-hair only.*{name}"):
         dw.make_solver(model, "elastic")

@@ -246,10 +246,15 @@ class FeatureStep:
         return st
 
     def launch(self, state_in, state_out, control, dt, root_alpha, head_inputs):
-        self.pose_and_bounds(state_in, control, root_alpha, grid=False)
-        if self._grid is not None:  # bounds and splat, every splat_interval-th substep of a frame
-            self._grid.rebuild(state_in.positions, state_in.velocities, dt, root_alpha)
+        self.prepare(state_in, control, dt, root_alpha)
         self.sweep(state_in, state_out, control, head_inputs)
+
+    def prepare(self, state_in, control, dt, root_alpha) -> None:
+        """Everything a step's sweep reads besides the State: this substep's collider poses, and
+        the hair-hair grid's bounds and splat every ``splat_interval``-th substep of a frame."""
+        self.pose_and_bounds(state_in, control, root_alpha, grid=False)
+        if self._grid is not None:
+            self._grid.rebuild(state_in.positions, state_in.velocities, dt, root_alpha)
 
     # the phases of :meth:`launch`; a split groom (dftl_warp.simulation.multi_device) combines its parts'
     # grids between them

@@ -50,7 +50,10 @@ rounds of collide (the first continuous, Coulomb friction) then back to the rest
 leader. Contact moves the position only: the velocity is ``(x^{n+1} - x^n)/h`` of the contact
 position, the tensions are the solve's and the correction ``c`` the projection's (as DFTL's). The
 Drag feature (per strand, added to ``drag``) and Wind (with its curl noise) act in the implicit
-solve, as a force ``m drag (w - v^{n+1})``. Hair-hair and root binding are refused
+solve, as a force ``m drag (w - v^{n+1})``. Hair-hair (:class:`~dftl_warp.features.HairHair`, its
+grid splatted every ``splat_interval`` substeps as for DFTL) acts in the same solve: friction as the
+force ``m c (v_grid - v^{n+1})`` (c = ``friction``, 1/s, implicit like drag) and repulsion as the
+explicit force ``-m repulsion h_grid grad(rho)`` sampled at ``x^n``. Root binding is refused
 (:func:`check_features`).
 """
 
@@ -79,23 +82,22 @@ DEFAULT_RADIUS = 40e-6
 
 #: what the elastic solver says about the features it does not support (by feature class name)
 UNSUPPORTED = {
-    "HairHair": "hair-hair interaction (dftl:hairHair)",
     "RootBinding": "root binding to a deforming mesh (the clamp follows the prim's transform only)",
 }
 
 
 def check_features(model) -> None:
     """ValueError naming the model's features the elastic solver does not support (it supports
-    colliders, drag and wind)."""
-    from ..features import Colliders, Drag, Wind
+    colliders, drag, wind and hair-hair)."""
+    from ..features import Colliders, Drag, HairHair, Wind
 
-    bad = [f for f in model.features if not isinstance(f, (Colliders, Drag, Wind))]
+    bad = [f for f in model.features if not isinstance(f, (Colliders, Drag, HairHair, Wind))]
     names = [UNSUPPORTED.get(type(f).__name__, type(f).__name__) for f in bad]
     flags = set(model.feature_flags) - elastic_flags()
     names += [f"the {flag!r} flag" for flag in sorted(flags)
               if not any(flag in getattr(f, "flags", ()) for f in bad)]
     if names:
-        raise ValueError("the elastic solver supports colliders, drag and wind only; it does not support these "
+        raise ValueError("the elastic solver supports colliders, drag, wind and hair-hair only; it does not support these "
                          f"features: {'; '.join(names)}")
 
 
@@ -339,7 +341,8 @@ class ElasticSolver(Solver):
         f = self._fields
         prior = self.carries_corrections
         if self._features is not None:
-            self._features.pose_and_bounds(state_in, control, root_alpha)   # this substep's collider poses
+            # this substep's collider poses and the hair-hair grid (rebuilt every splat_interval substeps)
+            self._features.prepare(state_in, control, dt, root_alpha)
             features = self._features._struct(control)
         else:
             features = self._no_features

@@ -47,6 +47,7 @@ import warp as wp
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
+from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct
 
 #: as the DFTL step kernels: no floating-point contraction
@@ -56,7 +57,12 @@ ELASTIC_MODULE_OPTIONS = {"fuse_fp": False}
 POLAR_ITERATIONS = 4
 
 #: the feature flags the elastic step supports besides the registered collider shapes'
-ELASTIC_OTHER_FLAGS = frozenset({"drag", "wind", "wind_noise"})
+ELASTIC_OTHER_FLAGS = frozenset({"drag", "wind", "wind_noise", "hair_hair"})
+
+#: CUDA register cap of the float32-arithmetic kernel (H200, 1M curly strands x 33, 8 substeps:
+#: uncapped it takes 251 registers, 12.5% occupancy, 123 ms per frame; 128: 101 ms; 96: 122 ms;
+#: 64: 171 ms; docs/elastic.md "Cost"). The float64 kernel is left uncapped (not measured).
+CUDA_MAX_REGISTERS_F32 = 128
 
 
 @wp.struct
@@ -67,7 +73,7 @@ class NoFeatures:
 
 
 def elastic_flags() -> frozenset:
-    """Every feature flag the elastic step supports: the colliders', drag and wind."""
+    """Every feature flag the elastic step supports: the colliders', drag, wind and hair-hair."""
     return frozenset(collider_flags()) | ELASTIC_OTHER_FLAGS
 
 
@@ -83,8 +89,8 @@ def elastic_features_struct(scalar, flags: frozenset):
 def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()):
     """The scheme-K step kernel for States stored in ``scalar``, computing in ``real``, with the
     velocity correction in ``correction`` form (``"prior"`` or ``"posterior"``) and the features
-    ``flags`` (:func:`elastic_flags`: colliders after the follow-the-leader projection, drag and
-    wind in the implicit solve)."""
+    ``flags`` (:func:`elastic_flags`: colliders after the follow-the-leader projection; drag, wind
+    and hair-hair friction in the implicit solve, hair-hair repulsion as an explicit force)."""
     flags = check_flags(flags)
     extra = flags - elastic_flags()
     if extra:
@@ -95,6 +101,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     DRAG = "drag" in flags
     WIND = "wind" in flags
     WIND_NOISE = "wind_noise" in flags
+    HAIR_HAIR = "hair_hair" in flags
+    grid_sample = grid_sample_func(scalar) if HAIR_HAIR else None
     vec3s = wp.types.vector(3, scalar)
     quats = wp.types.quaternion(scalar)
     vec3 = wp.types.vector(3, real)
@@ -196,7 +204,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         z = real(0.0)
         return mat44(a2, z, z, z, z, a2, z, z, z, z, a2, z, z, z, z, z)
 
-    @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS)
+    @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS,
+               cuda_max_registers=CUDA_MAX_REGISTERS_F32 if real == wp.float32 else None)
     def elastic_step(
         # Model:
         strand_base: wp.array(dtype=wp.int32),
@@ -292,6 +301,11 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 noise_state = wp.uint32(features.noise_seed)
                 gust = zero3
                 noise_at = int(-1)
+        if wp.static(HAIR_HAIR):
+            # hair-hair (Petrovic et al. 2005): friction toward the grid velocity at rate c (1/s),
+            # implicit as drag; repulsion down the density gradient, an explicit acceleration (m/s^2)
+            hh_friction = real(features.grid_friction)
+            hh_push = real(features.grid_repulsion * features.grid_h)
 
         # ---- A: frames, Gauss-Seidel root -> tip, at x^n (ghost at its old place) ----------------
         if is_curved:
@@ -390,10 +404,17 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                         noise_at = si
                     w_air = air + gust
                 rv = rv + (h * mk * drag_s) * w_air
+            a_drag = drag_s
+            if wp.static(HAIR_HAIR):
+                v_grid, grad = grid_sample(positions_in[kk], features.grid_lower, features.grid_inv_h,
+                                           features.grid_nx, features.grid_ny, features.grid_nz,
+                                           features.grid_density, features.grid_momentum)
+                rv = rv + (h * mk) * (hh_friction * ld(v_grid) - hh_push * ld(grad))
+                a_drag = a_drag + hh_friction
             rk = vec4(rv[0], rv[1], rv[2], real(0.0))
             if k == 1:
                 rk[3] = wp.dot(e, v0)
-            a0 = mk * (real(1.0) + h * drag_s) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
+            a0 = mk * (real(1.0) + h * a_drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
             Dk = block0(a0, e) - U1k * D1 * wp.transpose(U1k) - U2k * D2 * wp.transpose(U2k)
             Di = wp.inverse(Dk)
             U1new = mat44()
