@@ -241,8 +241,8 @@ class ElasticSolver(Solver):
         self._clamp_relative = 1
         self._gravity_real = vec3r(*self.gravity64)
         n = model.num_slots
-        self._scratch = [wp.zeros(n, dtype=wp.types.matrix((4, 4), real), device=dev),
-                         wp.zeros(n, dtype=wp.types.matrix((4, 4), real), device=dev),
+        self._scratch = [wp.zeros(n, dtype=wp.types.vector(10, real), device=dev),
+                         wp.zeros(n, dtype=wp.types.matrix((3, 4), real), device=dev),
                          wp.zeros(n, dtype=wp.types.vector(4, real), device=dev)]
         self._dummy = wp.zeros(1, dtype=model.vec3, device=dev)
         flags = model.feature_flags

@@ -29,15 +29,17 @@ Memory traffic per free particle per step (``real`` scalars unless said; ``s`` =
 - state in: positions 3 s (A and B: 2 reads), velocities 3 s, tensions 1 s, frames 4 s (A reads and
   B re-reads the updated ones), corrections 3 s (prior form);
 - state out: positions 3 s, velocities 3 s, tensions 1 s, frames 4 s, corrections 3 s (prior form);
-- scratch: ``Di`` 16, ``U`` 16, ``w`` 4: written in B, read in C (72 scalars of traffic).
+- scratch: ``D^-1`` 10 (symmetric), ``B1 = U1 D`` 12 (its last row is zero), ``w`` 4: written in
+  B, read in C (52 scalars of traffic, 72 before this compaction; docs/elastic.md "Cost" has its
+  effect on the H200).
 
 Counted per free particle per step (prior form, curved strand; unique words per sweep): storage
 38 scalars (A: x 3, frames 4 + 4; B: x 3, v 3, T 1, c 3, frames 4; C: x 3, then x v c 9 + T 1
-written), computation 93 scalars (A: 10 model; B: 9 model + 36 scratch written; C: 36 scratch +
-2 model read). Bytes: float32 State with float64 arithmetic (the default) 38 x 4 + 93 x 8 = 896 B;
-float64 1048 B; float32 arithmetic 524 B; bare DFTL prior float32: 76 B. Straight strands skip A
+written), computation 73 scalars (A: 10 model; B: 9 model + 26 scratch written; C: 26 scratch +
+2 model read). Bytes: float32 State with float64 arithmetic (the default) 38 x 4 + 73 x 8 = 736 B;
+float64 888 B; float32 arithmetic 444 B; bare DFTL prior float32: 76 B. Straight strands skip A
 (-21 scalars); the posterior form carries no c (-6 storage scalars). The scratch dominates; on the
-CPU a strand's 36 x 33 scratch words stay in cache.
+CPU a strand's 26 x 33 scratch words stay in cache.
 """
 
 import functools
@@ -109,6 +111,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     vec4 = wp.types.vector(4, real)
     mat33 = wp.types.matrix((3, 3), real)
     mat44 = wp.types.matrix((4, 4), real)
+    mat34 = wp.types.matrix((3, 4), real)
+    vec10 = wp.types.vector(10, real)
     quat = wp.types.quaternion(real)
     prior = correction == "prior"
 
@@ -188,6 +192,24 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         return -(al * (x - xm)) + ga * (xp - x)
 
     @wp.func
+    def pack_symmetric(D: mat44):
+        """The 10 entries of a symmetric 4x4 matrix on and above its diagonal."""
+        return vec10(D[0, 0], D[0, 1], D[0, 2], D[0, 3], D[1, 1], D[1, 2], D[1, 3], D[2, 2], D[2, 3], D[3, 3])
+
+    @wp.func
+    def unpack_symmetric(p: vec10):
+        return mat44(p[0], p[1], p[2], p[3],
+                     p[1], p[4], p[5], p[6],
+                     p[2], p[5], p[7], p[8],
+                     p[3], p[6], p[8], p[9])
+
+    @wp.func
+    def top_rows(B: mat44):
+        """Rows 0-2 of a 4x4 matrix whose last row is zero."""
+        return mat34(B[0, 0], B[0, 1], B[0, 2], B[0, 3], B[1, 0], B[1, 1], B[1, 2], B[1, 3],
+                     B[2, 0], B[2, 1], B[2, 2], B[2, 3])
+
+    @wp.func
     def block0(a0: real, e: vec3):
         return mat44(a0, real(0.0), real(0.0), e[0],
                      real(0.0), a0, real(0.0), e[1],
@@ -246,9 +268,9 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         tensions_in: wp.array(dtype=scalar),
         frames_in: wp.array(dtype=quats),
         clamps_in: wp.array(dtype=vec3s),
-        # Scratch:
-        factor_inv: wp.array(dtype=mat44),
-        factor_up: wp.array(dtype=mat44),
+        # Scratch (per particle, written in B, read in C):
+        factor_inv: wp.array(dtype=vec10),
+        factor_up: wp.array(dtype=mat34),
         factor_rhs: wp.array(dtype=vec4),
         # State out:
         positions_out: wp.array(dtype=vec3s),
@@ -416,17 +438,24 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 rk[3] = wp.dot(e, v0)
             a0 = mk * (real(1.0) + h * a_drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
             Dk = block0(a0, e) - U1k * D1 * wp.transpose(U1k) - U2k * D2 * wp.transpose(U2k)
-            Di = wp.inverse(Dk)
+            # D_k is symmetric but for the products' rounding: inverted symmetrised (without that a
+            # styled groom at rest drifts 3e-9 L instead of < 1e-10 in float64), used as stored in
+            # both sweeps
+            Di_packed = pack_symmetric(wp.inverse(real(0.5) * (Dk + wp.transpose(Dk))))
+            Di = unpack_symmetric(Di_packed)
+            B1 = mat44()
             U1new = mat44()
             U2new = mat44()
             if k >= 2:
                 a1 = h2 * k1[km] - h2 * kt_k
-                U1new = (block1(a1, e) - U2km1 * D1 * wp.transpose(U1k)) * Di
+                B1 = block1(a1, e) - U2km1 * D1 * wp.transpose(U1k)
+                U1new = B1 * Di
             if k >= 3:
                 U2new = block2(h2 * k2[particle(base, stride, k - 2)]) * Di
             wk = rk - U1k * w1 - U2k * w2
-            factor_inv[kk] = Di
-            factor_up[kk] = U1new
+            # stored compactly: D_k^-1 is symmetric (10 words), B1 = U1 D_k has a zero last row (12)
+            factor_inv[kk] = Di_packed
+            factor_up[kk] = top_rows(B1)
             factor_rhs[kk] = wk
             # slide the windows down one particle
             D2 = D1
@@ -453,13 +482,14 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         vprev = zero3
         for k in range(1, n):
             kk = particle(base, stride, k)
-            Di = factor_inv[kk]
-            zk = Di * factor_rhs[kk]
+            # z_k = D_k^-1 (w_k - B1^T z_{k-1} - B2^T z_{k-2}): U = B D_k^-1 and D_k^-1 is symmetric
+            yk = factor_rhs[kk]
             if k >= 2:
-                zk = zk - wp.transpose(factor_up[kk]) * z1
+                yk = yk - wp.transpose(factor_up[kk]) * vec3(z1[0], z1[1], z1[2])
             if k >= 3:
-                U2 = block2(h2 * k2[particle(base, stride, k - 2)]) * Di
-                zk = zk - wp.transpose(U2) * z2
+                a2 = h2 * k2[particle(base, stride, k - 2)]
+                yk = yk - vec4(a2 * z2[0], a2 * z2[1], a2 * z2[2], real(0.0))
+            zk = unpack_symmetric(factor_inv[kk]) * yk
             z2 = z1
             z1 = zk
             x_old = ld(positions_in[kk])
