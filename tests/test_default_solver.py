@@ -64,6 +64,26 @@ def test_hair_hair_keeps_hair_elastic(tmp_path):
     assert not any("plain DFTL chain" in w for w in warnings), warnings
 
 
+def test_root_binding_keeps_hair_elastic(tmp_path):
+    """Roots bound to a mesh (``dftl:rootMesh``) keep a prim with widths elastic: its clamp turns with
+    the bound triangles (tests/test_elastic_binding.py)."""
+    from pxr import Sdf, Usd, UsdGeom, Vt
+
+    path = _scene(tmp_path)
+    stage = Usd.Stage.Open(str(path))
+    scalp = UsdGeom.Mesh.Define(stage, "/World/Scalp")
+    scalp.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
+    scalp.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
+    quad = np.array([[-0.02, 0, 0.02], [0.02, 0, 0.02], [0.02, 0, -0.02], [-0.02, 0, -0.02]], dtype=np.float32)
+    scalp.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(quad))
+    stage.GetPrimAtPath("/World/Hair").CreateRelationship("dftl:rootMesh", custom=True).AddTarget(
+        Sdf.Path("/World/Scalp"))
+    stage.Save()
+    solver, warnings = _solver(path)
+    assert solver == "elastic"
+    assert not any("plain DFTL chain" in w for w in warnings), warnings
+
+
 def test_a_curl_with_widths_keeps_its_shape_by_default(tmp_path, capsys):
     """The default run of a curl of 80 um hair under gravity: the authored shape is the equilibrium
     (inverse statics), so it stays as authored; the same prim as a DFTL chain (bending off) falls

@@ -5,13 +5,17 @@ Control (:class:`BindingControl`): the mesh's points at frame start and end (m, 
 coordinates); :meth:`BindingControl.bound_roots` returns the roots they place, and the caller sets
 them as the Control's root targets (:meth:`dftl_warp.core.state.Control.bind_roots`): the feature
 never writes the Control. With the mesh points' velocities (:meth:`BindingControl.bound_velocities`)
-the roots follow the Control's C1 path inside a frame. USD: ``dftl:rootMesh`` on a curves prim
-(closest point at rest). Costs one small kernel per frame (``kernels/features/binding.py``; two
-more with velocities: the same sums of them, then the path's deviations), nothing per step.
+the roots follow the Control's C1 path inside a frame. For the elastic solver,
+:meth:`BindingControl.bound_clamps` turns each strand's clamp ghost with its triangle's frame (edge
+0 and the normal) from the rest mesh (``ElasticSolver.bind_clamps``). USD: ``dftl:rootMesh`` on a
+curves prim (closest point at rest). Costs one small kernel per frame (``kernels/features/binding.py``;
+two more with velocities: the same sums of them, then the path's deviations; one more for elastic
+clamps), nothing per step.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +23,7 @@ import warp as wp
 
 from ..core.layout import strand_offsets
 from ..core.precision import numpy_type
-from ..kernels.features.binding import bind_roots_kernel, closest_face
+from ..kernels.features.binding import bind_clamps_kernel, bind_roots_kernel, closest_face
 
 #: name -> (type, where: "scene", "curves" or "both", description)
 ATTRIBUTES = {
@@ -78,12 +82,19 @@ def build(rb: RootBinding, ctx) -> dict:
         raise ValueError(f"root binding: need one triangle and weight triple per strand ({num_strands})")
     if tri.min(initial=0) < 0 or tri.max(initial=0) >= len(rb.indices):
         raise ValueError("root binding: triangle index out of range")
+    corners = rb.points[rb.indices[tri]]                                   # (S, 3 corners, 3)
+    edge = corners[:, 1] - corners[:, 0]
+    area = np.linalg.norm(np.cross(edge, corners[:, 2] - corners[:, 0]), axis=1)
     return {
         "triangle": wp.array(np.ascontiguousarray(rb.indices[tri[order]].astype(np.int32)), dtype=wp.vec3i,
                              device=device),
         "weights": wp.array(np.ascontiguousarray(weights[order].astype(ctx["ftype"])), dtype=ctx["vec3"],
                             device=device),
         "num_points": len(rb.points),
+        #: the rest mesh (device coordinates), whose triangles' frames the elastic clamps turn from
+        "rest_points": wp.array((rb.points - ctx["origin"]).astype(ctx["ftype"]), dtype=ctx["vec3"], device=device),
+        #: strands bound to a triangle without a frame at rest (zero edge 0 or zero area)
+        "degenerate": int(np.count_nonzero((np.linalg.norm(edge, axis=1) == 0) | (area == 0))),
     }
 
 
@@ -98,6 +109,9 @@ class BindingControl:
         self.roots = [wp.zeros(model.num_strands, dtype=model.vec3, device=model.device) for _ in range(2)]
         #: the mesh points' and the bound roots' velocities at frame start and end (made on first use)
         self.velocities = self.root_velocities = None
+        #: whether the roots were bound this frame (:meth:`bound_roots`) and with velocities
+        self.bound = self.moving = False
+        self._warned_degenerate = False
 
     def bound_roots(self, start, end=None) -> tuple:
         """The roots (device strand order, m relative to ``model.origin``; Warp arrays reused by
@@ -111,6 +125,7 @@ class BindingControl:
             dst.assign((pts - m.origin).astype(f))
         wp.launch(bind_roots_kernel(m.scalar), dim=m.num_strands, device=m.device,
                   inputs=[b["triangle"], b["weights"], *self.points], outputs=self.roots)
+        self.bound, self.moving = True, False
         return self.roots[0], self.roots[1]
 
     def bound_velocities(self, start, end=None) -> tuple:
@@ -130,7 +145,34 @@ class BindingControl:
             dst.assign(v.astype(f))
         wp.launch(bind_roots_kernel(m.scalar), dim=m.num_strands, device=m.device,
                   inputs=[b["triangle"], b["weights"], *self.velocities], outputs=self.root_velocities)
+        self.moving = True
         return self.root_velocities[0], self.root_velocities[1]
+
+    def bound_clamps(self, offset, frame_duration: float, ghost_start, ghost_end, deviation_start,
+                     deviation_end, rotation_start, rotation_end) -> None:
+        """The elastic solver's clamp ghosts of the frame last bound (:meth:`bound_roots`, device
+        strand order, m relative to ``model.origin``): ``offset`` (the authored ghost minus the
+        authored root, per device strand) turned by the rotation of the strand's triangle's frame
+        (edge 0 and the normal) from the rest mesh, added to the bound root; with the points'
+        velocities of :meth:`bound_velocities` and ``frame_duration`` (s) > 0 also the deviations of
+        their C1 path (else zero: the linear path), and those rotations at the frame's start and end
+        (3x3, identity where degenerate). Written into the given Warp arrays; one kernel
+        (``kernels/features/binding.py: bind_clamps_kernel``). Strands bound to a degenerate
+        triangle keep the authored offset (a warning says how many)."""
+        m, b = self.model, self.binding
+        if not self.bound:
+            raise ValueError("root binding: bind the roots of the frame (control.bind_roots) before the clamps")
+        if b["degenerate"] and not self._warned_degenerate:
+            self._warned_degenerate = True
+            warnings.warn(f"root binding: {b['degenerate']} strands are bound to triangles with no frame at rest "
+                          "(zero edge 0 or zero area): their elastic clamp moves with the root without turning",
+                          stacklevel=3)
+        moving = self.moving and frame_duration > 0
+        velocities = self.velocities if moving else self.points
+        wp.launch(bind_clamps_kernel(m.scalar), dim=m.num_strands, device=m.device,
+                  inputs=[b["triangle"], b["weights"], offset, b["rest_points"], *self.points, *velocities,
+                          float(frame_duration) if moving else 0.0],
+                  outputs=[ghost_start, ghost_end, deviation_start, deviation_end, rotation_start, rotation_end])
 
 
 def from_scene(curves, frame) -> list:

@@ -85,18 +85,38 @@ def check_single_device(devices, source: str) -> None:
                         f"device (not {','.join(devices)})")
 
 
+def rotation_of(matrix: np.ndarray) -> np.ndarray:
+    """The rotation (3x3, column vectors) of a 4x4 row-vector matrix's linear part: its polar factor
+    (scale and shear left out)."""
+    u, _, vt = np.linalg.svd(np.asarray(matrix, dtype=np.float64)[:3, :3].T)
+    r = u @ vt
+    if np.linalg.det(r) < 0:   # a mirroring matrix: the rotation nearest its proper part
+        u[:, -1] = -u[:, -1]
+        r = u @ vt
+    return r
+
+
 class ClampDriver:
-    """Moves a group's clamp ghosts with its prims' transforms (a rotating clamp)."""
+    """Moves a group's clamp ghosts with its prims' transforms (a rotating clamp), and turns the
+    root frames with them (about the first segment too)."""
 
     def __init__(self, group, frame: int):
         solver, curves = group.solver, group.curves
         ghosts = solver.authored_clamps                    # world, input strand order, at ``frame``
-        self.local, k = [], 0
+        self.local, self.rest_rotations, self.counts, k = [], [], [], 0
         for c in curves:
             g = ghosts[k:k + c.num_strands]
             k += c.num_strands
             self.local.append(transform_points(np.linalg.inv(c.transform(frame)), g))
+            self.rest_rotations.append(rotation_of(c.transform(frame)))
+            self.counts.append(c.num_strands)
 
     def world(self, matrix_of, members, frame: int) -> np.ndarray:
         """Ghosts (S, 3) world at ``frame``; ``matrix_of(index, frame)`` gives a prim's matrix."""
         return np.concatenate([transform_points(matrix_of(i, frame), g) for i, g in zip(members, self.local)])
+
+    def rotations(self, matrix_of, members, frame: int) -> np.ndarray:
+        """Each strand's clamp rotation (S, 3, 3) at ``frame`` from its authored pose: its prim's
+        rotation then, times the inverse of the prim's rotation when the group was made."""
+        return np.concatenate([np.broadcast_to(rotation_of(matrix_of(i, frame)) @ r0.T, (n, 3, 3))
+                               for i, r0, n in zip(members, self.rest_rotations, self.counts)])

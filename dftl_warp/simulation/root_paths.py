@@ -1,14 +1,14 @@
 """The C1 root path of a :class:`~dftl_warp.simulation.simulate.Simulation` (docs/elastic.md).
 
-Across the frame ``f -> f + 1`` an animated prim's roots (and the elastic solver's clamp ghosts)
-follow the Control's cubic Hermite curve (:class:`~dftl_warp.core.state.Control`,
-:mod:`dftl_warp.kernels.core.root_path`) whose end velocities are fourth-order differences of
-their positions over the 5 frames around (the window moved inside the shot near its ends,
-one-sided at them: :func:`~dftl_warp.core.state.frame_velocity`; the shot is the first frame and
-``Simulation.last_frame``): the velocity a root is given no longer jumps at every frame. The
-prim's local-to-world matrix follows the same curve (the roots are linear in it), and
-:func:`matrix_rate` is its velocity over the frame's last substep, which turns the written world
-velocities into local ones. Colliders are not on it: their poses still move linearly
+Across the frame ``f -> f + 1`` an animated prim's roots (and the elastic solver's clamp ghosts;
+for roots bound to an animated mesh :func:`bound_clamps`) follow the Control's cubic Hermite
+curve (:class:`~dftl_warp.core.state.Control`, :mod:`dftl_warp.kernels.core.root_path`) whose end
+velocities are fourth-order differences of their positions over the 5 frames around (the window
+moved inside the shot near its ends, one-sided at them: :func:`~dftl_warp.core.state.frame_velocity`;
+the shot is the first frame and ``Simulation.last_frame``): the velocity a root is given no longer
+jumps at every frame. The prim's local-to-world matrix follows the same curve (the roots are linear
+in it), and :func:`matrix_rate` is its velocity over the frame's last substep, which turns the
+written world velocities into local ones. Colliders are not on it: their poses still move linearly
 (translation lerp, rotation slerp) between frames (:func:`collider_note`).
 """
 
@@ -38,7 +38,7 @@ def group_points(sim, what: str, k: int, group, frame: int):
 def frame_path(sim, what: str, k: int, group, frame: int, nxt: int) -> dict:
     """Targets and velocities of the C1 path of group ``k``'s roots or clamp ghosts over the frame
     ``frame -> nxt = frame + 1``: keyword arguments of ``Control.set_root_targets`` and
-    ``ElasticSolver.set_clamp_targets``. This frame's start is the last frame's end: the same array."""
+    ``ElasticSolver.set_clamp_targets`` (with the clamps' rotations at both ends). This frame's start is the last frame's end: the same array."""
     from ..core.state import frame_velocity
 
     duration = (nxt - frame) / sim.scene.stage.time_codes_per_second
@@ -47,9 +47,23 @@ def frame_path(sim, what: str, k: int, group, frame: int, nxt: int) -> dict:
     def points_at(f):
         return group_points(sim, what, k, group, f)
 
-    return {"start": points_at(frame), "end": points_at(nxt),
+    path = {"start": points_at(frame), "end": points_at(nxt),
             "velocity_start": frame_velocity(points_at, frame, first, last, duration),
             "velocity_end": frame_velocity(points_at, nxt, first, last, duration), "frame_duration": duration}
+    if what == "clamps":   # and the clamps' rotations (the root frames' twist about the first segment)
+        path["rotation_start"] = group.clamps.rotations(sim._matrix, group.members, frame)
+        path["rotation_end"] = group.clamps.rotations(sim._matrix, group.members, nxt)
+    return path
+
+
+def bound_clamps(group) -> None:
+    """After ``update_frame`` bound an elastic group's roots to its animated ``dftl:rootMesh``: its
+    clamp ghosts turn with the roots' triangles, on the same path
+    (:meth:`~dftl_warp.solvers.elastic.ElasticSolver.bind_clamps`; the prims' transforms do not
+    move them then)."""
+    mesh = group.curves[0].root_mesh
+    if group.clamps is not None and mesh is not None and mesh.animated:
+        group.solver.bind_clamps(group.control)
 
 
 def matrix_rate(sim, index: int, frame: int, substeps: int) -> np.ndarray:

@@ -95,16 +95,11 @@ def automatic_solver(scene: Scene, options: SimulationOptions, index: int, toler
     """The solver of ``scene.curves[index]`` where neither the command line nor the prim sets one:
     ``elastic`` for a prim with widths (hair of that thickness bends: docs/elastic.md) unless it
     authors ``dftl:bending = false``, else ``dftl``. Where the elastic solver cannot run the scene yet
-    (root binding, several devices, ``--tolerance``) the prim stays on DFTL and the
-    scene's warnings say so."""
-    from ..solvers.elastic import UNSUPPORTED
-
+    (several devices, ``--tolerance``) the prim stays on DFTL and the scene's warnings say so."""
     c = scene.curves[index]
     if c.settings.bending is False or c.widths is None or not np.any(np.asarray(c.widths) > 0):
         return DEFAULT_SOLVER
     missing = []
-    if c.root_mesh is not None:
-        missing.append(UNSUPPORTED["RootBinding"])
     if options.device is not None and "," in str(options.device):
         missing.append(f"several devices (--device {options.device})")
     if tolerance:

@@ -312,6 +312,7 @@ class Simulation:
                         g.solver.set_clamp_targets(**root_paths.frame_path(self, "clamps", k, g, self.frame, nxt))
                 # colliders, wind, bound roots (the latter on the C1 path too)
                 update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
+                root_paths.bound_clamps(g)   # roots bound to an animated mesh: the clamp turns with it
                 substeps, dt = g.settings.substeps, g.dt
                 if self.tolerance is not None:   # --tolerance: from the error estimate on sampled strands
                     frame_dt = 1.0 / self.scene.stage.time_codes_per_second

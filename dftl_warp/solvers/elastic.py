@@ -53,7 +53,9 @@ Drag feature (per strand, added to ``drag``) and Wind (with its curl noise) act 
 solve, as a force ``m drag (w - v^{n+1})``. Hair-hair (:class:`~dftl_warp.features.HairHair`, its
 grid splatted every ``splat_interval`` substeps as for DFTL) acts in the same solve: friction as the
 force ``m c (v_grid - v^{n+1})`` (c = ``friction``, 1/s, implicit like drag) and repulsion as the
-explicit force ``-m repulsion h_grid grad(rho)`` sampled at ``x^n``. Root binding is refused
+explicit force ``-m repulsion h_grid grad(rho)`` sampled at ``x^n``. Roots bound to a deforming
+mesh (:class:`~dftl_warp.features.RootBinding`) take their clamp from it: :meth:`ElasticSolver.bind_clamps`
+turns each authored ghost with its bound triangle's frame. Other features are refused by name
 (:func:`check_features`).
 """
 
@@ -80,25 +82,24 @@ TWIST_G = 10 * HAIR_G
 DEFAULT_RADIUS = 40e-6
 
 
-#: what the elastic solver says about the features it does not support (by feature class name)
-UNSUPPORTED = {
-    "RootBinding": "root binding to a deforming mesh (the clamp follows the prim's transform only)",
-}
+#: what the elastic solver says about the features it does not support (by feature class name; a
+#: feature type without an entry is named by its class; every feature type there is today is supported)
+UNSUPPORTED = {}
 
 
 def check_features(model) -> None:
     """ValueError naming the model's features the elastic solver does not support (it supports
-    colliders, drag, wind and hair-hair)."""
-    from ..features import Colliders, Drag, HairHair, Wind
+    colliders, drag, wind, hair-hair and root binding)."""
+    from ..features import Colliders, Drag, HairHair, RootBinding, Wind
 
-    bad = [f for f in model.features if not isinstance(f, (Colliders, Drag, HairHair, Wind))]
+    bad = [f for f in model.features if not isinstance(f, (Colliders, Drag, HairHair, RootBinding, Wind))]
     names = [UNSUPPORTED.get(type(f).__name__, type(f).__name__) for f in bad]
     flags = set(model.feature_flags) - elastic_flags()
     names += [f"the {flag!r} flag" for flag in sorted(flags)
               if not any(flag in getattr(f, "flags", ()) for f in bad)]
     if names:
-        raise ValueError("the elastic solver supports colliders, drag, wind and hair-hair only; it does not support these "
-                         f"features: {'; '.join(names)}")
+        raise ValueError("the elastic solver supports colliders, drag, wind, hair-hair and root binding only; it does not "
+                         f"support these features: {'; '.join(names)}")
 
 
 @dataclass(eq=False)
@@ -130,8 +131,8 @@ class ElasticSolver(Solver):
     """Elastic rods, scheme K (see the module docstring).
 
     Args:
-        model: the :class:`~dftl_warp.core.model.Model` (its features: colliders, drag and wind only,
-            :func:`check_features`); free particles need non-zero rest lengths.
+        model: the :class:`~dftl_warp.core.model.Model` (its features: colliders, drag, wind, hair-hair
+            and root binding, :func:`check_features`); free particles need non-zero rest lengths.
         youngs_modulus: E (Pa, or the model's units), default human hair 3.89e9.
         density: kg/m^3, default 1320.
         radius: hair radius, one value or one per point (input order); default half the model's
@@ -239,6 +240,12 @@ class ElasticSolver(Solver):
         self._clamp_deviation_start = wp.zeros_like(self._clamp_offset)
         self._clamp_deviation_end = wp.zeros_like(self._clamp_offset)
         self._clamp_relative = 1
+        #: the clamps' rotations from their authored poses at the frame's start and end (the root
+        #: frame's twist about the first segment; identity: the minimal rotation onto the ghost)
+        mat33s = wp.types.matrix((3, 3), model.scalar)
+        self._identity_rotations = np.tile(np.eye(3, dtype=st), (model.num_strands, 1, 1))
+        self._clamp_rotation_start = wp.array(self._identity_rotations, dtype=mat33s, device=dev)
+        self._clamp_rotation_end = wp.array(self._identity_rotations, dtype=mat33s, device=dev)
         self._gravity_real = vec3r(*self.gravity64)
         n = model.num_slots
         self._scratch = [wp.zeros(n, dtype=wp.types.vector(10, real), device=dev),
@@ -288,15 +295,20 @@ class ElasticSolver(Solver):
         return out + self.model.origin
 
     def set_clamp_targets(self, start=None, end=None, *, velocity_start=None, velocity_end=None,
-                          frame_duration: float | None = None) -> None:
+                          frame_duration: float | None = None, rotation_start=None, rotation_end=None) -> None:
         """Clamp ghosts of the frame: world positions (S, 3) in input strand order at frame start
         and end (``end`` defaults to ``start``). They move like the roots
         (:class:`~dftl_warp.core.state.Control`): linearly across the frame, or, given their
         velocities (S, 3; units/s) at the frame's start and end and ``frame_duration`` (s), on the
-        C1 Hermite curve with those tangents. ``start=None`` returns to the default: the authored
-        ghosts moved with the roots' translation (on the roots' path)."""
+        C1 Hermite curve with those tangents. ``rotation_start``/``rotation_end`` (S, 3, 3; column
+        vectors, ``end`` defaults to ``start``): each clamp's rotation from its authored pose then,
+        which turns the root frame about the first segment too (a curl turns with a head turning
+        about it); without them the root frame is the minimal rotation onto the ghost's direction.
+        ``start=None`` returns to the default: the authored ghosts moved with the roots' translation
+        (on the roots' path), not turned."""
         self._clamp_deviation_start.zero_()
         self._clamp_deviation_end.zero_()
+        self._set_clamp_rotations(rotation_start, rotation_end)
         if start is None:
             wp.copy(self._clamp_start, self._clamp_offset)
             self._clamp_relative = 1
@@ -322,6 +334,37 @@ class ElasticSolver(Solver):
             if v.shape[0] != m.num_strands or not np.isfinite(v).all():
                 raise ValueError(f"clamp velocities must be {m.num_strands} finite (3,) rows, one per strand")
             target.assign((float(frame_duration) * v[order] - chord).astype(device_start.dtype))
+
+    def _set_clamp_rotations(self, start, end) -> None:
+        m = self.model
+        if start is None:
+            if end is not None:
+                raise ValueError("clamp rotations: give rotation_start (and rotation_end) together")
+            self._clamp_rotation_start.assign(self._identity_rotations)
+            self._clamp_rotation_end.assign(self._identity_rotations)
+            return
+        end = start if end is None else end
+        order = m.layout.strand_order
+        for target, r in ((self._clamp_rotation_start, start), (self._clamp_rotation_end, end)):
+            r = np.asarray(r, dtype=np.float64)
+            if r.shape != (m.num_strands, 3, 3) or not np.isfinite(r).all():
+                raise ValueError(f"clamp rotations must be {m.num_strands} finite 3x3 matrices, one per strand")
+            if np.abs(np.einsum("sji,sjk->sik", r, r) - np.eye(3)).max() > 1e-6 or (np.linalg.det(r) <= 0).any():
+                raise ValueError("clamp rotations must be rotation matrices (orthonormal, determinant 1)")
+            target.assign(r[order].astype(self._identity_rotations.dtype))
+
+    def bind_clamps(self, control) -> None:
+        """Clamp ghosts of the frame from ``control``'s root-binding mesh, after ``control.bind_roots``
+        (:meth:`~dftl_warp.features.binding.BindingControl.bound_clamps`): each authored ghost turned
+        by the rotation of its strand's bound triangle's frame (edge 0 and the normal) from the rest
+        mesh, on the roots' path (C1 where the roots were given velocities). Computed on the device."""
+        binding = None if control.features is None else control.features.binding
+        if binding is None:
+            raise ValueError("bind_clamps: the model has no RootBinding feature")
+        binding.bound_clamps(self._clamp_offset, control.frame_duration, self._clamp_start, self._clamp_end,
+                             self._clamp_deviation_start, self._clamp_deviation_end,
+                             self._clamp_rotation_start, self._clamp_rotation_end)
+        self._clamp_relative = 0
 
     # -- stepping --------------------------------------------------------------------------------
 
@@ -355,6 +398,7 @@ class ElasticSolver(Solver):
                 f["rest_rotation"], self._clamp_direction, self._curved,
                 control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
                 self._clamp_start, self._clamp_end, self._clamp_deviation_start, self._clamp_deviation_end,
+                self._clamp_rotation_start, self._clamp_rotation_end,
                 self._clamp_relative,
                 float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag, features,
                 state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,

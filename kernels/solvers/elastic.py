@@ -107,6 +107,7 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     grid_sample = grid_sample_func(scalar) if HAIR_HAIR else None
     vec3s = wp.types.vector(3, scalar)
     quats = wp.types.quaternion(scalar)
+    mat33s = wp.types.matrix((3, 3), scalar)
     vec3 = wp.types.vector(3, real)
     vec4 = wp.types.vector(4, real)
     mat33 = wp.types.matrix((3, 3), real)
@@ -127,6 +128,21 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     @wp.func
     def ldq(q: quats):
         return wp.normalize(quat(real(q[0]), real(q[1]), real(q[2]), real(q[3])))
+
+    @wp.func
+    def ldm(m: mat33s):
+        return mat33(real(m[0, 0]), real(m[0, 1]), real(m[0, 2]), real(m[1, 0]), real(m[1, 1]), real(m[1, 2]),
+                     real(m[2, 0]), real(m[2, 1]), real(m[2, 2]))
+
+    @wp.func
+    def clamp_turn(start: mat33s, end: mat33s, alpha: real):
+        """The clamp's rotation from its authored pose, between the frame's start and end rotations
+        (normalised linear interpolation of their quaternions, the shorter way)."""
+        qa = wp.quat_from_matrix(ldm(start))
+        qb = wp.quat_from_matrix(ldm(end))
+        if qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3] < real(0.0):
+            qb = quat(-qb[0], -qb[1], -qb[2], -qb[3])
+        return wp.quat_to_matrix(wp.normalize(qa + alpha * (qb - qa)))
 
     @wp.func
     def stq(q: quat):
@@ -245,7 +261,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         clamp_direction: wp.array(dtype=vec3),
         curved: wp.array(dtype=wp.int32),
         # Control (per device strand): roots and their path's deviations, clamp ghosts (offsets from
-        # the root when relative) and theirs (root_on_path; unused when relative)
+        # the root when relative) and theirs (root_on_path; unused when relative), the clamps'
+        # rotations from their authored poses at the frame's start and end (the twist they drive)
         root_start: wp.array(dtype=vec3s),
         root_end: wp.array(dtype=vec3s),
         root_deviation_start: wp.array(dtype=vec3s),
@@ -254,6 +271,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         clamp_end: wp.array(dtype=vec3s),
         clamp_deviation_start: wp.array(dtype=vec3s),
         clamp_deviation_end: wp.array(dtype=vec3s),
+        clamp_rotation_start: wp.array(dtype=mat33s),
+        clamp_rotation_end: wp.array(dtype=mat33s),
         clamp_relative: wp.int32,
         root_alpha: real,
         gravity: vec3,
@@ -331,7 +350,10 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
 
         # ---- A: frames, Gauss-Seidel root -> tip, at x^n (ghost at its old place) ----------------
         if is_curved:
-            Fprev = between(clamp_direction[s], root_new - ghost_new)
+            # the root frame: the clamp's rotation (its twist about the first segment included), then
+            # the minimal rotation onto the ghost's actual direction (on the path, mid-frame)
+            R = clamp_turn(clamp_rotation_start[s], clamp_rotation_end[s], root_alpha)
+            Fprev = between(R * clamp_direction[s], root_new - ghost_new) * R
             xm = ghost_old
             xj = root_old
             for j in range(N):
