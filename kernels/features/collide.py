@@ -17,13 +17,18 @@ A particle of radius ``radius`` (m, half the hair width) is in contact when its 
 3. *Coulomb friction* (position-based): the tangential displacement relative to the collider
    surface during the step is removed up to ``friction * depth`` (static friction below that,
    kinetic above), ``depth`` being the projection distance of step 2;
-4. *back to the rest length on the contact plane* (:func:`respond_func`): the particle goes to the
+4. *back to the rest length on the contact plane* (:func:`slide_func`): the particle goes to the
    point of the contact plane (tangent at the closest surface point, offset by ``radius``) at the
    rest length from its leader, in the direction it had from the leader -- exact for a locally
-   flat surface.
+   flat surface. A particle the continuous test stopped goes through steps 3 and 4 too (on the
+   contact plane where it crossed; friction from how far its path's end lay behind that plane).
 
 The follow-the-leader sweep then restores the segment's rest length exactly
-(``kernels/solvers/featured.py``), so a collision never stretches a segment.
+(``kernels/solvers/featured.py``), so a collision never stretches a segment. Step 4 leaves it
+nothing to do on a locally flat surface: a stopped particle restored from its stop point instead
+would move along the strand, below the surface by up to the rest length where the strand meets
+the surface steeply (deeper than the mesh's ``depth_band``: issue 20, 126 hair radii on a
+deforming body).
 
 **Shapes are registered** (:class:`ColliderKernel`, :func:`register_collider_kernel`): each names
 its kernel flag, the struct fields only it reads, and a factory of its ``collide(f, c, ...)``
@@ -194,29 +199,24 @@ def tiny_length(scalar):
 
 
 @functools.cache
-def respond_func(scalar):
-    """``respond(q, q_old, leader, rest, dist, n, radius, mu)``: move collider-local ``q`` out to the
-    contact plane ``n . y = n . q + radius - dist``, apply friction ``mu``, then put it back at
-    ``rest`` (m) from ``leader`` on that plane."""
+def slide_func(scalar):
+    """``slide(q, q_old, leader, rest, n, limit)``: collider-local ``q`` on a contact plane of normal
+    ``n``: remove its tangential displacement from ``q_old`` up to ``limit`` (m; Coulomb friction,
+    ``friction x`` the normal displacement the contact took away), then put it at ``rest`` (m) from
+    ``leader`` on that plane, toward where it is (exact for a locally flat surface)."""
     vec3 = wp.types.vector(3, scalar)
-    zero = scalar(0.0)
     tiny = tiny_length(scalar)
 
     @wp.func
-    def respond(q: vec3, q_old: vec3, leader: vec3, rest: scalar, dist: scalar, n: vec3, radius: scalar,
-                mu: scalar):
-        depth = radius - dist
-        if depth <= zero:
-            return q
-        q_new = q + depth * n
-        rel = q_new - q_old
+    def slide(q: vec3, q_old: vec3, leader: vec3, rest: scalar, n: vec3, limit: scalar):
+        rel = q - q_old
         rel_t = rel - wp.dot(rel, n) * n
         lt = wp.length(rel_t)
-        limit = mu * depth
+        q_new = q
         if lt <= limit:
-            q_new = q_new - rel_t
+            q_new = q - rel_t
         else:
-            q_new = q_new - rel_t * (limit / lt)
+            q_new = q - rel_t * (limit / lt)
         # the point of the contact plane at distance rest from the leader, toward q_new
         h = wp.dot(leader - q_new, n)
         arm = q_new - leader
@@ -225,6 +225,27 @@ def respond_func(scalar):
         if h > -rest and h < rest and at > tiny:
             q_new = leader - h * n + wp.sqrt(rest * rest - h * h) * (arm_t / at)
         return q_new
+
+    return slide
+
+
+@functools.cache
+def respond_func(scalar):
+    """``respond(q, q_old, leader, rest, dist, n, radius, mu)``: move collider-local ``q`` out to the
+    contact plane ``n . y = n . q + radius - dist``, then :func:`slide_func` on it with friction
+    ``mu`` x the distance moved. ``dist`` at the contact distance (``radius``) moves nothing but
+    the rest length; above it, ``q`` is returned as it is."""
+    vec3 = wp.types.vector(3, scalar)
+    zero = scalar(0.0)
+    slide = slide_func(scalar)
+
+    @wp.func
+    def respond(q: vec3, q_old: vec3, leader: vec3, rest: scalar, dist: scalar, n: vec3, radius: scalar,
+                mu: scalar):
+        depth = radius - dist
+        if depth < zero:
+            return q
+        return slide(q + depth * n, q_old, leader, rest, n, mu * depth)
 
     return respond
 
@@ -277,6 +298,7 @@ def analytic_collide_func(scalar, sdf_factory, name: str):
         if dist >= radius and not moved:
             return x, False
         lead = wp.transform_point(inv_pose, leader)
+        dist = wp.min(dist, radius)  # a stopped particle goes onto its contact plane too
         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True
 
     return named_func(body, name)

@@ -1,10 +1,14 @@
 """Triangle-mesh colliders: a :class:`warp.Mesh` in collider-local coordinates (its id per collider).
 
 The continuous test casts the particle's relative path as a ray (``wp.mesh_query_ray``) and stops
-it at the first front-face crossing; the closest-point query (``wp.mesh_query_point_sign_normal``,
-angle-weighted pseudo-normal sign) reaches the contact distance plus the path plus the mesh's
-``depth_band`` (m). A broad phase first tests the path's box against the mesh's bounds grown by
-that reach. The response is shared (:func:`~dftl_warp.kernels.features.collide.respond_func`).
+it at the first front-face crossing, on that face's contact plane, then puts it back at the rest
+length on that plane (:func:`~dftl_warp.kernels.features.collide.slide_func`). The closest-point
+query (``wp.mesh_query_point_sign_normal``, angle-weighted pseudo-normal sign) reaches the contact
+distance plus the path plus the mesh's ``depth_band`` (m), in every collision round: a particle
+outside at the step's start is at most its path below the surface, however deep an earlier round's
+projection put it. A broad phase first tests the path's box against the mesh's bounds grown by the
+contact distance plus the band. The response is shared
+(:func:`~dftl_warp.kernels.features.collide.respond_func`).
 
 A mesh collider with a signed distance field (``cell`` > 0 in its ``collider_sdf`` entry) is
 answered by the field (``kernels/features/sdf.py``) where it can answer, and by the exact query
@@ -16,7 +20,7 @@ import functools
 
 import warp as wp
 
-from .collide import ColliderKernel, named_func, respond_func, tiny_length, transform_type
+from .collide import ColliderKernel, named_func, respond_func, slide_func, tiny_length, transform_type
 from .sdf import collide_sdf_func, sdf_fields
 
 
@@ -29,6 +33,7 @@ def collide_mesh_func(scalar):
     zero = scalar(0.0)
     tiny = tiny_length(scalar)
     respond = respond_func(scalar)
+    slide = slide_func(scalar)
 
     @wp.func
     def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
@@ -36,20 +41,20 @@ def collide_mesh_func(scalar):
                      depth_band: scalar, mu: scalar):
         q = wp.transform_point(inv_pose, x)
         q_old = wp.transform_point(inv_pose_prev, x_old)
-        # broad phase: the path's box against the mesh's box grown by the contact distance
+        # broad phase: the path's box against the mesh's box grown by the contact distance and band
         reach = radius + depth_band
         lo = wp.min(q, q_old)
         hi = wp.max(q, q_old)
         if (lo[0] > upper[0] + reach or lo[1] > upper[1] + reach or lo[2] > upper[2] + reach
                 or hi[0] < lower[0] - reach or hi[1] < lower[1] - reach or hi[2] < lower[2] - reach):
             return x, False
-        moved = bool(False)
         path = q - q_old
         length = wp.length(path)
-        # the query reaches as far as the path could have crossed the surface (the relative
-        # motion in the collider's frame, so a moving collider is covered too), plus the band
-        if ccd:
-            reach = reach + length
+        # the query reaches as far as the path could have crossed the surface (the relative motion
+        # in the collider's frame, so a moving collider is covered too), plus the band, in every
+        # round: a particle outside at the step's start and inside now is at most its path below
+        # the surface, whatever put it there (its motion, or an earlier round's rest-length projection)
+        reach = reach + length
         query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(reach))
         if ccd:
             # distance from q to the surface (at least reach when nothing was found): a path shorter
@@ -62,14 +67,18 @@ def collide_mesh_func(scalar):
             if length > tiny and length > clearance - radius:
                 direction = path / length
                 hit = wp.mesh_query_ray(mesh, wp.vec3f(q_old), wp.vec3f(direction), wp.float32(length))
-                # a hit on the front of a face: the particle crossed the surface from outside
+                # a hit on the front of a face: the particle crossed the surface from outside. It
+                # stops on the contact plane of that face (radius in front of it), where it crossed,
+                # and goes back to the rest length on that plane (the follow-the-leader projection
+                # from the stop point would take it along the strand, possibly deep below the
+                # surface); friction: the path's end lay behind the plane by `blocked`
                 if hit.result and hit.sign > wp.float32(0.0):
-                    q = q_old + scalar(hit.t) * direction + radius * vec3(hit.normal)
-                    moved = True
-                    query = wp.mesh_query_point_sign_normal(mesh, wp.vec3f(q), wp.float32(reach))
+                    n = vec3(hit.normal)
+                    stop = q_old + scalar(hit.t) * direction + radius * n
+                    blocked = wp.dot(stop - q, n)
+                    lead = wp.transform_point(inv_pose, leader)
+                    return wp.transform_point(pose, slide(stop, q_old, lead, rest, n, mu * blocked)), True
         if not query.result:
-            if moved:
-                return wp.transform_point(pose, q), True
             return x, False
         closest = vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v))
         r = q - closest
@@ -83,7 +92,7 @@ def collide_mesh_func(scalar):
             n = -n
             if d <= tiny:
                 n = vec3(wp.mesh_eval_face_normal(mesh, query.face))
-        if dist >= radius and not moved:
+        if dist >= radius:
             return x, False
         lead = wp.transform_point(inv_pose, leader)
         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True

@@ -26,7 +26,7 @@ import math
 
 import warp as wp
 
-from .collide import TRACE_ITERATIONS, respond_func, tiny_length, transform_type
+from .collide import TRACE_ITERATIONS, respond_func, slide_func, tiny_length, transform_type
 
 #: cells per brick edge
 BRICK = 8
@@ -160,18 +160,22 @@ def collide_sdf_func(scalar):
     the field's unit gradient. The continuous test sphere-traces the relative path through the
     field from a start outside the contact distance, as for the analytic shapes: far cells step by
     their lower bound, answering cells by the sampled gap, and the particle stops at the first
-    contact. The whole particle goes to the exact query (its ray decides) when the trace meets an
-    EXACT cell, finds itself below the contact distance by more than twice the tolerance without
-    touching (reached from behind the surface), or reaches neither a contact nor the path's end
-    within ``TRACE_ITERATIONS`` steps (a grazing path); and when a path that starts within the
-    band ends beyond it untraced (from contact, or in a round without the continuous test): a far
-    sample's side is unknown.
+    contact, on the contact plane there, and goes back to the rest length on that plane
+    (:func:`~dftl_warp.kernels.features.collide.slide_func`; friction from how far the path's end
+    lay behind it). The whole particle goes to the exact query (its ray decides) when the trace
+    meets an EXACT cell, finds itself below the contact distance by more than twice the tolerance
+    without touching (reached from behind the surface), or reaches neither a contact nor the path's
+    end within ``TRACE_ITERATIONS`` steps (a grazing path); and when a path that could have reached
+    the surface ends beyond the band untraced (from contact, or in a round without the continuous
+    test): a far sample's side is unknown, and the exact query reaches the whole path below the
+    surface.
     The field is used only while ``radius + depth_band`` stays within its reach (the clean-start
     push-out and the QC ask for any depth and get the exact query)."""
     vec3 = wp.types.vector(3, scalar)
     transform = transform_type(scalar)
     tiny = tiny_length(scalar)
     respond = respond_func(scalar)
+    slide = slide_func(scalar)
 
     def body(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
              inv_pose: transform, inv_pose_prev: transform, grid: SdfGrid, brick_map: wp.array(dtype=wp.int32),
@@ -186,16 +190,18 @@ def collide_sdf_func(scalar):
         dist = scalar(d32)
         n = vec3(n32)
         q_old = wp.transform_point(inv_pose_prev, x_old)
-        moved = bool(False)
         path = q - q_old
         length = wp.length(path)
+        lead = wp.transform_point(inv_pose, leader)
         # the path could have reached the surface (a far end's distance is a lower bound)
         if length > tiny and dist - radius < length:
             s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old))
             if s == EXACT:
                 return x, False, False
-            if state == FAR and s != FAR and (not ccd or scalar(ds) <= radius):
-                # from within the band to beyond it, not traced: which side it ended on is unknown
+            if state == FAR and (not ccd or (s != FAR and scalar(ds) <= radius)):
+                # beyond the band at the end, not traced (a round without the continuous test, or
+                # a path from contact): which side it ended on is unknown, and the exact query
+                # reaches its whole path below the surface
                 return x, False, False
             if ccd:
                 if scalar(ds) > radius:
@@ -207,12 +213,14 @@ def collide_sdf_func(scalar):
                     for _ in range(TRACE_ITERATIONS):
                         gap = scalar(ds) - radius
                         if gap <= stop:
-                            q = q_old + t * direction
-                            dist = scalar(ds)
-                            n = vec3(ns)
-                            moved = True
-                            concluded = True
-                            break
+                            # first contact: the particle stops on the contact plane there and goes
+                            # back to the rest length on it (as the exact query's stop); friction: the
+                            # path's end lay behind the plane by `blocked`
+                            nc = vec3(ns)
+                            stop_at = q_old + t * direction + (radius - scalar(ds)) * nc
+                            blocked = wp.max(wp.dot(stop_at - q, nc), scalar(0.0))
+                            y = slide(stop_at, q_old, lead, rest, nc, mu * blocked)
+                            return wp.transform_point(pose, y), True, True
                         t = t + gap
                         if t >= length:
                             concluded = True
@@ -224,11 +232,8 @@ def collide_sdf_func(scalar):
                         # a grazing path the trace could not follow to its end, or one found behind
                         # the surface without touching it: the exact ray decides
                         return x, False, False
-        if dist >= radius and not moved:
-            return x, False, True
         if dist >= radius:
-            return wp.transform_point(pose, q), True, True
-        lead = wp.transform_point(inv_pose, leader)
+            return x, False, True
         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True, True
 
     body.__name__ = body.__qualname__ = "collide_sdf_" + ("f64" if scalar == wp.float64 else "f32")

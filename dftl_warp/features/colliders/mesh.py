@@ -28,7 +28,7 @@ class TriangleMesh(ColliderShape):
     the mesh's frame crosses the surface from the front within a step, however fast; particles
     found inside at the start of a step are pushed out from up to ``depth_band`` (m, default 1%
     of the mesh's bounding diagonal) plus their step's path below the surface. The closest-point
-    query reaches that far, and its cost grows with it.
+    query reaches that far in every collision round, and its cost grows with it.
 
     ``sdf``: collide through a signed distance field rebuilt whenever the points change (True),
     through exact mesh queries (False), or the field from ``SDF_MIN_TRIANGLES`` triangles on
