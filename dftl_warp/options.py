@@ -232,6 +232,10 @@ _RUN = [
            cli="--iterations", metavar="K", toml="iterations", api="iterations"),
     Option("precision", str, "float32", "floating-point precision", choices=PRECISION_NAMES,
            cli="--precision", toml="precision", api="precision"),
+    Option("arithmetic", str, "float64",
+           "elastic solver: the precision it computes in (the State keeps --precision); float32 runs about "
+           "2x faster on the GPU, and a styled strand at rest then holds its shape to float32 round-off "
+           "(docs/elastic.md)", choices=PRECISION_NAMES, cli="--arithmetic", toml="arithmetic", api="arithmetic"),
     Option("quality", str, None,
            "a measured preset of solver, substeps and precision (docs/accuracy.md); explicit flags "
            "override its parts", choices=QUALITY_NAMES, cli="--quality", toml="quality", api="quality"),

@@ -102,3 +102,20 @@ def test_a_curl_with_widths_keeps_its_shape_by_default(tmp_path, capsys):
     assert np.abs(y - h).max() > 0.1 * length
     assert cli.main(["info", str(path)]) == 0
     assert "solver elastic" in capsys.readouterr().out
+
+
+def test_float32_arithmetic_is_a_flag_and_a_styled_curl_still_holds(tmp_path):
+    """``--arithmetic float32`` (``arithmetic=`` in the API) runs the elastic solver in float32; the
+    provenance records it; the styled curl at rest under gravity (inverse statics) still holds its
+    authored shape, now to float32 round-off (1e-5 of its length over 1 s; float64 arithmetic keeps
+    it within the 1e-3 bound of the default test above)."""
+    from dftl_warp.output import provenance
+
+    path = _scene(tmp_path, end=24)
+    out = tmp_path / "out.usdc"
+    assert cli.main(["simulate", str(path), "-o", str(out), "--arithmetic", "float32", "--quiet"]) == 0
+    x = composed_samples(out, "/World/Hair")[24.0]
+    h = _helix()
+    length = np.linalg.norm(np.diff(h, axis=0), axis=1).sum()
+    assert np.abs(x - h).max() < 1e-5 * length
+    assert provenance.read(out)["groups"]["group0"]["arithmetic"] == "float32"

@@ -2,7 +2,7 @@
 
 Each job names an ``input`` stage and an ``output`` layer (paths relative to the TOML file's
 folder) and may set any ``dftl-warp simulate`` option by its long name (``start``, ``end``,
-``substeps``, ``damping``, ``correction``, ``solver``, ``iterations``, ``precision``, ``quality``,
+``substeps``, ``damping``, ``correction``, ``solver``, ``iterations``, ``precision``, ``arithmetic``, ``quality``,
 ``device``, ``prim``), plus a display ``name``. An optional ``[defaults]`` table gives options shared by every job.
 
 A file that cannot be read or parsed is an error of the whole batch; a job with an unknown option

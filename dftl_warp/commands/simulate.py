@@ -7,7 +7,7 @@ import sys
 
 #: the options table's entries offered as flags, in the order ``--help`` lists them
 FLAGS = ("start", "end", "substeps", "damping", "correction", "solver", "iterations", "precision",
-         "quality", "device", "prims", "preroll", "tolerance")
+         "arithmetic", "quality", "device", "prims", "preroll", "tolerance")
 
 
 def add_parser(sub):
@@ -109,6 +109,7 @@ def _simulate(args, simulate_usd, given, describe_quality):
         correction=args.correction,
         solver=args.solver,
         precision=args.precision,
+        arithmetic=args.arithmetic,
         iterations=args.iterations,
         device=args.device,
         prims=args.prim,

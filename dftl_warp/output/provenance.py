@@ -116,6 +116,7 @@ def build(sim, input_path, *, output_options: dict, quality=None, fingerprint: d
             "prims": [sim.scene.curves[i].path for i in g.members],
             **(asdict(s) if is_dataclass(s) else dict(vars(s))),  # solver, correction (form), damping, substeps, ...
             "precision": sim.options.precision,
+            "arithmetic": getattr(solver, "compute_precision", None) or "none",
             "quality": quality or "none", "tolerance": "none" if tolerance is None else float(tolerance),
             "iterations": getattr(solver, "iterations", None) or "none",
             "features": sorted(g.model.feature_flags) or "none", "strands": int(g.num_strands),

@@ -69,6 +69,7 @@ class Group:
 
             check_single_device(devices, scene.source)
             extra, features = elastic_options(scene, curves, frame, features, widths, settings)
+            extra["compute_precision"] = options.arithmetic
         models, solvers, states, controls = [], [], [], []
         for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
             part = part_features(features, s0, s1, len(counts), scene.source, grid_extent) if split else features

@@ -43,6 +43,8 @@ class SimulationOptions:
     correction: str | None = None
     solver: str | None = None
     precision: str = field(default=default("precision"))
+    #: the elastic solver's arithmetic (its ``compute_precision``); other solvers compute in ``precision``
+    arithmetic: str = field(default=default("arithmetic"))
     device: str = field(default=default("device"))
     prims: list[str] | None = None
     #: Gauss-Seidel iterations per step of the pbd solver
