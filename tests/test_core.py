@@ -159,6 +159,26 @@ def test_particle_major_layout_is_coalesced():
     assert sorted(slots) == list(range(8))
 
 
+def test_particle_major_warps_hold_strands_that_are_neighbours_in_space(rng):
+    """Given the roots, a particle-major group orders its strands along the Morton curve of the
+    roots: 32 consecutive device strands (a warp) of a shuffled 64 x 64 grid of roots span a few grid
+    cells, not the whole grid; strands of other counts stay in their own group."""
+    side = 64
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2).astype(float)
+    roots = np.c_[grid[:, 0], np.zeros(len(grid)), grid[:, 1]][rng.permutation(len(grid))]
+    counts = np.full(len(grid), 5)
+    counts[:10] = 3
+    lay = make_layout(counts, "particle-major", roots=roots)
+    assert lay.groups == ((3, 0, 10), (5, 10, len(grid) - 10))
+    assert sorted(lay.strand_order[:10]) == list(range(10))
+    ordered = roots[lay.strand_order[10:]]
+    warps = ordered[: (len(ordered) // 32) * 32].reshape(-1, 32, 3)
+    spread = np.linalg.norm(warps.max(axis=1) - warps.min(axis=1), axis=1)
+    shuffled = roots[10:][: warps.shape[0] * 32].reshape(-1, 32, 3)
+    assert np.median(spread) < 12 < np.median(np.linalg.norm(shuffled.max(axis=1) - shuffled.min(axis=1), axis=1))
+    assert sorted(lay.slot_of_point) == list(range(int(counts.sum())))
+
+
 def test_interleaved_layout_gives_each_field_its_own_slots():
     counts = np.array([3, 2, 3] + [4] * 40)
     lay = make_layout(counts, "particle-major", interleave=3)

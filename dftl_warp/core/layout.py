@@ -29,8 +29,11 @@ block instead of three blocks in three arrays, which the H200 streams faster (do
 Slots past the chunk's 32 positions are holes in every other per-particle array (rest lengths):
 ``num_slots`` is ``F x`` the padded point count, not the point count.
 
-Device strands are ordered so that strands of one group are consecutive. The host keeps the
-mapping back to the caller's order (:attr:`Layout.slot_of_point`).
+Device strands are ordered so that strands of one group are consecutive; given the roots, a
+particle-major group orders its strands along a Morton (Z-order) curve of their roots, so the 32
+strands of a warp are neighbours in space and their particles read the same cells of the hair-hair
+grid and of a collider's distance field (:func:`morton_order`). The host keeps the mapping back to
+the caller's order (:attr:`Layout.slot_of_point`).
 """
 
 from __future__ import annotations
@@ -128,9 +131,26 @@ def group_slots(size: int, interleave: int) -> tuple[np.ndarray, int]:
     return (a // CHUNK_STRANDS) * (CHUNK_STRANDS * interleave) + a % CHUNK_STRANDS, interleave * padded
 
 
-def make_layout(counts: np.ndarray, name: str, interleave: int = 1) -> Layout:
+def morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
+    """Morton (Z-order) codes (uint64) of ``points`` (N, 3) quantised to ``bits`` bits per axis over
+    their bounding box: points close in space get close codes."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if p.shape[0] == 0:
+        return np.zeros(0, dtype=np.uint64)
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    scale = np.where(hi > lo, ((1 << bits) - 1) / np.where(hi > lo, hi - lo, 1.0), 0.0)
+    q = np.clip(np.floor((p - lo) * scale), 0, (1 << bits) - 1).astype(np.uint64)
+    code = np.zeros(p.shape[0], dtype=np.uint64)
+    for b in range(bits):
+        for axis in range(3):
+            code |= ((q[:, axis] >> np.uint64(b)) & np.uint64(1)) << np.uint64(3 * b + axis)
+    return code
+
+
+def make_layout(counts: np.ndarray, name: str, interleave: int = 1, roots: np.ndarray | None = None) -> Layout:
     """Build the layout ``name`` for strands with vertex ``counts`` (input order), interleaving
-    ``interleave`` state vectors per 32-strand chunk (particle-major only)."""
+    ``interleave`` state vectors per 32-strand chunk (particle-major only); with ``roots`` (S, 3), a
+    particle-major layout orders each group's strands along the Morton curve of their roots."""
     if name not in LAYOUTS:
         raise ValueError(f"unknown layout {name!r}; choose one of {', '.join(LAYOUTS)}")
     interleave = int(interleave)
@@ -144,6 +164,8 @@ def make_layout(counts: np.ndarray, name: str, interleave: int = 1) -> Layout:
 
     if name == "strand-major":
         order = np.arange(num_strands, dtype=np.int64)
+    elif roots is not None and num_strands:
+        order = np.lexsort((morton_order(roots), counts)).astype(np.int64)
     else:
         order = np.argsort(counts, kind="stable").astype(np.int64)
     sorted_counts = counts[order]

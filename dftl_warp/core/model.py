@@ -137,9 +137,10 @@ class Model:
         default = interleave is None
         if default:
             interleave = default_interleave(layout_name, str(device), bool(features), corrections)
-        lay = make_layout(counts, layout_name, interleave)
+        first = points[strand_offsets(counts)] if counts.size else None   # the roots: warps of neighbours
+        lay = make_layout(counts, layout_name, interleave, roots=first)
         if default and lay.storage_length > MAX_SLOTS:
-            lay = make_layout(counts, layout_name, 1)
+            lay = make_layout(counts, layout_name, 1, roots=first)
         origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
         local = points - origin
 
