@@ -79,13 +79,19 @@ def main() -> int:
     lines += [f"| {r['solver']} | {1e3 * r['frame_s']:.2f} | {r['ns_per_particle_step']:.3f} | "
               f"{r['frame_s'] / base:.1f} |" for r in rows]
     print("\n".join(lines))
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        tag = args.device.replace(":", "")
-        (out / f"bench-elastic-{tag}.json").write_text(json.dumps(rows, indent=1))
-        (out / f"bench-elastic-{tag}.md").write_text("\n".join(lines) + "\n")
+    write_report(args.out, "bench-elastic", args.device, rows, lines)
     return 0
+
+
+def write_report(out_dir, stem: str, device: str, rows, lines) -> None:
+    """``<stem>-<device>.json`` (the rows) and ``.md`` (the report ``lines``) under ``out_dir``
+    (nothing when it is None)."""
+    if out_dir:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        tag = device.replace(":", "")
+        (out / f"{stem}-{tag}.json").write_text(json.dumps(rows, indent=1))
+        (out / f"{stem}-{tag}.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

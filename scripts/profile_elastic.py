@@ -18,9 +18,7 @@ Registers and occupancy come from Nsight Compute on one launch, e.g.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import time
 from datetime import date
 from pathlib import Path
 
@@ -28,9 +26,8 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_elastic import N, curly_groom  # noqa: E402
+from bench_elastic import N, curly_groom, time_solver, write_report  # noqa: E402
 
-import dftl_warp as dw  # noqa: E402
 from dftl_warp.kernels.solvers import elastic as elastic_kernels  # noqa: E402
 
 
@@ -44,20 +41,8 @@ def straight_groom(strands: int):
 
 
 def frame_time(solver_name, pts, counts, device, substeps, repeats, **options) -> float:
-    """Median seconds per frame of ``substeps`` substeps after one warm-up frame."""
-    model = dw.Model.from_strands(pts, counts, device=device, precision="float32")
-    solver = dw.make_solver(model, solver_name, **options)
-    state, control = solver.state(), model.control()
-    dt = 1.0 / (24 * substeps)
-    solver.advance(state, control, dt, substeps)
-    wp.synchronize_device(device)
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        solver.advance(state, control, dt, substeps)
-        wp.synchronize_device(device)
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
+    """Median seconds per frame of ``substeps`` substeps (``bench_elastic.time_solver``)."""
+    return time_solver(solver_name, pts, counts, device, substeps, repeats, **options)["frame_s"]
 
 
 def main() -> int:
@@ -100,12 +85,7 @@ def main() -> int:
              "| run | ms / frame | x bare DFTL |", "|---|---:|---:|"]
     lines += [f"| {r['row']} | {1e3 * r['frame_s']:.2f} | {r['frame_s'] / bare:.1f} |" for r in rows]
     print("\n".join(lines))
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        tag = args.device.replace(":", "")
-        (out / f"profile-elastic-{tag}.json").write_text(json.dumps(rows, indent=1))
-        (out / f"profile-elastic-{tag}.md").write_text("\n".join(lines) + "\n")
+    write_report(args.out, "profile-elastic", args.device, rows, lines)
     return 0
 
 

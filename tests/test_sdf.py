@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import warp as wp
 from pxr import Sdf, UsdGeom, UsdPhysics, Vt
+from mesh_shapes import uv_sphere
 from usd_stages import add_curves, composed_samples, new_stage
 
 import dftl_warp as dw
@@ -18,28 +19,6 @@ from dftl_warp.features.colliders.sdf import SDF_MIN_TRIANGLES, mesh_signed_dist
 G = (0.0, -9.81, 0.0)
 R0 = 0.08  # m, the body's mean radius
 SQRT3 = np.sqrt(3.0)
-
-
-def uv_directions(rings, segments):
-    """Unit directions of a closed UV sphere and its outward triangles."""
-    theta = np.linspace(0, np.pi, rings + 1)[1:-1]
-    phi = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    t, p = np.meshgrid(theta, phi, indexing="ij")
-    ring_pts = np.stack([np.sin(t) * np.cos(p), np.cos(t), np.sin(t) * np.sin(p)], -1).reshape(-1, 3)
-    pts = np.concatenate([[[0, 1, 0]], ring_pts, [[0, -1, 0]]])
-    ring = lambda r, s: 1 + r * segments + s % segments  # noqa: E731
-    last = len(pts) - 1
-    tris = []
-    for s in range(segments):
-        tris += [(0, ring(0, s + 1), ring(0, s)), (last, ring(rings - 2, s), ring(rings - 2, s + 1))]
-        for r in range(rings - 2):
-            a, b, c, d = ring(r, s), ring(r, s + 1), ring(r + 1, s), ring(r + 1, s + 1)
-            tris += [(a, b, d), (a, d, c)]
-    tris = np.array(tris)
-    tri = pts[tris]
-    flip = np.sum(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) * tri.mean(1), axis=1) < 0
-    tris[flip] = tris[flip][:, ::-1]
-    return pts, tris
 
 
 def body_radius(u, t):
@@ -107,7 +86,7 @@ def one_collider(shape, device="cpu", widths=1e-4):
 
 
 def test_field_agrees_with_exact_mesh_distances_within_the_trilinear_bound():
-    dirs, tris = uv_directions(100, 200)  # 39600 triangles, edges ~2 mm
+    dirs, tris = uv_sphere(100, 200)  # 39600 triangles, edges ~2 mm
     pts = body_points(dirs, 0.0)
     h = 0.003
     meshes = one_collider(F.TriangleMesh(points=pts, indices=tris, sdf_cell=h))
@@ -140,7 +119,7 @@ def test_field_agrees_with_exact_mesh_distances_within_the_trilinear_bound():
 def test_fields_of_several_colliders_share_the_arrays_and_deform_on_their_own():
     """Two mesh colliders with fields (device order after a sphere): each answers for its own
     mesh, and setting one's points rebuilds that one only."""
-    dirs, tris = uv_directions(60, 120)
+    dirs, tris = uv_sphere(60, 120)
     a = F.TriangleMesh(points=body_points(dirs, 0.0), indices=tris, sdf=True, sdf_cell=0.003)
     b = F.TriangleMesh(points=1.5 * body_points(dirs, 0.3), indices=tris, sdf=True, sdf_cell=0.004,
                        position=(0.5, 0.0, 0.0))
@@ -242,7 +221,7 @@ def drape(sdf: bool, directions, tris, frames=24, substeps=5, width=1e-3):
 
 
 def test_hair_on_a_breathing_body_stays_outside_through_the_field_as_through_exact_queries():
-    dirs, tris = uv_directions(60, 120)  # 14160 triangles
+    dirs, tris = uv_sphere(60, 120)  # 14160 triangles
     exact, touching_exact, _ = drape(False, dirs, tris)
     field, touching_field, meshes = drape(True, dirs, tris)
     assert 0 in meshes.fields.fields and touching_exact > 100 and touching_field > 100
@@ -261,10 +240,10 @@ def test_hair_on_a_breathing_body_stays_outside_through_the_field_as_through_exa
 
 
 def test_automatic_choice_and_forcing():
-    dirs, tris = uv_directions(24, 48)  # 2208 triangles
+    dirs, tris = uv_sphere(24, 48)  # 2208 triangles
     small = F.TriangleMesh(points=dirs * 0.1, indices=tris)
     assert not small.uses_sdf and F.TriangleMesh(points=dirs * 0.1, indices=tris, sdf=True).uses_sdf
-    dirs, tris = uv_directions(101, 100)  # 20000 triangles
+    dirs, tris = uv_sphere(101, 100)  # 20000 triangles
     assert len(tris) >= SDF_MIN_TRIANGLES
     assert F.TriangleMesh(points=dirs * 0.1, indices=tris).uses_sdf
     assert not F.TriangleMesh(points=dirs * 0.1, indices=tris, sdf=False).uses_sdf
@@ -279,7 +258,7 @@ def test_usd_point_cached_mesh_collides_through_its_field(tmp_path):
     from dftl_warp.simulation.simulate import simulate_usd
     from dftl_warp.usd.read import read_scene
 
-    dirs, tris = uv_directions(40, 80)  # 6240 triangles: below the automatic choice
+    dirs, tris = uv_sphere(40, 80)  # 6240 triangles: below the automatic choice
     stage = new_stage(tmp_path / "in.usda", start=1, end=12)
     mesh = UsdGeom.Mesh.Define(stage, "/World/Body")
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
