@@ -71,6 +71,36 @@ def _fsync_tree(paths) -> None:
             os.close(fd)
 
 
+def write_one_layer(out: Path, scene, recorded, first: int) -> float:
+    """Seconds to write ``recorded`` (each frame's samples, time codes ``first`` on) as one layer
+    through :class:`UsdWriter`, creation to commit ("writing alone")."""
+    a = time.perf_counter()
+    with UsdWriter.create(out, scene, frames=(first, first + len(recorded) - 1)) as writer:
+        for f, frame_samples in enumerate(recorded, start=first):
+            writer.write_frame(f, frame_samples)
+        writer.commit()
+    return time.perf_counter() - a
+
+
+def write_clips(out: Path, scene, recorded, first: int, clip_frames: int) -> float:
+    """Seconds to write ``recorded`` as value clips of ``clip_frames`` frames through the clips
+    writer and its writer processes (those started before, else new ones), creation to commit
+    ("clips, writing alone"). Returns once the processes have ended (not timed), so that their
+    exit does not share the cores with what is timed next."""
+    a = time.perf_counter()
+    with clips_output.create_clips(out, scene, frames=(first, first + len(recorded) - 1),
+                                   clip_frames=clip_frames) as writer:
+        for f, frame_samples in enumerate(recorded, start=first):
+            writer.write_frame(f, frame_samples)
+        pool = getattr(writer, "_pool", None)  # (none in the writer-thread version, 9a270fb)
+        processes = [w.process for w in pool.workers] if pool is not None else []
+        writer.commit()
+    seconds = time.perf_counter() - a
+    for process in processes:
+        process.wait()
+    return seconds
+
+
 def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path, clip_frames: int = 0) -> dict:
     groom = workdir / "groom.usda"
     make_default(groom, strands=strands, vertices=16)
@@ -103,20 +133,10 @@ def measure(device: str, strands: int, frames: int, substeps: int, workdir: Path
         sim.advance()
         recorded.append(sim.samples())
     out = workdir / "write_only.usdc"
-    a = time.perf_counter()
-    with UsdWriter.create(out, scene, frames=(first, last)) as writer:
-        for f, frame_samples in zip(range(first, last + 1), recorded):
-            writer.write_frame(f, frame_samples)
-        writer.commit()
-    t_write = time.perf_counter() - a
+    t_write = write_one_layer(out, scene, recorded, first)
     out.unlink()
     dd_before = dd_bandwidth(workdir)
-    a = time.perf_counter()  # clips, writing alone: creation to commit
-    with clips_output.create_clips(workdir / "alone.usdc", scene, frames=(first, last), clip_frames=clip_frames) as writer:
-        for f, frame_samples in zip(range(first, last + 1), recorded):
-            writer.write_frame(f, frame_samples)
-        writer.commit()
-    t_clips_alone = time.perf_counter() - a
+    t_clips_alone = write_clips(workdir / "alone.usdc", scene, recorded, first, clip_frames)
     alone_bytes = _tree_bytes(workdir / "alone_clips") + _tree_bytes(workdir / "alone.usdc")
     a = time.perf_counter()
     _fsync_tree([workdir / "alone.usdc", *(workdir / "alone_clips").iterdir()])

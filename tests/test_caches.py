@@ -291,7 +291,7 @@ def test_clips_are_chosen_automatically_above_the_measured_size(tmp_path):
 
     big = SimpleNamespace(curves=[SimpleNamespace(num_points=AUTO_MIN_POINTS)])
     small = SimpleNamespace(curves=[SimpleNamespace(num_points=AUTO_MIN_POINTS - 1)])
-    assert auto_clips(big, AUTO_MIN_FRAMES, "a.usdc") == 2  # 8 chunks at least
+    assert auto_clips(big, AUTO_MIN_FRAMES, "a.usdc") == 3  # 8 chunks at least (24 frames)
     assert auto_clips(big, 240, "a.usd") == 30
     assert auto_clips(big, AUTO_MIN_FRAMES - 1, "a.usdc") is None
     assert auto_clips(small, 1000, "a.usdc") is None

@@ -65,9 +65,11 @@ def _clip_name(index: int) -> str:
 
 
 #: automatic clips (no ``--clips``): at least this many points per frame and this many written
-#: frames, below which one layer was as fast or faster (docs/caches.md, measured)
-AUTO_MIN_POINTS = 150_000
-AUTO_MIN_FRAMES = 16
+#: frames; below either, one layer wrote as fast or faster on the 2-core VM (2 writer processes;
+#: ``scripts/bench_clips_threshold.py``, docs/caches.md "Chosen automatically"); with more cores
+#: the crossover may be lower (not measured)
+AUTO_MIN_POINTS = 320_000
+AUTO_MIN_FRAMES = 24
 #: automatic clips: at least this many chunks (so that the writers overlap)
 AUTO_MIN_CHUNKS = 8
 
