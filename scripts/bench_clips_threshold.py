@@ -110,6 +110,8 @@ def main(argv=None):
     load = os.getloadavg()[0]
     started = time.perf_counter()
     rows = []
+    if args.dir:
+        Path(args.dir).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         workdir = Path(tmp)
         for points in args.points:

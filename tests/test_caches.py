@@ -287,11 +287,13 @@ def test_batch_clips_resume_per_chunk_after_sigkill_to_identical_output(tmp_path
 def test_clips_are_chosen_automatically_above_the_measured_size(tmp_path):
     from types import SimpleNamespace
 
-    from dftl_warp.output.clips import AUTO_MIN_FRAMES, AUTO_MIN_POINTS, auto_clips
+    from dftl_warp.output.clips import AUTO_MIN_FRAMES, AUTO_MIN_POINTS, auto_clips, auto_minimum
 
+    # the measured crossovers: 2 writer processes (the 2-core VM), 8 (the 16-core H200 machine)
+    assert auto_minimum(2) == (320_000, 24) and auto_minimum(8) == (160_000, 16)
     big = SimpleNamespace(curves=[SimpleNamespace(num_points=AUTO_MIN_POINTS)])
     small = SimpleNamespace(curves=[SimpleNamespace(num_points=AUTO_MIN_POINTS - 1)])
-    assert auto_clips(big, AUTO_MIN_FRAMES, "a.usdc") == 3  # 8 chunks at least (24 frames)
+    assert auto_clips(big, AUTO_MIN_FRAMES, "a.usdc") == -(-AUTO_MIN_FRAMES // 8)  # 8 chunks at least
     assert auto_clips(big, 240, "a.usd") == 30
     assert auto_clips(big, AUTO_MIN_FRAMES - 1, "a.usdc") is None
     assert auto_clips(small, 1000, "a.usdc") is None

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder
-from .clip_pool import ClipWriterPool
+from .clip_pool import ClipWriterPool, writer_count
 from .usd import UsdWriter, check_output_path
 
 #: the clip set's name
@@ -64,12 +64,23 @@ def _clip_name(index: int) -> str:
     return f"clip.{index:04d}.usdc"
 
 
-#: automatic clips (no ``--clips``): at least this many points per frame and this many written
-#: frames; below either, one layer wrote as fast or faster on the 2-core VM (2 writer processes;
-#: ``scripts/bench_clips_threshold.py``, docs/caches.md "Chosen automatically"); with more cores
-#: the crossover may be lower (not measured)
-AUTO_MIN_POINTS = 320_000
-AUTO_MIN_FRAMES = 24
+#: automatic clips (no ``--clips``): (points per frame, written frames) from which clips wrote
+#: faster than one layer (``scripts/bench_clips_threshold.py``, docs/caches.md "Chosen
+#: automatically"): with fewer than :data:`MANY_WRITERS` writer processes (the 2-core VM: 2) and
+#: with that many or more (the 16-core H200 machine: 8)
+AUTO_MIN_FEW_WRITERS = (320_000, 24)
+AUTO_MIN_MANY_WRITERS = (160_000, 16)
+MANY_WRITERS = 8
+
+
+def auto_minimum(writers: int) -> tuple[int, int]:
+    """The automatic clips' (points per frame, written frames) thresholds for ``writers`` writer
+    processes."""
+    return AUTO_MIN_MANY_WRITERS if writers >= MANY_WRITERS else AUTO_MIN_FEW_WRITERS
+
+
+#: this machine's thresholds (its writer processes: :func:`.clip_pool.writer_count`)
+AUTO_MIN_POINTS, AUTO_MIN_FRAMES = auto_minimum(writer_count(WRITERS))
 #: automatic clips: at least this many chunks (so that the writers overlap)
 AUTO_MIN_CHUNKS = 8
 
