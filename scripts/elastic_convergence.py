@@ -98,6 +98,8 @@ def plot(rows, refs, out: Path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from dftl_warp.study.elastic_report import finish_convergence_axes
+
     names = list(dict.fromkeys(r["scenario"] for r in rows))
     fig, axes = plt.subplots(1, len(names), figsize=(5.6 * len(names), 4.4), squeeze=False)
     colours = {0.0: "tab:red", 0.5: "tab:orange", 1.0: "tab:blue"}
@@ -113,14 +115,8 @@ def plot(rows, refs, out: Path):
                 ax.loglog([r["substeps"] for r in rs], [r["error"] for r in rs], color=colours[s],
                           ls="-" if c == "prior" else ":", marker="o" if c == "prior" else "s", ms=4,
                           label=label(s, c))
-        ax.loglog(ks, top * ks[0] / ks, color="grey", lw=0.8, ls="-.", label="first order")
         ref = next(r for r in refs if r["scenario"] == name)
-        ax.axhline(ref["self_error"], color="black", lw=0.8, ls="--", label="reference's own error")
-        ax.set_xlabel("substeps per 24 fps frame")
-        ax.set_ylabel("trajectory error / strand length")
-        ax.set_title(f"{name}: elastic solver against the elastic reference", fontsize=9)
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=0.3)
+        finish_convergence_axes(ax, name, ks, top, ref["self_error"])
     fig.tight_layout()
     fig.savefig(out / "convergence.png", dpi=110)
     plt.close(fig)

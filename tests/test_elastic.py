@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import warp as wp
+from elastica import cantilever
 
 from dftl_warp.core.model import Model
 from dftl_warp.solvers import make_solver
@@ -22,25 +23,8 @@ LB = (EI / WL) ** (1.0 / 3.0)   # bending length, 4.93 cm
 
 
 def elastica(L, s_eval):
-    """Large-deflection elastica of a horizontal cantilever under its own weight, (x, y) at s_eval."""
-    from scipy.integrate import cumulative_trapezoid, solve_bvp
-
-    def bc(ya, yb):
-        return np.array([ya[0], yb[1]])
-
-    s = np.linspace(0, L, 401)
-    guess = np.zeros((2, s.size))
-    for frac in np.linspace(0.1, 1.0, 10):      # continuation in the load
-        def f(s, y, w=WL * frac):
-            return np.vstack([y[1], -w * (L - s) * np.cos(y[0]) / EI])
-        sol = solve_bvp(f, bc, s, guess, tol=1e-10, max_nodes=100000)
-        guess = sol.sol(s)
-    assert sol.success, sol.message
-    sf = np.linspace(0, L, 20001)
-    th = sol.sol(sf)[0]
-    xs = cumulative_trapezoid(np.cos(th), sf, initial=0.0)
-    ys = -np.abs(cumulative_trapezoid(np.sin(th), sf, initial=0.0))
-    return np.interp(s_eval, sf, xs), np.interp(s_eval, sf, ys)
+    """(x, y) at ``s_eval`` of a horizontal cantilever of this hair under its own weight."""
+    return cantilever(L, s_eval, EI, WL)
 
 
 def straight(Ls):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from elastica import cantilever
 
 import dftl_warp as dw
 from dftl_warp.solvers.elastic import HAIR_DENSITY, HAIR_E
@@ -31,13 +32,7 @@ def straight(L, segments=N):
 
 def helix(L=0.2, turns=2.0, radius=0.015, segments=N):
     """A helix hanging down from the origin, ``segments`` equal segments of total length ``L``."""
-    s = np.linspace(0, L, segments + 1)
-    c = L / np.sqrt((2 * np.pi * turns * radius) ** 2 + L ** 2)
-    ang = 2 * np.pi * turns * s / L
-    pts = np.stack([radius * (np.cos(ang) - 1), -s * c, radius * np.sin(ang)], axis=-1)
-    seg = np.diff(pts, axis=0)
-    seg *= (L / segments) / np.linalg.norm(seg, axis=1, keepdims=True)
-    return np.concatenate([pts[:1], pts[:1] + np.cumsum(seg, axis=0)])
+    return sc.hair_helix(L, turns, radius, segments)
 
 
 def model_of(rest):
@@ -50,22 +45,8 @@ def reference(rest, drag=0.0, **material):
 
 
 def elastica(L, s_eval):
-    """(x, y) of a horizontal cantilever under its own weight: EI th'' = -w (L - s) cos th,
-    th(0) = 0, th'(L) = 0 (scipy solve_bvp, continuation in the load)."""
-    from scipy.integrate import cumulative_trapezoid, solve_bvp
-
-    s = np.linspace(0, L, 401)
-    guess = np.zeros((2, s.size))
-    for frac in np.linspace(0.1, 1.0, 10):
-        sol = solve_bvp(lambda s, y, w=WL * frac: np.vstack([y[1], -w * (L - s) * np.cos(y[0]) / EI]),
-                        lambda a, b: np.array([a[0], b[1]]), s, guess, tol=1e-10, max_nodes=100000)
-        guess = sol.sol(s)
-    assert sol.success, sol.message
-    sf = np.linspace(0, L, 20001)
-    th = sol.sol(sf)[0]
-    xs = cumulative_trapezoid(np.cos(th), sf, initial=0.0)
-    ys = -np.abs(cumulative_trapezoid(np.sin(th), sf, initial=0.0))
-    return np.interp(s_eval, sf, xs), np.interp(s_eval, sf, ys)
+    """(x, y) at ``s_eval`` of a horizontal cantilever of this hair under its own weight."""
+    return cantilever(L, s_eval, EI, WL)
 
 
 # ------------------------------------------------------------------------------------ (a) statics

@@ -33,18 +33,23 @@ def plot_elastic(results: dict, out) -> dict:
         for label, rs in _by(rows, "setting").items():
             ax.loglog([r["substeps"] for r in rs], [r["error"] for r in rs], marker="o", ms=4, label=label)
         ks = np.array(sorted({r["substeps"] for r in rows}), dtype=float)
-        top = max(r["error"] for r in rows)
-        ax.loglog(ks, top * ks[0] / ks, color="grey", lw=0.8, ls="-.", label="first order")
-        ax.axhline(refs[name]["self_error"], color="black", lw=0.8, ls="--", label="reference's own error")
-        ax.set_xlabel("substeps per 24 fps frame")
-        ax.set_ylabel("trajectory error / strand length")
-        ax.set_title(f"{name}: elastic solver against the elastic reference", fontsize=9)
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=0.3)
+        finish_convergence_axes(ax, name, ks, max(r["error"] for r in rows), refs[name]["self_error"])
     fig.tight_layout()
     fig.savefig(out / "elastic.png", dpi=110)
     plt.close(fig)
     return {"elastic": "elastic.png"}
+
+
+def finish_convergence_axes(ax, name: str, substeps, top: float, self_error: float) -> None:
+    """The common dressing of an elastic-against-reference convergence plot: a first-order guide
+    from ``top`` at the fewest ``substeps``, the reference's own error, labels, legend and grid."""
+    ax.loglog(substeps, top * substeps[0] / substeps, color="grey", lw=0.8, ls="-.", label="first order")
+    ax.axhline(self_error, color="black", lw=0.8, ls="--", label="reference's own error")
+    ax.set_xlabel("substeps per 24 fps frame")
+    ax.set_ylabel("trajectory error / strand length")
+    ax.set_title(f"{name}: elastic solver against the elastic reference", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
 
 
 def _table(header, rows):
