@@ -166,8 +166,8 @@ def scenarios(pts, counts, roots):
 ELASTIC = dict(solver="elastic", solver_options=dict(compute_precision="float32"))
 
 
-def time_frames(fn, device, repeats):
-    fn()  # warm-up (compiles, captures)
+def timed(fn, device, repeats):
+    """Seconds of each of ``repeats`` calls of ``fn`` (device synchronised)."""
     wp.synchronize_device(device)
     times = []
     for _ in range(repeats):
@@ -175,7 +175,13 @@ def time_frames(fn, device, repeats):
         fn()
         wp.synchronize_device(device)
         times.append(time.perf_counter() - t)
-    return statistics.median(times)
+    return times
+
+
+def time_frames(fn, device, repeats):
+    """Median seconds of ``fn`` after one warm-up call (compiles, captures)."""
+    fn()
+    return statistics.median(timed(fn, device, repeats))
 
 
 def box_mesh(half):

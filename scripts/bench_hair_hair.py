@@ -36,14 +36,13 @@ import datetime
 import json
 import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_features import FPS, G, groom, machine_line  # noqa: E402
+from bench_features import FPS, G, groom, machine_line, timed  # noqa: E402
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402
@@ -75,18 +74,6 @@ def make(pts, counts, device, off=False, centred=True, **hair_hair):
     if not off:
         solver._features._grid.centred = centred
     return model, solver, solver.state(), model.control()
-
-
-def timed(fn, device, repeats):
-    """Seconds of each of ``repeats`` calls of ``fn`` (device synchronised)."""
-    wp.synchronize_device(device)
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        wp.synchronize_device(device)
-        times.append(time.perf_counter() - t)
-    return times
 
 
 # -- cost -----------------------------------------------------------------------------------------

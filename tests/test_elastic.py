@@ -12,6 +12,7 @@ from dftl_warp.core.model import Model
 from dftl_warp.solvers import make_solver
 from dftl_warp.solvers.elastic import HAIR_DENSITY, HAIR_E, ElasticSolver
 from dftl_warp.solvers.elastic_rest import RodGroup, expm_so3, rotation_between
+from dftl_warp.study.scenarios import hair_helix
 
 R = 40e-6          # 80 um hair
 N = 32
@@ -35,13 +36,8 @@ def straight(Ls):
 
 
 def helix(L, turns=3.0, radius=0.01):
-    s = np.linspace(0, L, N + 1)
-    c = L / np.sqrt((2 * np.pi * turns * radius) ** 2 + L ** 2)
-    ang = 2 * np.pi * turns * s / L
-    pts = np.stack([radius * (np.cos(ang) - 1), -s * c, radius * np.sin(ang)], axis=-1)
-    seg = np.diff(pts, axis=0)
-    seg *= (L / N) / np.linalg.norm(seg, axis=1, keepdims=True)
-    return np.concatenate([pts[:1], pts[:1] + np.cumsum(seg, axis=0)])[None]
+    """One helix (1, N + 1, 3) hanging from the origin: the study's ``hair_helix``."""
+    return hair_helix(L, turns, radius, N)[None]
 
 
 def setup(rest, precision="float64", **options):
