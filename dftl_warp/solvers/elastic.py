@@ -82,18 +82,13 @@ TWIST_G = 10 * HAIR_G
 DEFAULT_RADIUS = 40e-6
 
 
-#: what the elastic solver says about the features it does not support (by feature class name; a
-#: feature type without an entry is named by its class; every feature type there is today is supported)
-UNSUPPORTED = {}
-
-
 def check_features(model) -> None:
     """ValueError naming the model's features the elastic solver does not support (it supports
     colliders, drag, wind, hair-hair and root binding)."""
     from ..features import Colliders, Drag, HairHair, RootBinding, Wind
 
     bad = [f for f in model.features if not isinstance(f, (Colliders, Drag, HairHair, RootBinding, Wind))]
-    names = [UNSUPPORTED.get(type(f).__name__, type(f).__name__) for f in bad]
+    names = [type(f).__name__ for f in bad]
     flags = set(model.feature_flags) - elastic_flags()
     names += [f"the {flag!r} flag" for flag in sorted(flags)
               if not any(flag in getattr(f, "flags", ()) for f in bad)]
