@@ -61,9 +61,10 @@ POLAR_ITERATIONS = 4
 #: the feature flags the elastic step supports besides the registered collider shapes'
 ELASTIC_OTHER_FLAGS = frozenset({"drag", "wind", "wind_noise", "hair_hair"})
 
-#: CUDA register cap of the float32-arithmetic kernel (H200, 1M curly strands x 33, 8 substeps:
-#: uncapped it takes 251 registers, 12.5% occupancy, 123 ms per frame; 128: 101 ms; 96: 122 ms;
-#: 64: 171 ms; docs/elastic.md "Cost"). The float64 kernel is left uncapped (not measured).
+#: CUDA register cap of the float32-arithmetic kernel (H200, 1M curly strands x 33, 8 substeps,
+#: ``scripts/profile_elastic.py``: uncapped 98.4 ms per frame, 128: 81.6 ms, 96: 110.3 ms;
+#: uncapped it takes 251 registers, 12.5% occupancy; docs/elastic.md "Cost"). The float64 kernel
+#: is left uncapped (not measured).
 CUDA_MAX_REGISTERS_F32 = 128
 
 
