@@ -12,8 +12,10 @@ A. **frames, root -> tip** (curved strands only): one Gauss-Seidel sweep of the 
 B. **elimination, tip -> root**: the block-pentadiagonal KKT system (4x4 blocks ``z_k = (v_k, mu_k)``)
    of the linearly implicit velocity solve with the exact linearised inextensibility constraint,
    ``[A J^T; J 0] [v; mu] = [M v^n + h f; J_0 v_0]``, ``A = M (1 + h drag) + h^2 K + h^2 K_T``, is
-   factored as a reversed block ``U D U^T``; the forces ``f`` (gravity + bending with the frames of A,
-   the root and ghost at their step-end targets) are built on the way;
+   factored as a reversed block ``L D L^T`` whose Schur complements are formed from the couplings,
+   ``D_k = A_kk - B D^-1 B^T`` (stable; the multiplier form ``U D U^T``, ``U = B D^-1``, is not);
+   the forces ``f`` (gravity + bending with the frames of A, the root and ghost at their step-end
+   targets) are built on the way;
 C. **back substitution, root -> tip**, fused with the follow-the-leader projection of
    ``p_k = x_k + h v_k`` (exact segment lengths), the colliders' response (as the featured DFTL
    sweep: collide, back to the rest length from the leader), the velocity ``(x^{n+1} - x^n)/h`` in DFTL's
@@ -29,7 +31,7 @@ Memory traffic per free particle per step (``real`` scalars unless said; ``s`` =
 - state in: positions 3 s (A and B: 2 reads), velocities 3 s, tensions 1 s, frames 4 s (A reads and
   B re-reads the updated ones), corrections 3 s (prior form);
 - state out: positions 3 s, velocities 3 s, tensions 1 s, frames 4 s, corrections 3 s (prior form);
-- scratch: ``D^-1`` 10 (symmetric), ``B1 = U1 D`` 12 (its last row is zero), ``w`` 4: written in
+- scratch: ``D^-1`` 10 (symmetric), ``B_{k-1,k}`` 12 (its last row is zero), ``w`` 4: written in
   B, read in C (52 scalars of traffic, 72 before this compaction; docs/elastic.md "Cost" has its
   effect on the H200).
 
@@ -227,6 +229,20 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                      B[2, 0], B[2, 1], B[2, 2], B[2, 3])
 
     @wp.func
+    def upper3(D: mat44):
+        """P D P, P = diag(1, 1, 1, 0): the velocity part of a 4x4 block."""
+        z = real(0.0)
+        return mat44(D[0, 0], D[0, 1], D[0, 2], z, D[1, 0], D[1, 1], D[1, 2], z, D[2, 0], D[2, 1], D[2, 2], z,
+                     z, z, z, z)
+
+    @wp.func
+    def top3_rows(D: mat44):
+        """P D: the 4x4 block with its last row zeroed."""
+        z = real(0.0)
+        return mat44(D[0, 0], D[0, 1], D[0, 2], D[0, 3], D[1, 0], D[1, 1], D[1, 2], D[1, 3],
+                     D[2, 0], D[2, 1], D[2, 2], D[2, 3], z, z, z, z)
+
+    @wp.func
     def block0(a0: real, e: vec3):
         return mat44(a0, real(0.0), real(0.0), e[0],
                      real(0.0), a0, real(0.0), e[1],
@@ -237,11 +253,6 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     def block1(a1: real, e: vec3):
         z = real(0.0)
         return mat44(a1, z, z, -e[0], z, a1, z, -e[1], z, z, a1, -e[2], z, z, z, z)
-
-    @wp.func
-    def block2(a2: real):
-        z = real(0.0)
-        return mat44(a2, z, z, z, z, a2, z, z, z, z, a2, z, z, z, z, z)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS,
                cuda_max_registers=CUDA_MAX_REGISTERS_F32 if real == wp.float32 else None)
@@ -377,11 +388,10 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 frames_out[kj] = frames_in[kj]
 
         # ---- B: forces and elimination, tip -> root -----------------------------------------------
-        D1 = mat44()
-        D2 = mat44()
-        U1k = mat44()
-        U2k = mat44()
-        U2km1 = mat44()
+        # the eliminated particles' D^-1 (k+1, k+2), the coupling B_{k,k+1} (fill included) and w
+        Di1 = mat44()
+        Di2 = mat44()
+        Bk1 = mat44()
         w1 = vec4()
         w2 = vec4()
         rho_hi = zero3
@@ -460,32 +470,33 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
             if k == 1:
                 rk[3] = wp.dot(e, v0)
             a0 = mk * (real(1.0) + h * a_drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
-            Dk = block0(a0, e) - U1k * D1 * wp.transpose(U1k) - U2k * D2 * wp.transpose(U2k)
+            # Schur complements from the couplings themselves, B D^-1 B^T (B_{k,k+2} = a2 P): never
+            # through the multipliers U = B D^-1 as U D U^T, whose round trip through D amplified
+            # round-off by about D's condition at every particle (a 47-point curl's solve was wrong
+            # by 200% at 8 substeps per frame, and the strand rang; docs/elastic.md "Stability")
+            a2k = h2 * k2[kk]
+            BD = Bk1 * Di1
+            Dk = block0(a0, e) - BD * wp.transpose(Bk1) - (a2k * a2k) * upper3(Di2)
             # D_k is symmetric but for the products' rounding: inverted symmetrised (without that a
             # styled groom at rest drifts 3e-9 L instead of < 1e-10 in float64), used as stored in
             # both sweeps
             Di_packed = pack_symmetric(wp.inverse(real(0.5) * (Dk + wp.transpose(Dk))))
             Di = unpack_symmetric(Di_packed)
             B1 = mat44()
-            U1new = mat44()
-            U2new = mat44()
             if k >= 2:
+                # B_{k-1,k} = A_{k-1,k} - B_{k-1,k+1} D_{k+1}^-1 B_{k,k+1}^T, B_{k-1,k+1} = a2 P
                 a1 = h2 * k1[km] - h2 * kt_k
-                B1 = block1(a1, e) - U2km1 * D1 * wp.transpose(U1k)
-                U1new = B1 * Di
-            if k >= 3:
-                U2new = block2(h2 * k2[particle(base, stride, k - 2)]) * Di
-            wk = rk - U1k * w1 - U2k * w2
-            # stored compactly: D_k^-1 is symmetric (10 words), B1 = U1 D_k has a zero last row (12)
+                B1 = block1(a1, e) - (h2 * k2[km]) * top3_rows(Di1 * wp.transpose(Bk1))
+            dw2 = Di2 * w2
+            wk = rk - BD * w1 - a2k * vec4(dw2[0], dw2[1], dw2[2], real(0.0))
+            # stored compactly: D_k^-1 is symmetric (10 words), B1 = B_{k-1,k} has a zero last row (12)
             factor_inv[kk] = Di_packed
             factor_up[kk] = top_rows(B1)
             factor_rhs[kk] = wk
             # slide the windows down one particle
-            D2 = D1
-            D1 = Dk
-            U1k = U1new
-            U2k = U2km1
-            U2km1 = U2new
+            Di2 = Di1
+            Di1 = Di
+            Bk1 = B1
             w2 = w1
             w1 = wk
             rho_hi = rho_mid
@@ -505,7 +516,7 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         vprev = zero3
         for k in range(1, n):
             kk = particle(base, stride, k)
-            # z_k = D_k^-1 (w_k - B1^T z_{k-1} - B2^T z_{k-2}): U = B D_k^-1 and D_k^-1 is symmetric
+            # z_k = D_k^-1 (w_k - B1^T z_{k-1} - B2^T z_{k-2}), D_k^-1 symmetric
             yk = factor_rhs[kk]
             if k >= 2:
                 yk = yk - wp.transpose(factor_up[kk]) * vec3(z1[0], z1[1], z1[2])
