@@ -266,6 +266,27 @@ def numpy_step(g: RodGroup, st, h, root, gravity, s=0.0, correction="prior", dra
     st.update(x=x_new, v=v_new, T=T, c=c, F=F, ghost=xg_new)
 
 
+def kernel_and_numpy_steps(rest, shake, s, correction="prior"):
+    """Six 1/192 s steps of strands ``rest`` (S, n, 3) under gravity, float64, roots moved by
+    (shake[0] sin(k + 1), shake[1] k, 0) at step k: the kernel's (model, state) and the numpy
+    step's state dict."""
+    gravity = np.array([0.0, -9.81, 0.0])
+    S, n = rest.shape[:2]
+    model = Model.from_strands(rest.reshape(-1, 3), [n] * S, precision="float64")
+    solver = make_solver(model, "elastic", radius=R, damping=s, correction=correction, gravity=gravity)
+    state, control = solver.state(), model.control()
+    g = solver._groups[0][2]
+    ref = dict(x=rest.copy(), v=np.zeros_like(rest), T=g.T_rest.copy(), c=np.zeros_like(rest),
+               F=np.tile(np.eye(3), (S, n - 1, 1, 1)), ghost=g.ghost.copy(), root0=rest[:, 0].copy())
+    h = 1.0 / 192
+    for k in range(6):
+        root = rest[:, 0] + [shake[0] * np.sin(k + 1.0), shake[1] * k, 0.0]
+        control.set_root_targets(root)
+        solver.step(state, state, control, h)
+        numpy_step(g, ref, h, root, gravity, s=s, correction=correction)
+    return model, state, ref
+
+
 @pytest.mark.parametrize("correction", ["prior", "posterior"])
 def test_kernel_equals_numpy_step(correction):
     rng = np.random.default_rng(7)
@@ -277,19 +298,7 @@ def test_kernel_equals_numpy_step(correction):
             d = d + 0.6 * rng.normal(size=3)
             d /= np.linalg.norm(d)
             rest[q, i] = rest[q, i - 1] + 0.01 * (1 + 0.3 * rng.random()) * d
-    gravity = np.array([0.0, -9.81, 0.0])
-    model = Model.from_strands(rest.reshape(-1, 3), [n] * S, precision="float64")
-    solver = make_solver(model, "elastic", radius=R, damping=0.5, correction=correction, gravity=gravity)
-    state, control = solver.state(), model.control()
-    g = solver._groups[0][2]
-    ref = dict(x=rest.copy(), v=np.zeros_like(rest), T=g.T_rest.copy(), c=np.zeros_like(rest),
-               F=np.tile(np.eye(3), (S, n - 1, 1, 1)), ghost=g.ghost.copy(), root0=rest[:, 0].copy())
-    h = 1.0 / 192
-    for k in range(6):
-        root = rest[:, 0] + [0.01 * np.sin(k + 1.0), 0.004 * k, 0.0]
-        control.set_root_targets(root)
-        solver.step(state, state, control, h)
-        numpy_step(g, ref, h, root, gravity, s=0.5, correction=correction)
+    model, state, ref = kernel_and_numpy_steps(rest, [0.01, 0.004], s=0.5, correction=correction)
     x = positions(model, state, rest.shape)
     v = model.points_from_device(state.velocities, relative=False).reshape(rest.shape)
     T = state.tensions.numpy()[model.layout.slot_of_point].reshape(S, n)
@@ -305,19 +314,7 @@ def test_kernel_equals_numpy_step_on_a_long_stiff_strand():
     multiplier form of the elimination (U D U^T) gave a relative error of 2e14 on this matrix
     (its condition is about 1e8: the dense solve is exact to ~1e-8 of it)."""
     rest = hair_helix(0.05, 2.0, 0.005, 48)[None]
-    gravity = np.array([0.0, -9.81, 0.0])
-    model = Model.from_strands(rest.reshape(-1, 3), [rest.shape[1]], precision="float64")
-    solver = make_solver(model, "elastic", radius=R, gravity=gravity)
-    state, control = solver.state(), model.control()
-    g = solver._groups[0][2]
-    ref = dict(x=rest.copy(), v=np.zeros_like(rest), T=g.T_rest.copy(), c=np.zeros_like(rest),
-               F=np.tile(np.eye(3), (1, rest.shape[1] - 1, 1, 1)), ghost=g.ghost.copy(), root0=rest[:, 0].copy())
-    h = 1.0 / 192
-    for k in range(6):
-        root = rest[:, 0] + [0.002 * np.sin(k + 1.0), 0.001 * k, 0.0]
-        control.set_root_targets(root)
-        solver.step(state, state, control, h)
-        numpy_step(g, ref, h, root, gravity, s=1.0)
+    model, state, ref = kernel_and_numpy_steps(rest, [0.002, 0.001], s=1.0)
     x = positions(model, state, rest.shape)
     v = model.points_from_device(state.velocities, relative=False).reshape(rest.shape)
     assert np.abs(x - ref["x"]).max() < 1e-10 * 0.05
