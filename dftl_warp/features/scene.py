@@ -74,12 +74,12 @@ def group_features(scene, curves, frame) -> tuple[list, np.ndarray | None]:
 
 def update_frame(scene, curves, control, frame: int, nxt: int, shot=None) -> None:
     """Set ``control``'s per-frame feature data for the frame ``frame`` -> ``nxt`` (time codes):
-    collider poses and mesh points, the wind's time, and the roots of a bound mesh (on the C1
-    root path when ``shot``, the first and last frame simulated, is given)."""
+    collider poses and mesh points, the wind's time, and the roots of a bound mesh (poses and bound
+    roots on the C1 root path when ``shot``, the first and last frame simulated, is given)."""
     fc = control.features
     if fc is None:
         return
-    colliders.update_from_scene(scene, fc, frame, nxt)
+    colliders.update_from_scene(scene, fc, frame, nxt, shot=shot)
     if fc.wind is not None:
         tcps = scene.stage.time_codes_per_second
         fc.set_frame_time(frame / tcps, nxt / tcps)

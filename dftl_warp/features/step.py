@@ -149,15 +149,17 @@ class FeatureControl:
     inv_pose = property(lambda self: self._collider("inv_pose"))
     inv_pose_prev = property(lambda self: self._collider("inv_pose_prev"))
 
-    def set_collider_poses(self, start, end=None) -> None:
+    def set_collider_poses(self, start, end=None, **rates) -> None:
         """Poses of all colliders for this frame: (C, 7) rows ``(px, py, pz, qx, qy, qz, qw)``,
-        world space (m), in the Colliders' order; ``end`` defaults to ``start``
+        world space (m), in the Colliders' order; ``end`` defaults to ``start``. ``rate_start``,
+        ``rate_end`` (the rows' time derivatives) and ``frame_duration`` (s) put them on the roots'
+        C1 path inside the frame
         (:meth:`ColliderControl.set_poses <dftl_warp.features.colliders.ColliderControl.set_poses>`)."""
         if self.colliders is None:
             if len(np.asarray(start).reshape(-1, 7)):
                 raise ValueError(f"expected 0 collider poses, got {len(np.asarray(start).reshape(-1, 7))}")
             return
-        self.colliders.set_poses(start, end)
+        self.colliders.set_poses(start, end, **rates)
 
     def resync(self) -> None:
         """Forget the colliders' previous pose (after restoring a saved state): the next

@@ -8,8 +8,9 @@ moved inside the shot near its ends, one-sided at them: :func:`~dftl_warp.core.s
 the shot is the first frame and ``Simulation.last_frame``): the velocity a root is given no longer
 jumps at every frame. The prim's local-to-world matrix follows the same curve (the roots are linear
 in it), and :func:`matrix_rate` is its velocity over the frame's last substep, which turns the
-written world velocities into local ones. Colliders are not on it: their poses still move linearly
-(translation lerp, rotation slerp) between frames (:func:`collider_note`).
+written world velocities into local ones. Animated collider poses follow the same curve (their
+rates from the same differences: :func:`~dftl_warp.features.colliders.update_from_scene`); a
+deforming collider mesh changes its points once a frame (:func:`collider_note`).
 """
 
 from __future__ import annotations
@@ -95,11 +96,13 @@ def matrix_rate(sim, index: int, frame: int, substeps: int) -> np.ndarray:
 
 
 def collider_note(scene) -> str | None:
-    """The start note of a scene whose animated roots follow the C1 path while animated colliders
-    move linearly between frame poses (None when not both are animated)."""
-    roots = any(c.animated or (c.root_mesh is not None and c.root_mesh.animated) for c in scene.curves)
-    if not (roots and any(c.animated for c in scene.colliders)):
+    """The start note of a scene with deforming collider meshes (None without): animated
+    collider *poses* follow the roots' C1 path inside each frame
+    (:func:`~dftl_warp.features.colliders.update_from_scene`), but a deforming mesh takes its next
+    frame's points at the frame's start."""
+    deforming = [c.path for c in scene.colliders if getattr(c, "points_sampler", None) is not None]
+    if not deforming:
         return None
-    return ("root path: animated roots move on a C1 (Hermite) path inside each frame, animated colliders "
-            "linearly between their frame poses; mid-frame they can part by up to about 1/8 of a frame's "
-            "change of velocity times the frame (docs/elastic.md, velocities)")
+    more = f" and {len(deforming) - 1} more" if len(deforming) > 1 else ""
+    return (f"deforming collider {deforming[0]}{more}: its points change once a frame, to the next frame's at the "
+            "frame's start (not interpolated inside the frame); poses follow the roots' C1 path")

@@ -13,8 +13,8 @@ end, on the Control's C1 root path (:class:`~dftl_warp.core.state.Control`, :mod
 a cubic Hermite curve whose end velocities are the roots' fourth-order differences over the
 neighbouring frames (:func:`~dftl_warp.core.state.frame_velocity`; one-sided at the shot's ends,
 the first frame and :attr:`Simulation.last_frame`), so a root's velocity does not jump at frames.
-Roots bound to a mesh and the elastic solver's clamp ghosts take the same path; colliders still
-move linearly between their frame poses (position lerp, rotation slerp: a start note says so).
+Roots bound to a mesh, the elastic solver's clamp ghosts and animated collider poses take the same
+path (a deforming collider mesh changes its points once a frame: a start note says so).
 Results go back to each prim's local space: points through the inverse transform; velocities are the motion *relative to the prim's frame* expressed
 in local space, ``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity
 the transform's own path (the roots') gave a point fixed in the prim over the last substep. That
@@ -155,7 +155,7 @@ class Simulation:
         #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
         #: with the device line and kept in Summary.warnings
         self.start_notes: list[str] = self._clean_start()
-        note = root_paths.collider_note(scene)   # colliders keep their linear path between frames
+        note = root_paths.collider_note(scene)   # deforming collider meshes change once a frame
         if note is not None:
             self.start_notes.append(note)
         #: ``--tolerance``: substeps (and solvers) chosen per frame (simulation.tolerance), else None

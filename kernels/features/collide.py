@@ -2,7 +2,8 @@
 
 Every collider has a pose (a rigid transform, collider-local -> device world) for the current
 substep, ``pose``, and for the previous one, ``pose_prev``; :func:`collider_pose_kernel` moves
-them along a frame (translation lerp, rotation slerp). Geometry lives in collider-local space.
+them along a frame (translation lerp, rotation slerp, or the roots' C1 path when the frame's
+poses come with their rates). Geometry lives in collider-local space.
 A particle of radius ``radius`` (m, half the hair width) is in contact when its signed distance
 ``d`` to the surface is below ``radius``. The response:
 
@@ -39,9 +40,11 @@ registration order (which is also the device order of the colliders).
 
 import functools
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import warp as wp
+
+from ..core.root_path import root_on_path
 
 #: sphere-tracing iterations of the continuous test for analytic shapes
 TRACE_ITERATIONS = 16
@@ -162,16 +165,34 @@ def collide_all_func(scalar, Features, flags: frozenset):
 
 
 @functools.cache
-def collider_pose_kernel(scalar):
-    """Kernel moving each collider to ``start`` -> ``end`` at ``alpha`` (the previous pose kept),
-    writing both poses and their inverses."""
+def collider_pose_kernel(scalar, curved: bool = False):
+    """Kernel moving each collider to ``alpha`` of the way from ``start`` to ``end`` (the previous
+    pose kept), writing both poses and their inverses.
+
+    ``curved=False``: translation lerp, rotation slerp (``deviation_start``/``deviation_end`` are
+    not read). ``curved=True``: the roots' C1 path (:mod:`dftl_warp.kernels.core.root_path`) for
+    every component of the pose, ``start + alpha chord + alpha (1 - alpha) ((1 - alpha) d0 - alpha
+    d1)`` with the deviations ``d = T rate - chord`` of the pose's rates at the frame's ends (the
+    translation in m, the quaternion's components unitless; ``end``'s quaternion on ``start``'s
+    hemisphere), the quaternion then normalised: a rotation, whose rate is continuous across frames
+    as the roots' velocity is."""
     transform = transform_type(scalar)
+    vec4 = wp.types.vector(4, scalar)
+    quat = wp.types.quaternion(dtype=scalar)
+
+    @wp.func
+    def components(q: Any):
+        return vec4(q[0], q[1], q[2], q[3])
 
     @wp.kernel(enable_backward=False, module="unique")
     def update_collider_poses(
+        # Control: the frame's poses (device world, m) and the Hermite deviations of their rates
         pose_start: wp.array(dtype=transform),
         pose_end: wp.array(dtype=transform),
+        deviation_start: wp.array(dtype=transform),
+        deviation_end: wp.array(dtype=transform),
         alpha: scalar,
+        # Data out: this substep's pose, the last one, and their inverses
         pose: wp.array(dtype=transform),
         pose_prev: wp.array(dtype=transform),
         inv_pose: wp.array(dtype=transform),
@@ -185,8 +206,19 @@ def collider_pose_kernel(scalar):
         b = pose_end[c]
         pa = wp.transform_get_translation(a)
         pb = wp.transform_get_translation(b)
-        q = wp.quat_slerp(wp.transform_get_rotation(a), wp.transform_get_rotation(b), alpha)
-        current = transform(pa + alpha * (pb - pa), q)
+        qa = wp.transform_get_rotation(a)
+        qb = wp.transform_get_rotation(b)
+        if wp.static(curved):
+            da = deviation_start[c]
+            db = deviation_end[c]
+            p = root_on_path(pa, pb - pa, wp.transform_get_translation(da), wp.transform_get_translation(db), alpha)
+            qv = root_on_path(components(qa), components(qb) - components(qa),
+                              components(wp.transform_get_rotation(da)),
+                              components(wp.transform_get_rotation(db)), alpha)
+            qv = wp.normalize(qv)
+            current = transform(p, quat(qv[0], qv[1], qv[2], qv[3]))
+        else:
+            current = transform(pa + alpha * (pb - pa), wp.quat_slerp(qa, qb, alpha))
         pose[c] = current
         inv_pose[c] = wp.transform_inverse(current)
 

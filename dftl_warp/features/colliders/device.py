@@ -91,6 +91,12 @@ class ColliderControl:
         rest = data.rest_pose
         self.pose_start, self.pose_end, self.pose, self.pose_prev = (
             wp.array(rest, dtype=transform, device=device) for _ in range(4))
+        #: the Hermite deviations ``T rate - chord`` of the poses' rates at the frame's start and
+        #: end (the pose's 7 components; zeros on the linear path)
+        self.deviation_start, self.deviation_end = (
+            wp.zeros(len(rest), dtype=transform, device=device) for _ in range(2))
+        #: whether this frame's poses follow the C1 path (rates were given)
+        self.curved = False
         inverse = inverse_poses(rest).astype(rest.dtype)
         self.inv_pose, self.inv_pose_prev = (wp.array(inverse, dtype=transform, device=device) for _ in range(2))
         self._synced = False
@@ -101,23 +107,39 @@ class ColliderControl:
             if made is not None:
                 self.kind_data[kind] = made
 
-    def set_poses(self, start, end=None) -> None:
+    def set_poses(self, start, end=None, *, rate_start=None, rate_end=None,
+                  frame_duration: float | None = None) -> None:
         """Poses of all colliders for this frame: (C, 7) rows ``(px, py, pz, qx, qy, qz, qw)``,
         world space (m), in the Colliders' order; ``end`` defaults to ``start``.
+
+        ``rate_start``/``rate_end`` (C, 7), the rows' time derivatives at the frame's start and
+        end (m/s for the translation, 1/s for the quaternion's components, of the rows as given),
+        with ``frame_duration`` (s), put the colliders on the roots' C1 path inside the frame
+        (:func:`~dftl_warp.kernels.features.collide.collider_pose_kernel`); without them they move
+        linearly (translation lerp, rotation slerp).
 
         The first call (and the first after :meth:`resync`) also places the colliders at
         ``start`` for the previous substep, so that they do not sweep from their rest pose."""
         m = self.model
         n = len(self.data.colliders.shapes)
         f = numpy_type(m.precision)
-        for dst, rows in ((self.pose_start, start), (self.pose_end, start if end is None else end)):
-            rows = np.asarray(rows, dtype=np.float64).reshape(-1, 7).copy()
-            if rows.shape[0] != n:
-                raise ValueError(f"expected {n} collider poses, got {rows.shape[0]}")
-            rows[:, :3] -= m.origin
-            rows[:, 3:] /= np.linalg.norm(rows[:, 3:], axis=1, keepdims=True)
-            device_rows = np.empty_like(rows)
-            device_rows[self.data.order] = rows
+        rows = {}
+        for name, given in (("start", start), ("end", start if end is None else end)):
+            r = np.asarray(given, dtype=np.float64).reshape(-1, 7).copy()
+            if r.shape[0] != n:
+                raise ValueError(f"expected {n} collider poses, got {r.shape[0]}")
+            r[:, :3] -= m.origin
+            rows[name] = r
+        # the end's quaternion on the start's hemisphere (the same rotation; the path then turns
+        # the short way), its rate with it
+        flip = np.where(np.sum(rows["start"][:, 3:] * rows["end"][:, 3:], axis=1) < 0.0, -1.0, 1.0)
+        rows["end"][:, 3:] *= flip[:, None]
+        norms = {k: np.linalg.norm(r[:, 3:], axis=1, keepdims=True) for k, r in rows.items()}
+        for k, r in rows.items():
+            r[:, 3:] /= norms[k]
+        for dst, r in ((self.pose_start, rows["start"]), (self.pose_end, rows["end"])):
+            device_rows = np.empty_like(r)
+            device_rows[self.data.order] = r
             dst.assign(device_rows.astype(f))
             if dst is self.pose_start and not self._synced:
                 inverse = inverse_poses(device_rows).astype(f)
@@ -125,6 +147,25 @@ class ColliderControl:
                              (self.inv_pose_prev, inverse)):
                     a.assign(v.astype(f))
         self._synced = True
+        if rate_start is None and rate_end is None and frame_duration is None:
+            if self.curved:
+                self.deviation_start.zero_()
+                self.deviation_end.zero_()
+            self.curved = False
+            return
+        if rate_start is None or rate_end is None or frame_duration is None or not frame_duration > 0:
+            raise ValueError("collider pose rates: give rate_start, rate_end and a positive frame_duration together")
+        chord = rows["end"] - rows["start"]
+        for dst, rate, k, sign in ((self.deviation_start, rate_start, "start", 1.0),
+                                   (self.deviation_end, rate_end, "end", flip[:, None])):
+            rate = np.asarray(rate, dtype=np.float64).reshape(-1, 7).copy()
+            if rate.shape[0] != n or not np.isfinite(rate).all():
+                raise ValueError(f"collider pose rates must be {n} finite rows of 7")
+            rate[:, 3:] *= sign / norms[k]
+            device_rows = np.empty_like(rate)
+            device_rows[self.data.order] = frame_duration * rate - chord
+            dst.assign(device_rows.astype(f))
+        self.curved = True
 
     def resync(self) -> None:
         """Forget the colliders' previous pose (after restoring a saved state)."""
@@ -138,10 +179,11 @@ class ColliderControl:
         meshes.set_points(index, points)
 
     def advance(self, root_alpha: float) -> None:
-        """This substep's poses: ``alpha`` of the way from the frame's start to its end."""
+        """This substep's poses: ``alpha`` of the way from the frame's start to its end (on the
+        C1 path when this frame's poses came with rates)."""
         m = self.model
-        wp.launch(collider_pose_kernel(m.scalar), dim=self.pose.shape[0], device=m.device,
-                  inputs=[self.pose_start, self.pose_end, root_alpha],
+        wp.launch(collider_pose_kernel(m.scalar, self.curved), dim=self.pose.shape[0], device=m.device,
+                  inputs=[self.pose_start, self.pose_end, self.deviation_start, self.deviation_end, root_alpha],
                   outputs=[self.pose, self.pose_prev, self.inv_pose, self.inv_pose_prev])
 
     def fill_struct(self, st) -> None:

@@ -96,17 +96,43 @@ def from_scene(scene, frame) -> list:
     return [Colliders(shapes, iterations=iterations)]
 
 
-def update_from_scene(scene, fc, frame, nxt) -> None:
-    """Collider poses and deforming mesh points for the frame ``frame`` -> ``nxt`` (time codes)."""
-    if fc.pose_start is not None and any(c.animated for c in scene.colliders):
-        def poses(t):
-            rows = []
-            for c in scene.colliders:
-                p, q, _ = split_matrix(c.transform(t))
-                rows.append(np.concatenate([p, q]))
-            return np.array(rows)
+def update_from_scene(scene, fc, frame, nxt, shot=None) -> None:
+    """Collider poses and deforming mesh points for the frame ``frame`` -> ``nxt`` (time codes).
 
-        fc.set_collider_poses(poses(frame), poses(nxt))
+    With ``shot`` (the first and last frame simulated) animated colliders follow the roots' C1 path
+    inside the frame: the rates of their poses at ``frame`` and ``nxt`` are the fourth-order
+    differences over the neighbouring frames that the roots' velocities are
+    (:func:`~dftl_warp.core.state.frame_velocity`, one-sided at the shot's ends), the quaternions
+    of those frames taken on the hemisphere of the one at ``frame``. Without it they move linearly
+    (translation lerp, rotation slerp)."""
+    if fc.pose_start is not None and any(c.animated for c in scene.colliders):
+        cache = {}
+
+        def poses(t):
+            if t not in cache:
+                rows = []
+                for c in scene.colliders:
+                    p, q, _ = split_matrix(c.transform(t))
+                    rows.append(np.concatenate([p, q]))
+                cache[t] = np.array(rows, dtype=np.float64)
+            return cache[t]
+
+        if shot is None:
+            fc.set_collider_poses(poses(frame), poses(nxt))
+        else:
+            from ...core.state import frame_velocity
+
+            here = poses(frame)
+
+            def aligned(t):   # the same rotations, quaternions on the hemisphere of ``frame``'s
+                rows = poses(t).copy()
+                rows[:, 3:] *= np.where(np.sum(rows[:, 3:] * here[:, 3:], axis=1) < 0.0, -1.0, 1.0)[:, None]
+                return rows
+
+            duration = (nxt - frame) / float(scene.stage.time_codes_per_second)
+            fc.set_collider_poses(here, aligned(nxt),
+                                  rate_start=frame_velocity(aligned, frame, *shot, duration),
+                                  rate_end=frame_velocity(aligned, nxt, *shot, duration), frame_duration=duration)
     for i, c in enumerate(scene.colliders):
         if c.kind == "mesh" and c.points_sampler is not None:
             _, _, scale = split_matrix(c.transform(frame))
