@@ -116,6 +116,7 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     mat33 = wp.types.matrix((3, 3), real)
     mat44 = wp.types.matrix((4, 4), real)
     mat34 = wp.types.matrix((3, 4), real)
+    vec6 = wp.types.vector(6, real)
     vec10 = wp.types.vector(10, real)
     quat = wp.types.quaternion(real)
     prior = correction == "prior"
@@ -223,36 +224,33 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                      p[3], p[6], p[8], p[9])
 
     @wp.func
-    def top_rows(B: mat44):
-        """Rows 0-2 of a 4x4 matrix whose last row is zero."""
-        return mat34(B[0, 0], B[0, 1], B[0, 2], B[0, 3], B[1, 0], B[1, 1], B[1, 2], B[1, 3],
-                     B[2, 0], B[2, 1], B[2, 2], B[2, 3])
+    def upper3_packed(p: vec10):
+        """The 6 entries on and above the diagonal of the upper 3x3 (velocity part) of a packed
+        symmetric 4x4 matrix."""
+        return vec6(p[0], p[1], p[2], p[4], p[5], p[7])
 
     @wp.func
-    def upper3(D: mat44):
-        """P D P, P = diag(1, 1, 1, 0): the velocity part of a 4x4 block."""
-        z = real(0.0)
-        return mat44(D[0, 0], D[0, 1], D[0, 2], z, D[1, 0], D[1, 1], D[1, 2], z, D[2, 0], D[2, 1], D[2, 2], z,
-                     z, z, z, z)
+    def unpack_symmetric3(q: vec6):
+        return mat33(q[0], q[1], q[2],
+                     q[1], q[3], q[4],
+                     q[2], q[4], q[5])
 
     @wp.func
-    def top3_rows(D: mat44):
-        """P D: the 4x4 block with its last row zeroed."""
-        z = real(0.0)
-        return mat44(D[0, 0], D[0, 1], D[0, 2], D[0, 3], D[1, 0], D[1, 1], D[1, 2], D[1, 3],
-                     D[2, 0], D[2, 1], D[2, 2], D[2, 3], z, z, z, z)
-
-    @wp.func
-    def block0(a0: real, e: vec3):
-        return mat44(a0, real(0.0), real(0.0), e[0],
-                     real(0.0), a0, real(0.0), e[1],
-                     real(0.0), real(0.0), a0, e[2],
+    def block0(G: mat33, e: vec3):
+        """The diagonal block with velocity part G and constraint row e."""
+        return mat44(G[0, 0], G[0, 1], G[0, 2], e[0],
+                     G[1, 0], G[1, 1], G[1, 2], e[1],
+                     G[2, 0], G[2, 1], G[2, 2], e[2],
                      e[0], e[1], e[2], real(0.0))
 
     @wp.func
-    def block1(a1: real, e: vec3):
+    def block1(a1: real, e: vec3, a2: real, BD: mat34):
+        """B_{k-1,k} = A_{k-1,k} - a2 P D_{k+1}^-1 B_{k,k+1}^T, rows 0-2 (its last row is zero), from
+        BD = B_{k,k+1} D_{k+1}^-1: P D^-1 B^T P is the transpose of BD's left 3x3 (D^-1 symmetric)."""
         z = real(0.0)
-        return mat44(a1, z, z, -e[0], z, a1, z, -e[1], z, z, a1, -e[2], z, z, z, z)
+        return mat34(a1 - a2 * BD[0, 0], z - a2 * BD[1, 0], z - a2 * BD[2, 0], -e[0],
+                     z - a2 * BD[0, 1], a1 - a2 * BD[1, 1], z - a2 * BD[2, 1], -e[1],
+                     z - a2 * BD[0, 2], z - a2 * BD[1, 2], a1 - a2 * BD[2, 2], -e[2])
 
     @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS,
                cuda_max_registers=CUDA_MAX_REGISTERS_F32 if real == wp.float32 else None)
@@ -388,12 +386,15 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 frames_out[kj] = frames_in[kj]
 
         # ---- B: forces and elimination, tip -> root -----------------------------------------------
-        # the eliminated particles' D^-1 (k+1, k+2), the coupling B_{k,k+1} (fill included) and w
-        Di1 = mat44()
-        Di2 = mat44()
-        Bk1 = mat44()
-        w1 = vec4()
-        w2 = vec4()
+        # carried from the two particles eliminated last (35 words): D_{k+1}^-1 packed symmetric (10),
+        # the velocity part of D_{k+2}^-1 (symmetric: 6), the coupling B_{k,k+1} (fill included; its
+        # last row is zero: 12, as stored), u_{k+1} (4) and the velocity part of u_{k+2} (3), where
+        # u = D^-1 w (so B D^-1 w = B u); 56 words before (D^-1 k+1, k+2 and B_{k,k+1} 4x4, w k+1, k+2)
+        Di1p = vec10()
+        Di2u = vec6()
+        Bk1 = mat34()
+        u1 = vec4()
+        u2 = zero3
         rho_hi = zero3
         rho_mid = zero3
         kt_hi = real(0.0)
@@ -474,31 +475,33 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
             # through the multipliers U = B D^-1 as U D U^T, whose round trip through D amplified
             # round-off by about D's condition at every particle (a 47-point curl's solve was wrong
             # by 200% at 8 substeps per frame, and the strand rang; docs/elastic.md "Stability")
+            # B_{k,k+1} has a zero last row and B_{k,k+2} = a2 P: both updates touch only D_k's velocity
+            # part G (3x3); w_k = r_k - B_{k,k+1} u_{k+1} - a2 P u_{k+2}, u = D^-1 w (carried)
             a2k = h2 * k2[kk]
-            BD = Bk1 * Di1
-            Dk = block0(a0, e) - BD * wp.transpose(Bk1) - (a2k * a2k) * upper3(Di2)
+            BD = Bk1 * unpack_symmetric(Di1p)
+            Bu = Bk1 * u1
+            wk = rk - vec4(Bu[0], Bu[1], Bu[2], real(0.0)) - a2k * vec4(u2[0], u2[1], u2[2], real(0.0))
+            B1 = mat34()
+            if k >= 2:
+                # B_{k-1,k} = A_{k-1,k} - B_{k-1,k+1} D_{k+1}^-1 B_{k,k+1}^T, B_{k-1,k+1} = a2 P
+                B1 = block1(h2 * k1[km] - h2 * kt_k, e, h2 * k2[km], BD)
+            z = real(0.0)
+            G = (mat33(a0, z, z, z, a0, z, z, z, a0) - BD * wp.transpose(Bk1)
+                 - (a2k * a2k) * unpack_symmetric3(Di2u))
             # D_k is symmetric but for the products' rounding: inverted symmetrised (without that a
             # styled groom at rest drifts 3e-9 L instead of < 1e-10 in float64), used as stored in
             # both sweeps
-            Di_packed = pack_symmetric(wp.inverse(real(0.5) * (Dk + wp.transpose(Dk))))
-            Di = unpack_symmetric(Di_packed)
-            B1 = mat44()
-            if k >= 2:
-                # B_{k-1,k} = A_{k-1,k} - B_{k-1,k+1} D_{k+1}^-1 B_{k,k+1}^T, B_{k-1,k+1} = a2 P
-                a1 = h2 * k1[km] - h2 * kt_k
-                B1 = block1(a1, e) - (h2 * k2[km]) * top3_rows(Di1 * wp.transpose(Bk1))
-            dw2 = Di2 * w2
-            wk = rk - BD * w1 - a2k * vec4(dw2[0], dw2[1], dw2[2], real(0.0))
+            Di_packed = pack_symmetric(wp.inverse(block0(real(0.5) * (G + wp.transpose(G)), e)))
             # stored compactly: D_k^-1 is symmetric (10 words), B1 = B_{k-1,k} has a zero last row (12)
             factor_inv[kk] = Di_packed
-            factor_up[kk] = top_rows(B1)
+            factor_up[kk] = B1
             factor_rhs[kk] = wk
             # slide the windows down one particle
-            Di2 = Di1
-            Di1 = Di
+            Di2u = upper3_packed(Di1p)
+            Di1p = Di_packed
             Bk1 = B1
-            w2 = w1
-            w1 = wk
+            u2 = vec3(u1[0], u1[1], u1[2])
+            u1 = unpack_symmetric(Di_packed) * wk
             rho_hi = rho_mid
             rho_mid = rho_lo
             kt_hi = kt_k
