@@ -142,6 +142,22 @@ def test_energy_never_rises(substeps):
     assert "elastic_energy" in solver.diagnostics(state)
 
 
+def test_written_tensions_are_the_weight_below_a_hanging_strand():
+    """A straight strand hanging at rest: each segment's written tension is the weight of the hair
+    below it, rho A g l (N - k + 1/2) for segment k (the tip particle carries half a segment),
+    positive under tension as the inverse-statics rest tensions are; it is the sign the next step's
+    string stiffness max(T, 0) / l reads (before, the kernel wrote -T, so that stiffness acted only
+    on compressed segments after the first step)."""
+    L = 0.2
+    rest = np.zeros((1, N + 1, 3))
+    rest[0, :, 1] = -np.linspace(0.0, L, N + 1)
+    model, solver, state, control = setup(rest, inverse_statics=False)
+    run(solver, state, control, 8, 2.0 / FPS)
+    T = state.tensions.numpy()[model.layout.slot_of_point][1:]
+    weight_below = HAIR_DENSITY * np.pi * R ** 2 * G0 * (L / N) * (N - np.arange(1, N + 1) + 0.5)
+    assert np.allclose(T, weight_below, rtol=1e-9, atol=0.0), np.max(np.abs(T / weight_below - 1))
+
+
 def test_long_curly_strand_keeps_its_energy():
     """A curl of 64 segments (0.1 m, 3 turns of 5 mm, 1.6 mm segments) released without its
     inverse statics at 8 substeps per frame: the energy must not rise. Before the banded solve
@@ -258,7 +274,7 @@ def numpy_step(g: RodGroup, st, h, root, gravity, s=0.0, correction="prior", dra
             d = p - x_new[q, k - 1]
             x_new[q, k] = x_new[q, k - 1] + l[q, k] / np.linalg.norm(d) * d
             c[q, k] = x_new[q, k] - p
-        T[q, 1:] = -z[3 * N_:] / h
+        T[q, 1:] = z[3 * N_:] / h                    # A v + h J^T T = r: T > 0 under tension
     v_new = (x_new - x) / h
     v_new[:, 0] = v0
     if correction == "posterior":

@@ -556,7 +556,10 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                     xs = st(x)
             v = (x - x_old) / h
             positions_out[kk] = st(x)
-            tensions_out[kk] = scalar(-zk[3] / h)
+            # the multiplier of segment k is h T_k: A v + h J^T T = r, the tension pulling particle k
+            # back toward its leader (T > 0 under tension, as the rest tensions; the string stiffness
+            # max(T, 0) / l of the next step is that of a taut segment)
+            tensions_out[kk] = scalar(zk[3] / h)
             if wp.static(prior):
                 corrections_out[kk] = st(c)
                 velocities_out[kk] = st(v)
