@@ -430,21 +430,36 @@ def main() -> int:
         md += ["", "The present elastic solver (KKT solve, Warp kernel on the CPU, float64) on the same L = 4 l_b "
                    "swing: " + ", ".join("{} substeps {:.1e} ({:.3g})".format(s, *v)
                                           for s, v in res["current 4 l_b"].items()) + "."]
-    md += ["", "### 5. Memory traffic per free particle per step (words, float32; counted from the designs)", "",
-           "| step | words | x DFTL | where |", "|---|---:|---:|---|"]
-    for name, total, where in res["traffic"]:
-        ratio = (f"{total[0] / 19:.1f} / {total[1] / 19:.1f}" if isinstance(total, tuple) else f"{total / 19:.1f}")
-        words = f"{total[0]} / {total[1]}" if isinstance(total, tuple) else str(total)
-        md.append(f"| {name} | {words} | {ratio} | {where} |")
+    md += traffic_markdown(res["traffic"])
     md += ["", f"Run time: {res['seconds']:.0f} s."]
-    text = "\n".join(md) + "\n"
-    print(text)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "formulation-study.json").write_text(json.dumps(res, indent=1, default=str))
-        (out / "formulation-study-output.md").write_text(text)
+    write_report(args.out, "formulation-study", res, "\n".join(md) + "\n")
     return 0
+
+
+def traffic_markdown(rows) -> list:
+    """The memory-traffic table (words per particle-step, x DFTL's 19): rows (name, words, where),
+    words an int, a (straight, curved) pair, or text (no ratio)."""
+    md = ["", "### 5. Memory traffic per free particle per step (words, float32; counted from the designs)", "",
+          "| step | words | x DFTL | where |", "|---|---:|---:|---|"]
+    for name, total, where in rows:
+        if isinstance(total, tuple):
+            words, ratio = f"{total[0]} / {total[1]}", f"{total[0] / 19:.1f} / {total[1] / 19:.1f}"
+        elif isinstance(total, int):
+            words, ratio = str(total), f"{total / 19:.1f}"
+        else:
+            words, ratio = str(total), ""
+        md.append(f"| {name} | {words} | {ratio} | {where} |")
+    return md
+
+
+def write_report(out, stem: str, res: dict, text: str) -> None:
+    """Print the report; with ``out`` also write ``{stem}-output.md`` and ``{stem}.json`` there."""
+    print(text)
+    if out:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"{stem}.json").write_text(json.dumps(res, indent=1, default=str))
+        (out / f"{stem}-output.md").write_text(text)
 
 
 if __name__ == "__main__":
