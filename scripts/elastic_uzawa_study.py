@@ -121,12 +121,8 @@ class UzawaStrand(efs.Strand):
         lam = self.lam.copy() if self.warm else np.zeros(N)
         v = solve(r + h * self.constraint_force(lam, t))
         kind = self.precond
-        if kind == "exact":                                # dense S = sum_c J_c A^-1 J_c^T
-            Ainv = solve(np.eye(N))
-            S = np.zeros((N, N))
-            for c in range(3):
-                Jc = np.diag(t[:, c]) - np.diag(t[1:, c], -1)
-                S += Jc @ Ainv @ Jc.T
+        if kind == "exact":
+            S = schur_complement(t, solve(np.eye(N)))
             lam = lam - np.linalg.solve(S, self.J(t, v)) / h
             v = solve(r + h * self.constraint_force(lam, t))
         elif not kind.startswith("CG"):                    # Richardson: inexact Uzawa
@@ -171,6 +167,15 @@ class UzawaStrand(efs.Strand):
 efs.Strand = UzawaStrand          # the harnesses of elastic_formulation_study now build candidate U
 
 
+def schur_complement(t, Ainv):
+    """Dense S = J A^-1 J^T = sum over x, y, z of J_c A^-1 J_c^T (N x N), t the unit tangents (N, 3)."""
+    S = np.zeros((N, N))
+    for c in range(3):
+        Jc = np.diag(t[:, c]) - np.diag(t[1:, c], -1)
+        S += Jc @ Ainv @ Jc.T
+    return S
+
+
 def spectrum(substeps=8, frames=24):
     """Eigenvalue range of P^-1 S (Richardson converges iff all lie in (0, 2)) for P_M, P_A, P_B on an
     L = 4 l_b cantilever (drag 20/s): straight at release and sagged after ``frames`` frames."""
@@ -182,9 +187,7 @@ def spectrum(substeps=8, frames=24):
                 efs.frame(st, substeps)
         t = st.tangents(st.x)
         ab = st.bands(h, t)
-        Ainv = cho_solve_banded((st.factor, False), np.eye(N))
-        Jc = [np.diag(t[:, c]) - np.diag(t[1:, c], -1) for c in range(3)]
-        S = sum(J @ Ainv @ J.T for J in Jc)
+        S = schur_complement(t, cho_solve_banded((st.factor, False), np.eye(N)))
         for kind in ("M", "A", "B"):
             pinv = st.preconditioner(kind, h, t, ab[2])
             ev = np.linalg.eigvals(np.stack([pinv(e) for e in np.eye(N)], 1) @ S).real

@@ -229,11 +229,9 @@ def test_a_turning_head_collider_and_its_roots_move_together_inside_every_frame(
     def recording(self, state_in, control, root_alpha, grid=True):
         pose_and_bounds(self, state_in, control, root_alpha, grid)
         pose = control.features.colliders.pose.numpy()[0].astype(np.float64)
-        a = float(root_alpha)
-        x0, x1 = (getattr(control, n).numpy()[0].astype(np.float64) for n in ("root_start", "root_end"))
-        d0, d1 = (getattr(control, n).numpy()[0].astype(np.float64)
-                  for n in ("root_deviation_start", "root_deviation_end"))
-        root = x0 + a * (x1 - x0) + a * (1 - a) * ((1 - a) * d0 - a * d1)   # the Control's path
+        x0, x1, d0, d1 = (getattr(control, n).numpy()[0].astype(np.float64)
+                          for n in ("root_start", "root_end", "root_deviation_start", "root_deviation_end"))
+        root = paths(x0, x1, d0, d1, [float(root_alpha)])[0][0]   # the Control's path (root_on_path)
         seen.append(Rotation.from_quat(pose[3:]).inv().apply(root - pose[:3]))
 
     monkeypatch.setattr(FeatureStep, "pose_and_bounds", recording)

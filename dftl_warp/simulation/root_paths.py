@@ -100,7 +100,7 @@ def collider_note(scene) -> str | None:
     collider *poses* follow the roots' C1 path inside each frame
     (:func:`~dftl_warp.features.colliders.update_from_scene`), but a deforming mesh takes its next
     frame's points at the frame's start."""
-    deforming = [c.path for c in scene.colliders if getattr(c, "points_sampler", None) is not None]
+    deforming = [c.path for c in scene.colliders if c.points_sampler is not None]
     if not deforming:
         return None
     more = f" and {len(deforming) - 1} more" if len(deforming) > 1 else ""

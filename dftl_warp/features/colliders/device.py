@@ -24,6 +24,13 @@ def inverse_poses(poses) -> np.ndarray:
     return np.concatenate([-quat_rotate(conj, poses[:, :3]), conj], axis=1)
 
 
+def hemisphere_signs(poses, reference) -> np.ndarray:
+    """(C, 1) signs that put each (C, 7) pose row's quaternion on the hemisphere of
+    ``reference``'s (the same rotations; a path between them then turns the short way)."""
+    dots = np.sum(np.asarray(poses)[:, 3:] * np.asarray(reference)[:, 3:], axis=1)
+    return np.where(dots < 0.0, -1.0, 1.0)[:, None]
+
+
 class ColliderData:
     """The Model's collider data: ``colliders`` (the feature), ``order`` (device index of each user
     collider), ``kinds`` (present kinds, device order), ``bounds`` (kind ``j`` owns device colliders
@@ -132,8 +139,8 @@ class ColliderControl:
             rows[name] = r
         # the end's quaternion on the start's hemisphere (the same rotation; the path then turns
         # the short way), its rate with it
-        flip = np.where(np.sum(rows["start"][:, 3:] * rows["end"][:, 3:], axis=1) < 0.0, -1.0, 1.0)
-        rows["end"][:, 3:] *= flip[:, None]
+        flip = hemisphere_signs(rows["end"], rows["start"])
+        rows["end"][:, 3:] *= flip
         norms = {k: np.linalg.norm(r[:, 3:], axis=1, keepdims=True) for k, r in rows.items()}
         for k, r in rows.items():
             r[:, 3:] /= norms[k]
@@ -157,7 +164,7 @@ class ColliderControl:
             raise ValueError("collider pose rates: give rate_start, rate_end and a positive frame_duration together")
         chord = rows["end"] - rows["start"]
         for dst, rate, k, sign in ((self.deviation_start, rate_start, "start", 1.0),
-                                   (self.deviation_end, rate_end, "end", flip[:, None])):
+                                   (self.deviation_end, rate_end, "end", flip)):
             rate = np.asarray(rate, dtype=np.float64).reshape(-1, 7).copy()
             if rate.shape[0] != n or not np.isfinite(rate).all():
                 raise ValueError(f"collider pose rates must be {n} finite rows of 7")

@@ -121,12 +121,13 @@ def update_from_scene(scene, fc, frame, nxt, shot=None) -> None:
             fc.set_collider_poses(poses(frame), poses(nxt))
         else:
             from ...core.state import frame_velocity
+            from .device import hemisphere_signs
 
             here = poses(frame)
 
             def aligned(t):   # the same rotations, quaternions on the hemisphere of ``frame``'s
                 rows = poses(t).copy()
-                rows[:, 3:] *= np.where(np.sum(rows[:, 3:] * here[:, 3:], axis=1) < 0.0, -1.0, 1.0)[:, None]
+                rows[:, 3:] *= hemisphere_signs(rows, here)
                 return rows
 
             duration = (nxt - frame) / float(scene.stage.time_codes_per_second)
