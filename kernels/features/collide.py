@@ -13,7 +13,10 @@ A particle of radius ``radius`` (m, half the hair width) is in contact when its 
    ``kernels/features/mesh.py``), and the particle stops where it first crosses the surface, so a
    fast particle cannot tunnel through (a path within the contact distance that does not cross the
    surface is left to step 2: stopping it at the contact distance froze sliding particles for the
-   rest of their substep, and DFTL draped on a sphere then did not converge as the substeps shrank);
+   rest of their substep, and DFTL draped on a sphere then did not converge as the substeps shrank;
+   so is a path that starts in contact and ends nearest a surface facing the way it crossed:
+   resting hair dips g h^2 below the surface every substep, and stopping it where it crossed
+   carried it along with a moving collider whatever the friction, ``tests/test_collider_friction.py``);
 2. *projection*: it is moved along the outward normal to ``d = radius``;
 3. *Coulomb friction* (position-based): the tangential displacement relative to the collider
    surface during the step is removed up to ``friction * depth`` (static friction below that,
@@ -320,6 +323,13 @@ def analytic_collide_func(scalar, sdf_factory, name: str):
                         d, n_t = sdf(q_old + t * direction, size, axis)
                         gap = d
                         if gap <= stop:
+                            # a particle that starts in contact and ends on the same side (its nearest
+                            # surface facing the way it crossed) is left to the projection: resting
+                            # hair dips below the surface every substep (gravity alone takes it g h^2
+                            # down, more than a hair radius), and stopping it where it crossed carried
+                            # it along with a moving surface whatever the friction
+                            if d_old <= radius + stop and wp.dot(n, n_t) > zero:
+                                break
                             q = q_old + t * direction
                             dist, n = sdf(q, size, axis)
                             moved = True

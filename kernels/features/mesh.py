@@ -72,7 +72,17 @@ def collide_mesh_func(scalar):
                 # and goes back to the rest length on that plane (the follow-the-leader projection
                 # from the stop point would take it along the strand, possibly deep below the
                 # surface); friction: the path's end lay behind the plane by `blocked`
-                if hit.result and hit.sign > wp.float32(0.0):
+                # A path that starts within the contact distance of the face it hits and ends
+                # inside, nearest a face that looks the same way, is left to the closest-point
+                # projection below: resting hair dips below the surface every substep (gravity
+                # alone takes it g h^2 down, more than a hair radius), and stopping it where it
+                # crossed carried it along with a moving surface whatever the friction
+                dipped = bool(False)
+                if hit.result and query.result and query.sign < wp.float32(0.0):
+                    start_height = -scalar(hit.t) * wp.dot(direction, vec3(hit.normal))
+                    if start_height <= radius * scalar(1.001) + scalar(1.0e-6):
+                        dipped = wp.dot(wp.mesh_eval_face_normal(mesh, query.face), hit.normal) > wp.float32(0.0)
+                if hit.result and hit.sign > wp.float32(0.0) and not dipped:
                     n = vec3(hit.normal)
                     stop = q_old + scalar(hit.t) * direction + radius * n
                     blocked = wp.dot(stop - q, n)

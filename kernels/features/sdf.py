@@ -204,9 +204,18 @@ def collide_sdf_func(scalar):
                 # reaches its whole path below the surface
                 return x, False, False
             if ccd:
-                if scalar(ds) > radius:
+                stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
+                if scalar(ds) <= radius + stop and (state != ANSWERS or wp.dot(n, vec3(ns)) <= scalar(0.0)):
+                    # from contact to where the field cannot say it stayed on the same side: the
+                    # exact query decides
+                    return x, False, False
+                # traced only from outside the contact distance: a particle that starts in contact
+                # and ends nearest a surface that looks the same way is left to the projection
+                # (resting hair dips below the surface every substep, gravity alone g h^2, more than
+                # a hair radius; stopping it where it crossed carried it along with a moving surface
+                # whatever the friction)
+                if scalar(ds) > radius + stop:
                     direction = path / length
-                    stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
                     behind = -(scalar(2.0) * scalar(grid.tolerance) + stop)
                     t = scalar(0.0)
                     concluded = bool(False)
