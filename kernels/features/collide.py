@@ -323,12 +323,12 @@ def analytic_collide_func(scalar, sdf_factory, name: str):
                         d, n_t = sdf(q_old + t * direction, size, axis)
                         gap = d
                         if gap <= stop:
-                            # a particle that starts in contact and ends on the same side (its nearest
-                            # surface facing the way it crossed) is left to the projection: resting
-                            # hair dips below the surface every substep (gravity alone takes it g h^2
-                            # down, more than a hair radius), and stopping it where it crossed carried
-                            # it along with a moving surface whatever the friction
-                            if d_old <= radius + stop and wp.dot(n, n_t) > zero:
+                            # a particle that starts in contact and ends inside, nearest a surface
+                            # facing the way it crossed, is left to the projection: resting hair dips
+                            # below the surface every substep (gravity alone takes it g h^2 down, more
+                            # than a hair radius), and stopping it where it crossed carried it along
+                            # with a moving surface whatever the friction
+                            if d_old <= radius + stop and dist < zero and wp.dot(n, n_t) > zero:
                                 break
                             q = q_old + t * direction
                             dist, n = sdf(q, size, axis)
