@@ -134,13 +134,12 @@ def test_drape_over_sphere_hit_by_moving_capsule():
     assert worst["stretch"] < 1e-3
 
 
-def test_fast_strand_does_not_tunnel_through_a_thin_mesh():
-    """10 m/s onto a 2 cm slab, one substep per frame at 24 fps (0.42 m per step)."""
-    points, indices = box_mesh((1.0, 0.01, 1.0))
-    n, width = 20, 0.002
-    pts = np.stack([np.linspace(-0.3, 0.3, n), np.full(n, 0.3), np.zeros(n)], 1)
-    model = dw.Model.from_strands(pts, [n], widths=width,
-                                  features=[F.Colliders([F.TriangleMesh(points=points, indices=indices)])])
+def throw_down(slab, height, n=20, width=0.002):
+    """A straight strand of ``n`` points along x at ``height`` (m), its non-root points thrown down
+    at 10 m/s onto ``slab``, one substep per frame at 24 fps (0.42 m per step) for a second:
+    (rest points, final points, the lowest height any point reached)."""
+    pts = np.stack([np.linspace(-0.3, 0.3, n), np.full(n, height), np.zeros(n)], 1)
+    model = dw.Model.from_strands(pts, [n], widths=width, features=[F.Colliders([slab])])
     solver = dw.DFTLSolver(model, gravity=G)
     state, control = solver.state(), model.control()
     v = np.zeros_like(pts)
@@ -150,7 +149,21 @@ def test_fast_strand_does_not_tunnel_through_a_thin_mesh():
     for _ in range(FPS):
         solver.step(state, state, control, 1.0 / FPS)
         lowest = min(lowest, model.points_from_device(state.positions)[:, 1].min())
-    x = model.points_from_device(state.positions)
+    return pts, model.points_from_device(state.positions), lowest
+
+
+def thin_slab(shape):
+    """A 2 cm slab (top at y = 0.01) as an analytic box or a triangle mesh."""
+    if shape == "box":
+        return F.Box(half_extents=(1.0, 0.01, 1.0))
+    points, indices = box_mesh((1.0, 0.01, 1.0))
+    return F.TriangleMesh(points=points, indices=indices)
+
+
+def test_fast_strand_does_not_tunnel_through_a_thin_mesh():
+    """10 m/s onto a 2 cm slab, one substep per frame at 24 fps (0.42 m per step)."""
+    n, width = 20, 0.002
+    pts, x, lowest = throw_down(thin_slab("mesh"), 0.3, n, width)
     assert lowest > 0.01 + width / 2 - 1e-4  # never below the slab's top (plus the hair radius)
     assert np.sum(x[:, 1] < 0.02) > n // 3  # it did land on the slab
     assert np.abs(segment_lengths(x, [n]) / np.linalg.norm(pts[1] - pts[0]) - 1).max() < 1e-3
@@ -162,23 +175,8 @@ def test_strand_resting_on_a_thin_slab_is_not_pushed_through_it(shape):
     (0.42 m per step): a path that starts in contact is left to the projection only when it ends
     inside, nearest the face it crossed (resting contact, docs/features.md), so this one is still
     stopped on the slab's top."""
-    n, width = 20, 0.002
-    if shape == "box":
-        slab = F.Box(half_extents=(1.0, 0.01, 1.0))
-    else:
-        points, indices = box_mesh((1.0, 0.01, 1.0))
-        slab = F.TriangleMesh(points=points, indices=indices)
-    pts = np.stack([np.linspace(-0.3, 0.3, n), np.full(n, 0.01 + width / 2), np.zeros(n)], 1)
-    model = dw.Model.from_strands(pts, [n], widths=width, features=[F.Colliders([slab])])
-    solver = dw.DFTLSolver(model, gravity=G)
-    state, control = solver.state(), model.control()
-    v = np.zeros_like(pts)
-    v[1:, 1] = -10.0
-    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
-    lowest = np.inf
-    for _ in range(FPS):
-        solver.step(state, state, control, 1.0 / FPS)
-        lowest = min(lowest, model.points_from_device(state.positions)[:, 1].min())
+    width = 0.002
+    _, _, lowest = throw_down(thin_slab(shape), 0.01 + width / 2, width=width)
     assert lowest > 0.01 + width / 2 - 1e-4  # never below the slab's top (plus the hair radius)
 
 
