@@ -120,3 +120,25 @@ class ClampDriver:
         rotation then, times the inverse of the prim's rotation when the group was made."""
         return np.concatenate([np.broadcast_to(rotation_of(matrix_of(i, frame)) @ r0.T, (n, 3, 3))
                                for i, r0, n in zip(members, self.rest_rotations, self.counts)])
+
+
+def rest_where_moved(group, frame: int) -> list[str]:
+    """After the clean start moved hair out of a collider: the elastic strands it moved rest where
+    they are (their authored shape lay inside, and as the rest shape it would press them back in at
+    every step: a chatter that never settles, docs/elastic.md); strands of prims with authored
+    ``physics:restShapePoints`` keep theirs. The group's clamps follow the new rest shape. Returns
+    the notes to print (none when nothing moved)."""
+    solver = group.solver
+    explicit = np.concatenate([np.full(c.num_strands, c.rest_points is not None) for c in group.curves])
+    moved = solver.adopt_rest_shape(group.state, dry_run=True)
+    kept = moved[explicit[moved]]
+    adopted = solver.adopt_rest_shape(group.state, strands=moved[~explicit[moved]])
+    notes = []
+    if adopted.size:
+        group.clamps = ClampDriver(group, frame)
+        notes.append(f"clean start: {adopted.size} elastic strand(s) rest where they were moved out "
+                     "(their authored shape lay inside the collider)")
+    if kept.size:
+        notes.append(f"clean start: {kept.size} elastic strand(s) with authored physics:restShapePoints "
+                     "started inside a collider and keep their rest shape, which presses them into it")
+    return notes

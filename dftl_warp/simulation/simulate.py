@@ -173,6 +173,7 @@ class Simulation:
 
         from ..features import update_frame
         from ..features.clean_start import StartReport, preroll, resolve_start
+        from .elastic_setup import rest_where_moved
 
         notes = []
         seconds = float(self.options.preroll or 0.0)
@@ -197,6 +198,8 @@ class Simulation:
                                                                          "max_penetration", "max_penetration_radii")))
                     if report.inside:   # a clean scene says nothing
                         notes.append(report.line(units))
+                        if g.clamps is not None:   # elastic strands rest where they were moved
+                            notes += rest_where_moved(g, self.frame)
                 if split and seconds > 0:
                     notes.append(f"preroll: not run for {len(g.members)} prim(s) split across devices "
                                  f"{', '.join(g.devices)}")

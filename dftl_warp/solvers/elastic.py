@@ -188,8 +188,6 @@ class ElasticSolver(Solver):
         self.compute_precision = compute_precision or "float64"
         self.real = scalar_type(self.compute_precision)
         real = self.real
-        vec3r = wp.types.vector(3, real)
-        quatr = wp.types.quaternion(real)
         dev, lay = model.device, model.layout
         npts = model.num_points
         if radius is None:
@@ -213,22 +211,9 @@ class ElasticSolver(Solver):
             starts = elastic_rest.strand_offsets(model.counts)
             shift = np.repeat(points[starts] - (rest[starts] - np.asarray(model.origin, float)), model.counts, axis=0)
             points = rest - np.asarray(model.origin, float) + shift
-        fields, strands, self._groups = elastic_rest.build(
-            points, model.counts, lay.slot_of_point, lay.strand_order, model.num_slots, radius,
-            stiffness_scale=scale,
-            E=self.youngs_modulus, G=self.twist_modulus, rho=self.density, gravity=self.gravity64,
-            inverse_statics=self.inverse_statics)
-        rt = numpy_type(self.compute_precision)
-        arr = lambda a, dt: wp.array(np.ascontiguousarray(a, dtype=rt), dtype=dt, device=dev)  # noqa: E731
-        self._fields = {k: arr(v, vec3r if k == "curvature" else quatr if k == "rest_rotation" else real)
-                        for k, v in fields.items()}
-        self._clamp_direction = arr(strands["d0"], vec3r)
-        self._curved = wp.array(strands["curved"], dtype=wp.int32, device=dev)
-        st = numpy_type(model.precision)
-        self._rest_ghost = strands["ghost"]                                         # device order, float64
-        self._rest_tension = strands["tension"].astype(st)
-        roots = model.root_rest.numpy().astype(np.float64)
-        self._clamp_offset = wp.array((self._rest_ghost - roots).astype(st), dtype=model.vec3, device=dev)
+        #: the rest shape: device coordinates, input order (float64)
+        self._rest_points = points
+        self._build_rest(points)
         self._clamp_start = wp.clone(self._clamp_offset)
         self._clamp_end = wp.clone(self._clamp_offset)
         #: the ghosts' path deviations (``T v - chord``, Control's form), zero on a linear path
@@ -238,10 +223,10 @@ class ElasticSolver(Solver):
         #: the clamps' rotations from their authored poses at the frame's start and end (the root
         #: frame's twist about the first segment; identity: the minimal rotation onto the ghost)
         mat33s = wp.types.matrix((3, 3), model.scalar)
-        self._identity_rotations = np.tile(np.eye(3, dtype=st), (model.num_strands, 1, 1))
+        self._identity_rotations = np.tile(np.eye(3, dtype=numpy_type(model.precision)), (model.num_strands, 1, 1))
         self._clamp_rotation_start = wp.array(self._identity_rotations, dtype=mat33s, device=dev)
         self._clamp_rotation_end = wp.array(self._identity_rotations, dtype=mat33s, device=dev)
-        self._gravity_real = vec3r(*self.gravity64)
+        self._gravity_real = wp.types.vector(3, real)(*self.gravity64)
         n = model.num_slots
         self._scratch = [wp.zeros(n, dtype=wp.types.vector(10, real), device=dev),
                          wp.zeros(n, dtype=wp.types.matrix((3, 4), real), device=dev),
@@ -258,6 +243,78 @@ class ElasticSolver(Solver):
             self._features = FeatureStep(model, self._kernel)
         else:
             self._no_features = NoFeatures()
+
+    def _build_rest(self, points) -> None:
+        """The rest data of the rest shape ``points`` (device coordinates, input order, float64): the
+        kernel's model arrays, the clamp directions, ghosts and offsets, the inverse-statics tensions.
+        Device arrays are made on the first call and overwritten in place after it, so a captured
+        CUDA graph keeps reading them."""
+        m, lay = self.model, self.model.layout
+        fields, strands, self._groups = elastic_rest.build(
+            points, m.counts, lay.slot_of_point, lay.strand_order, m.num_slots, self.radius,
+            stiffness_scale=self.stiffness_scale,
+            E=self.youngs_modulus, G=self.twist_modulus, rho=self.density, gravity=self.gravity64,
+            inverse_statics=self.inverse_statics)
+        rt, st = numpy_type(self.compute_precision), numpy_type(m.precision)
+        self._rest_ghost = strands["ghost"]                                         # device order, float64
+        self._rest_tension = strands["tension"].astype(st)
+        host = {k: np.ascontiguousarray(v, dtype=rt) for k, v in fields.items()}
+        direction = np.ascontiguousarray(strands["d0"], dtype=rt)
+        offset = (self._rest_ghost - m.root_rest.numpy().astype(np.float64)).astype(st)
+        if not hasattr(self, "_fields"):
+            real, dev = self.real, m.device
+            vec3r, quatr = wp.types.vector(3, real), wp.types.quaternion(real)
+            self._fields = {k: wp.array(v, dtype=vec3r if k == "curvature" else quatr if k == "rest_rotation" else real,
+                                        device=dev) for k, v in host.items()}
+            self._clamp_direction = wp.array(direction, dtype=vec3r, device=dev)
+            self._curved = wp.array(strands["curved"], dtype=wp.int32, device=dev)
+            self._clamp_offset = wp.array(offset, dtype=m.vec3, device=dev)
+            return
+        for k, v in host.items():
+            self._fields[k].assign(v)
+        self._clamp_direction.assign(direction)
+        self._curved.assign(strands["curved"])
+        self._clamp_offset.assign(offset)
+
+    def adopt_rest_shape(self, state, strands=None, *, dry_run: bool = False) -> np.ndarray:
+        """Make the positions of ``state`` the rest shape (with its inverse statics, clamp and rest
+        tensions) of ``strands``: input strand indices, or by default every strand whose positions
+        differ from its rest shape by more than a hundredth of its hair radius. The state's tensions,
+        frames and clamp ghosts of those strands become the new rest values. Returns the input strand
+        indices whose rest shape changed (``dry_run``: would change; nothing is changed).
+
+        For hair moved out of a collider before the first step
+        (:func:`~dftl_warp.features.clean_start.resolve_start`): its authored shape lay inside, and as
+        the rest shape it would press the strand back in at every step, which the contact, acting
+        after the solve, answers by pushing it out again: a chatter of millimetres with a period of
+        two substeps that never settles (docs/elastic.md, "Hair authored inside a collider")."""
+        m, lay = self.model, self.model.layout
+        x = m.points_from_device(state.positions, relative=False)                  # device coordinates
+        owner = np.repeat(np.arange(m.num_strands), m.counts)
+        if strands is None:
+            moved = np.abs(x - self._rest_points).max(axis=1) > 1.0e-2 * self.radius
+            strands = np.unique(owner[moved])
+        strands = np.asarray(strands, dtype=np.int64).reshape(-1)
+        if strands.size == 0 or dry_run:
+            return strands
+        take = np.isin(owner, strands)
+        points = self._rest_points.copy()
+        points[take] = x[take]
+        self._build_rest(points)
+        self._rest_points = points
+        if self._clamp_relative:
+            wp.copy(self._clamp_start, self._clamp_offset)
+            wp.copy(self._clamp_end, self._clamp_offset)
+        slots = lay.slot_of_point[take]
+        device_strands = np.flatnonzero(np.isin(lay.strand_order, strands))
+        tensions, frames, clamps = state.tensions.numpy(), state.frames.numpy(), state.clamps.numpy()
+        tensions[slots] = self._rest_tension[slots]
+        frames[slots] = (0.0, 0.0, 0.0, 1.0)
+        clamps[device_strands] = self._rest_ghost[device_strands]
+        state.tensions.assign(tensions)
+        state.frames.assign(frames)
+        state.clamps.assign(clamps)
+        return strands
 
     # -- the State -------------------------------------------------------------------------------
 
