@@ -142,3 +142,24 @@ def rest_where_moved(group, frame: int) -> list[str]:
         notes.append(f"clean start: {kept.size} elastic strand(s) with authored physics:restShapePoints "
                      "started inside a collider and keep their rest shape, which presses them into it")
     return notes
+
+
+def note_unstable(scene, group) -> None:
+    """A note when strands of the group rest in an unstable equilibrium for their stiffness
+    (:func:`~dftl_warp.solvers.elastic_stability.unstable_strands`: standing beyond their buckling
+    length); inverse statics holds them only until round-off tips them over."""
+    from ..solvers.elastic_stability import unstable_strands
+
+    if not group.solver.inverse_statics:
+        return
+    flagged, tested, total = unstable_strands(group.solver._groups)
+    if flagged.size == 0:
+        return
+    owner = np.repeat(np.arange(len(group.curves)), [c.num_strands for c in group.curves])
+    prims = [group.curves[i].path for i in np.unique(owner[flagged])]
+    where = ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
+    of = (f"of the {tested} strands with compressed segments" if tested == total else
+          f"of a random sample of {tested} of the {total} strands with compressed segments")
+    _note(scene, f"{where}: {flagged.size} {of} rest in an unstable equilibrium for hair this stiff "
+                 "(they stand beyond their buckling length, docs/elastic.md) and can fall; "
+                 "primvars:dftl:bendStiffnessScale stiffens them")

@@ -113,9 +113,10 @@ class Group:
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)
         self.clamps = None
         if elastic:
-            from .elastic_setup import ClampDriver
+            from .elastic_setup import ClampDriver, note_unstable
 
             self.clamps = ClampDriver(self, frame)
+            note_unstable(scene, self)
         #: device buffers of local_samples per part, made on first use
         self._sample_buffers = None
 

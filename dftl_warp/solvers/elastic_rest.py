@@ -136,6 +136,8 @@ class RodGroup:
             self.b = Dx.copy()
             rho_ = np.zeros_like(rho_)
         self.T_rest = T
+        #: unit segment directions of the rest shape (S, N+1, 3; index 0 the ghost segment)
+        self.rest_directions = self.directions(rest, self.ghost)
         # frame inverse statics: the torques g_j = -b_j x rho_j are carried by the twist couplings
         gb = -np.cross(self.b, rho_)
         mom = np.cumsum(gb[:, ::-1], axis=1)[:, ::-1]            # m_j = sum_{k >= j} g_k

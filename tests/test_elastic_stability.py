@@ -1,0 +1,76 @@
+"""Rest shapes that are unstable equilibria: hair standing beyond its buckling length.
+
+A vertical column of hair clamped at its root buckles under its own weight at
+``L = (7.837 EI / (rho A g))^(1/3) = 1.9863 l_b`` (Greenhill 1881). Inverse statics makes a taller
+standing strand an equilibrium, but an unstable one: the solver lets it fall at the first
+disturbance. The stability test (``dftl_warp/solvers/elastic_stability.py``) finds Greenhill's
+length, the solver holds a column below it and drops one above it, and ``simulate`` says so.
+"""
+
+import numpy as np
+from scipy.optimize import brentq
+
+import dftl_warp as dw
+from dftl_warp.solvers import elastic_rest
+from dftl_warp.solvers.elastic import HAIR_DENSITY, HAIR_E, TWIST_G
+from dftl_warp.solvers.elastic_stability import stiffness_margins, unstable_strands
+
+R, G0, N = 40e-6, 9.81, 32
+EI = HAIR_E * np.pi * R ** 4 / 4
+LB = (EI / (HAIR_DENSITY * np.pi * R ** 2 * G0)) ** (1.0 / 3.0)
+GREENHILL = 7.837 ** (1.0 / 3.0)          # critical length of a clamped column under its own weight, in l_b
+
+
+def column(length, n=N):
+    s = np.linspace(0.0, length, n + 1)
+    return np.stack([np.zeros_like(s), s, np.zeros_like(s)], -1)
+
+
+def margin(ratio, n=N):
+    grp = elastic_rest.RodGroup(column(ratio * LB, n)[None], np.full((1, n + 1), R), E=HAIR_E, G=TWIST_G,
+                                rho=HAIR_DENSITY, gravity=(0.0, -G0, 0.0), inverse_statics=True)
+    return stiffness_margins(grp)[0]
+
+
+def test_the_stability_test_finds_greenhills_buckling_length():
+    critical = brentq(margin, 1.5, 2.5)
+    assert abs(critical / GREENHILL - 1) < 5e-3, critical
+    hanging = elastic_rest.RodGroup((column(3 * LB) * [1, -1, 1])[None], np.full((1, N + 1), R), E=HAIR_E,
+                                    G=TWIST_G, rho=HAIR_DENSITY, gravity=(0.0, -G0, 0.0), inverse_statics=True)
+    assert stiffness_margins(hanging)[0] > 0
+
+
+def test_the_solver_holds_a_column_below_it_and_drops_one_above_it():
+    """Columns of 1.8 and 2.2 l_b, pushed sideways at 0.1 mm/s at the tip: after 2 s the first
+    stands within 1e-3 of its length, the second has fallen; only the second is flagged."""
+    moved = {}
+    for ratio in (1.8, 2.2):
+        pts = column(ratio * LB)
+        model = dw.Model.from_strands(pts, [N + 1], precision="float64")
+        solver = dw.make_solver(model, "elastic", radius=R)
+        state, control = solver.state(), model.control()
+        push = np.zeros((N + 1, 3))
+        push[:, 0] = 1e-4 * pts[:, 1] / pts[-1, 1]
+        state.velocities.assign(model.points_to_device(push, relative=False))
+        flagged, tested, total = unstable_strands(solver._groups)
+        assert tested == total == 1 and flagged.tolist() == ([0] if ratio > GREENHILL else [])
+        for _ in range(48):
+            solver.advance(state, control, 1.0 / (24 * 8), 8)
+        moved[ratio] = np.linalg.norm(model.points_from_device(state.positions)[-1] - pts[-1]) / (ratio * LB)
+    assert moved[1.8] < 1e-3 and moved[2.2] > 0.3, moved
+
+
+def test_simulate_says_which_strands_can_fall(tmp_path, capsys):
+    from usd_stages import add_curves, new_stage
+
+    from dftl_warp import cli
+
+    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
+    tall = column(2.5 * LB)
+    add_curves(stage, "/World/Mohawk", np.concatenate([tall, tall + [0.01, 0, 0], tall * [1, -1, 1] + [0.02, 0, 0]]),
+               [N + 1] * 3, widths=2 * R, bending=None)
+    stage.Save()
+    assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "out.usdc")]) == 0
+    err = capsys.readouterr().err
+    assert ("/World/Mohawk: 2 of the 2 strands with compressed segments rest in an unstable equilibrium" in err
+            and "bendStiffnessScale" in err), err
