@@ -198,7 +198,7 @@ class Simulation:
                                                                          "max_penetration", "max_penetration_radii")))
                     if report.inside:   # a clean scene says nothing
                         notes.append(report.line(units))
-                        if g.clamps is not None:   # elastic strands rest where they were moved
+                        if g.settings.solver == "elastic":   # elastic strands rest where they were moved
                             notes += rest_where_moved(g, self.frame)
                 if split and seconds > 0:
                     notes.append(f"preroll: not run for {len(g.members)} prim(s) split across devices "

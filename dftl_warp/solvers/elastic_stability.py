@@ -65,10 +65,10 @@ def unstable_strands(groups, *, sample: int = 5000, seed: int = 0, chunk: int = 
     strand indices among those tested, strands tested, strands with a compressed segment)."""
     compressed = []
     for _, strands, grp in groups:
-        if grp.N >= 2 and grp.T_rest.shape[1] > 1:
-            rows = np.flatnonzero((grp.T_rest[:, 1:] < 0).any(axis=1))
-            compressed += [(grp, strands, r) for r in np.array_split(rows, max(1, -(-rows.size // chunk)))
-                           if r.size]
+        if grp.N < 2:
+            continue
+        rows = np.flatnonzero((grp.T_rest[:, 1:] < 0).any(axis=1))
+        compressed += [(grp, strands, r) for r in np.array_split(rows, max(1, -(-rows.size // chunk))) if r.size]
     total = sum(r.size for _, _, r in compressed)
     keep = None
     if total > sample:
