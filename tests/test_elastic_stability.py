@@ -13,7 +13,7 @@ from scipy.optimize import brentq
 import dftl_warp as dw
 from dftl_warp.solvers import elastic_rest
 from dftl_warp.solvers.elastic import HAIR_DENSITY, HAIR_E, TWIST_G
-from dftl_warp.solvers.elastic_stability import stiffness_margins, unstable_strands
+from dftl_warp.solvers.elastic_stability import holding_scales, stiffness_margins, unstable_strands
 
 R, G0, N = 40e-6, 9.81, 32
 EI = HAIR_E * np.pi * R ** 4 / 4
@@ -32,9 +32,18 @@ def margin(ratio, n=N):
     return stiffness_margins(grp)[0]
 
 
+def rod_group(points):
+    return elastic_rest.RodGroup(points[None], np.full((1, len(points)), R), E=HAIR_E, G=TWIST_G,
+                                 rho=HAIR_DENSITY, gravity=(0.0, -G0, 0.0), inverse_statics=True)
+
+
 def test_the_stability_test_finds_greenhills_buckling_length():
     critical = brentq(margin, 1.5, 2.5)
     assert abs(critical / GREENHILL - 1) < 5e-3, critical
+    # the stiffness that holds a taller column: EI grows as L^3 at the critical length
+    for ratio in (1.5, 2.5, 4.0):
+        scale = holding_scales(rod_group(column(ratio * LB)))[0]
+        assert abs(scale / (ratio / GREENHILL) ** 3 - 1) < 5e-3, (ratio, scale)
     hanging = elastic_rest.RodGroup((column(3 * LB) * [1, -1, 1])[None], np.full((1, N + 1), R), E=HAIR_E,
                                     G=TWIST_G, rho=HAIR_DENSITY, gravity=(0.0, -G0, 0.0), inverse_statics=True)
     assert stiffness_margins(hanging)[0] > 0
@@ -52,7 +61,7 @@ def test_the_solver_holds_a_column_below_it_and_drops_one_above_it():
         push = np.zeros((N + 1, 3))
         push[:, 0] = 1e-4 * pts[:, 1] / pts[-1, 1]
         state.velocities.assign(model.points_to_device(push, relative=False))
-        flagged, tested, total = unstable_strands(solver._groups)
+        flagged, _, tested, total = unstable_strands(solver._groups)
         assert tested == total == 1 and flagged.tolist() == ([0] if ratio > GREENHILL else [])
         for _ in range(48):
             solver.advance(state, control, 1.0 / (24 * 8), 8)
@@ -72,5 +81,6 @@ def test_simulate_says_which_strands_can_fall(tmp_path, capsys):
     stage.Save()
     assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "out.usdc")]) == 0
     err = capsys.readouterr().err
+    # both columns are 2.5 l_b: (2.5 / 1.9863)^3 = 1.994 holds them
     assert ("/World/Mohawk: 2 of the 2 strands with compressed segments rest in an unstable equilibrium" in err
-            and "bendStiffnessScale" in err), err
+            and "primvars:dftl:bendStiffnessScale of 1.99 holds half of them, 1.99 all" in err), err

@@ -21,29 +21,26 @@ from __future__ import annotations
 import numpy as np
 
 
-def stiffness_margins(grp, rows=None) -> np.ndarray:
-    """Per strand of a :class:`~dftl_warp.solvers.elastic_rest.RodGroup` (its ``rows``, or all): the
-    smallest eigenvalue of the constrained stiffness at the rest shape over the largest diagonal
-    entry of the bending matrix (unitless). Below zero (beyond round-off): the rest shape is an
-    unstable equilibrium."""
-    rows = np.arange(grp.S) if rows is None else np.asarray(rows)
+def _constrained(grp, rows):
+    """The bending and geometric stiffness of the strands ``rows`` of ``grp`` at the rest shape,
+    on the motions the constraints allow: (S, 2N, 2N) each, and the bending bands' scale."""
     S, N = rows.size, grp.N
-    if N < 2:
-        return np.ones(S)
     k0, k1, k2 = grp.k0[rows], grp.k1[rows], grp.k2[rows]
     T, lengths = grp.T_rest[rows], grp.l[rows]
     e = grp.rest_directions[rows, 1:]                             # (S, N, 3) unit, segment k = 1..N
     eye = np.eye(3)
-    K = np.zeros((S, N, N, 3, 3))                                 # free particles 1..N as rows 0..N-1
+    Kb = np.zeros((S, N, N, 3, 3))                                # free particles 1..N as rows 0..N-1
+    Kg = np.zeros((S, N, N, 3, 3))
     kt = (T[:, 1:] / lengths[:, 1:N + 1])[..., None, None] * (eye - e[..., :, None] * e[..., None, :])
     for r in range(N):
-        K[:, r, r] = k0[:, r + 1, None, None] * eye + kt[:, r]
+        Kb[:, r, r] = k0[:, r + 1, None, None] * eye
+        Kg[:, r, r] = kt[:, r]
         if r + 1 < N:
-            K[:, r, r + 1] = K[:, r + 1, r] = k1[:, r + 1, None, None] * eye - kt[:, r + 1]
-            K[:, r, r] += kt[:, r + 1]                            # segment r + 2 on its near end
+            Kb[:, r, r + 1] = Kb[:, r + 1, r] = k1[:, r + 1, None, None] * eye
+            Kg[:, r, r + 1] = Kg[:, r + 1, r] = -kt[:, r + 1]
+            Kg[:, r, r] += kt[:, r + 1]                           # segment r + 2 on its near end
         if r + 2 < N:
-            K[:, r, r + 2] = K[:, r + 2, r] = k2[:, r + 1, None, None] * eye
-    K = K.transpose(0, 1, 3, 2, 4).reshape(S, 3 * N, 3 * N)
+            Kb[:, r, r + 2] = Kb[:, r + 2, r] = k2[:, r + 1, None, None] * eye
     # the constraints e_k . (v_k - v_{k-1}) = 0 (v_0 = 0): their null space, from the SVD of J
     J = np.zeros((S, N, N, 3))
     for k in range(N):
@@ -52,9 +49,39 @@ def stiffness_margins(grp, rows=None) -> np.ndarray:
             J[:, k, k - 1] = -e[:, k]
     _, _, vt = np.linalg.svd(J.reshape(S, N, 3 * N))
     basis = vt[:, N:].transpose(0, 2, 1)                         # (S, 3N, 2N)
-    H = basis.transpose(0, 2, 1) @ K @ basis
-    lowest = np.linalg.eigvalsh(0.5 * (H + H.transpose(0, 2, 1)))[:, 0]
-    return lowest / np.abs(k0[:, 1:]).max(axis=1)
+
+    def project(K):
+        H = basis.transpose(0, 2, 1) @ K.transpose(0, 1, 3, 2, 4).reshape(S, 3 * N, 3 * N) @ basis
+        return 0.5 * (H + H.transpose(0, 2, 1))
+
+    return project(Kb), project(Kg), np.abs(k0[:, 1:]).max(axis=1)
+
+
+def stiffness_margins(grp, rows=None) -> np.ndarray:
+    """Per strand of a :class:`~dftl_warp.solvers.elastic_rest.RodGroup` (its ``rows``, or all): the
+    smallest eigenvalue of the constrained stiffness at the rest shape over the largest diagonal
+    entry of the bending matrix (unitless). Below zero (beyond round-off): the rest shape is an
+    unstable equilibrium."""
+    rows = np.arange(grp.S) if rows is None else np.asarray(rows)
+    if grp.N < 2:
+        return np.ones(rows.size)
+    Hb, Hg, scale = _constrained(grp, rows)
+    return np.linalg.eigvalsh(Hb + Hg)[:, 0] / scale
+
+
+def holding_scales(grp, rows=None) -> np.ndarray:
+    """Per strand: the smallest factor on its bending stiffness (``bendStiffnessScale``) that makes
+    its rest shape a stable equilibrium, the largest ``s`` with ``det(s Hb + Hg) = 0`` on the
+    constrained motions (the bending part is positive definite: the root is clamped); 0 where
+    tension alone holds the shape."""
+    rows = np.arange(grp.S) if rows is None else np.asarray(rows)
+    if grp.N < 2:
+        return np.zeros(rows.size)
+    Hb, Hg, _ = _constrained(grp, rows)
+    L = np.linalg.cholesky(Hb)
+    Li = np.linalg.inv(L)
+    mu = np.linalg.eigvalsh(Li @ (-Hg) @ Li.transpose(0, 2, 1))[:, -1]
+    return np.maximum(mu, 0.0)
 
 
 def unstable_strands(groups, *, sample: int = 5000, seed: int = 0, chunk: int = 1024):
@@ -62,7 +89,8 @@ def unstable_strands(groups, *, sample: int = 5000, seed: int = 0, chunk: int = 
     input strand indices, RodGroup) triples). Only strands with a compressed segment can be
     unstable (bending and tension are stiffnesses that only hold), so only they are tested; more
     than ``sample`` of them are tested on a random sample of that size. Returns (unstable input
-    strand indices among those tested, strands tested, strands with a compressed segment)."""
+    strand indices among those tested, their :func:`holding_scales`, strands tested, strands with a
+    compressed segment)."""
     compressed = []
     for _, strands, grp in groups:
         if grp.N < 2:
@@ -74,14 +102,17 @@ def unstable_strands(groups, *, sample: int = 5000, seed: int = 0, chunk: int = 
     if total > sample:
         keep = np.zeros(total, bool)
         keep[np.random.default_rng(seed).choice(total, sample, replace=False)] = True
-    unstable, tested, offset = [], 0, 0
+    unstable, scales, tested, offset = [], [], 0, 0
     for grp, strands, rows in compressed:
         if keep is not None:
             rows, offset = rows[keep[offset:offset + rows.size]], offset + rows.size
         if rows.size == 0:
             continue
-        margins = stiffness_margins(grp, rows)
-        unstable.append(strands[rows[margins < -1.0e-12]])
+        bad = rows[stiffness_margins(grp, rows) < -1.0e-12]
+        unstable.append(strands[bad])
+        scales.append(holding_scales(grp, bad) if bad.size else np.zeros(0))
         tested += rows.size
     flagged = np.concatenate(unstable) if unstable else np.zeros(0, np.int64)
-    return np.sort(flagged), tested, total
+    scales = np.concatenate(scales) if scales else np.zeros(0)
+    order = np.argsort(flagged)
+    return flagged[order], scales[order], tested, total
