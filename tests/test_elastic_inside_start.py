@@ -110,3 +110,16 @@ def test_adopted_rest_shape_keeps_the_groom_still_in_simulate(tmp_path, capsys):
                      "--end", "2", "--prim", "/World/Kept"]) == 0
     err = capsys.readouterr().err
     assert "1 elastic strand(s) with authored physics:restShapePoints started inside a collider" in err, err
+    # a prim whose rest shape (straight) differs from its points, away from the head: nothing moved,
+    # nothing said of it
+    lengths = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    straight = points[0] + np.c_[np.r_[0.0, np.cumsum(lengths)], np.zeros((len(points), 2))]
+    away = add_curves(stage, "/World/Away", points + [0, 0.2, 0], [len(points)], widths=2 * HAIR_RADIUS,
+                      bending=None)
+    away.GetPrim().CreateAttribute("physics:restShapePoints", Sdf.ValueTypeNames.Point3fArray).Set(
+        Vt.Vec3fArray.FromNumpy((straight + [0, 0.2, 0]).astype(np.float32)))
+    stage.Save()
+    assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "away.usdc"), "--substeps", "2",
+                     "--end", "2", "--prim", "/World/Away", "--prim", "/World/Kept"]) == 0
+    err = capsys.readouterr().err
+    assert "1 elastic strand(s) with authored physics:restShapePoints started inside a collider" in err, err

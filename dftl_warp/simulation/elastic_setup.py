@@ -128,9 +128,13 @@ def rest_where_moved(group, frame: int) -> list[str]:
     every step: a chatter that never settles, docs/elastic.md); strands of prims with authored
     ``physics:restShapePoints`` keep theirs. The group's clamps follow the new rest shape. Returns
     the notes to print (none when nothing moved)."""
-    solver = group.solver
+    solver, model = group.solver, group.model
     explicit = np.concatenate([np.full(c.num_strands, c.rest_points is not None) for c in group.curves])
-    moved = solver.adopt_rest_shape(group.state, dry_run=True)
+    # moved: positions away from the authored points (not from the rest shape, which an authored
+    # physics:restShapePoints may put elsewhere)
+    authored = model.rest_positions[model.layout.slot_of_point]
+    away = np.abs(model.points_from_device(group.state.positions, relative=False) - authored).max(axis=1)
+    moved = np.unique(np.repeat(np.arange(model.num_strands), model.counts)[away > 1.0e-2 * solver.radius])
     kept = moved[explicit[moved]]
     adopted = solver.adopt_rest_shape(group.state, strands=moved[~explicit[moved]])
     notes = []
