@@ -276,12 +276,12 @@ class ElasticSolver(Solver):
         self._curved.assign(strands["curved"])
         self._clamp_offset.assign(offset)
 
-    def adopt_rest_shape(self, state, strands=None, *, dry_run: bool = False) -> np.ndarray:
+    def adopt_rest_shape(self, state, strands=None) -> np.ndarray:
         """Make the positions of ``state`` the rest shape (with its inverse statics, clamp and rest
         tensions) of ``strands``: input strand indices, or by default every strand whose positions
         differ from its rest shape by more than a hundredth of its hair radius. The state's tensions,
         frames and clamp ghosts of those strands become the new rest values. Returns the input strand
-        indices whose rest shape changed (``dry_run``: would change; nothing is changed).
+        indices whose rest shape changed.
 
         For hair moved out of a collider before the first step
         (:func:`~dftl_warp.features.clean_start.resolve_start`): its authored shape lay inside, and as
@@ -295,7 +295,7 @@ class ElasticSolver(Solver):
             moved = np.abs(x - self._rest_points).max(axis=1) > 1.0e-2 * self.radius
             strands = np.unique(owner[moved])
         strands = np.asarray(strands, dtype=np.int64).reshape(-1)
-        if strands.size == 0 or dry_run:
+        if strands.size == 0:
             return strands
         take = np.isin(owner, strands)
         points = self._rest_points.copy()
