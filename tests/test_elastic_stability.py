@@ -84,3 +84,15 @@ def test_simulate_says_which_strands_can_fall(tmp_path, capsys):
     # both columns are 2.5 l_b: (2.5 / 1.9863)^3 = 1.994 holds them
     assert ("/World/Mohawk: 2 of the 2 strands with compressed segments rest in an unstable equilibrium" in err
             and "primvars:dftl:bendStiffnessScale of 1.99 holds half of them, 1.99 all" in err), err
+
+
+def test_a_costly_groom_is_tested_on_a_sample_within_the_budget():
+    """The test's cost grows as the cube of the segments: 64-segment strands cost 8 of the budget's
+    32-segment units each, so a budget of 20 tests 2 of 5 standing columns (all unstable)."""
+    n = 64
+    rest = np.stack([column(2.5 * LB, n) + [0.01 * k, 0, 0] for k in range(5)])
+    grp = elastic_rest.RodGroup(rest, np.full((5, n + 1), R), E=HAIR_E, G=TWIST_G, rho=HAIR_DENSITY,
+                                gravity=(0.0, -G0, 0.0), inverse_statics=True)
+    flagged, scales, tested, total = unstable_strands([(n + 1, np.arange(10, 15), grp)], budget=20)
+    assert (tested, total) == (2, 5) and flagged.size == 2 and set(flagged) <= set(range(10, 15))
+    assert np.allclose(scales, (2.5 / GREENHILL) ** 3, rtol=5e-3)
