@@ -61,7 +61,7 @@ def test_the_solver_holds_a_column_below_it_and_drops_one_above_it():
         push = np.zeros((N + 1, 3))
         push[:, 0] = 1e-4 * pts[:, 1] / pts[-1, 1]
         state.velocities.assign(model.points_to_device(push, relative=False))
-        flagged, _, tested, total = unstable_strands(solver._groups)
+        flagged, _, tested, total = solver.unstable_strands()
         assert tested == total == 1 and flagged.tolist() == ([0] if ratio > GREENHILL else [])
         for _ in range(48):
             solver.advance(state, control, 1.0 / (24 * 8), 8)

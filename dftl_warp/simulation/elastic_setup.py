@@ -128,13 +128,9 @@ def rest_where_moved(group, frame: int) -> list[str]:
     every step: a chatter that never settles, docs/elastic.md); strands of prims with authored
     ``physics:restShapePoints`` keep theirs. The group's clamps follow the new rest shape. Returns
     the notes to print (none when nothing moved)."""
-    solver, model = group.solver, group.model
+    solver = group.solver
     explicit = np.concatenate([np.full(c.num_strands, c.rest_points is not None) for c in group.curves])
-    # moved: positions away from the authored points (not from the rest shape, which an authored
-    # physics:restShapePoints may put elsewhere)
-    authored = model.rest_positions[model.layout.slot_of_point]
-    away = np.abs(model.points_from_device(group.state.positions, relative=False) - authored).max(axis=1)
-    moved = np.unique(np.repeat(np.arange(model.num_strands), model.counts)[away > 1.0e-2 * solver.radius])
+    moved = solver.moved_strands(group.state)
     kept = moved[explicit[moved]]
     adopted = solver.adopt_rest_shape(group.state, strands=moved[~explicit[moved]])
     notes = []
@@ -152,11 +148,9 @@ def note_unstable(scene, group) -> None:
     """A note when strands of the group rest in an unstable equilibrium for their stiffness
     (:func:`~dftl_warp.solvers.elastic_stability.unstable_strands`: standing beyond their buckling
     length); inverse statics holds them only until round-off tips them over."""
-    from ..solvers.elastic_stability import unstable_strands
-
     if not group.solver.inverse_statics:
         return
-    flagged, scales, tested, total = unstable_strands(group.solver._groups)
+    flagged, scales, tested, total = group.solver.unstable_strands()
     if flagged.size == 0:
         return
     owner = np.repeat(np.arange(len(group.curves)), [c.num_strands for c in group.curves])

@@ -276,6 +276,27 @@ class ElasticSolver(Solver):
         self._curved.assign(strands["curved"])
         self._clamp_offset.assign(offset)
 
+    def _strands_away(self, state, reference) -> np.ndarray:
+        """Input indices of the strands of ``state`` with a particle more than a hundredth of its hair
+        radius from ``reference`` (device coordinates, input order)."""
+        m = self.model
+        away = np.abs(m.points_from_device(state.positions, relative=False) - reference).max(axis=1)
+        return np.unique(np.repeat(np.arange(m.num_strands), m.counts)[away > 1.0e-2 * self.radius])
+
+    def moved_strands(self, state) -> np.ndarray:
+        """Input indices of the strands of ``state`` moved from the model's points (by the clean
+        start's push-out): compared with the points, not the rest shape, which ``rest_shape`` may put
+        elsewhere."""
+        m = self.model
+        return self._strands_away(state, m.rest_positions[m.layout.slot_of_point])
+
+    def unstable_strands(self, **options):
+        """Strands whose rest shape is an unstable equilibrium
+        (:func:`~dftl_warp.solvers.elastic_stability.unstable_strands`, its ``options`` and returns)."""
+        from .elastic_stability import unstable_strands
+
+        return unstable_strands(self._groups, **options)
+
     def adopt_rest_shape(self, state, strands=None) -> np.ndarray:
         """Make the positions of ``state`` the rest shape (with its inverse statics, clamp and rest
         tensions) of ``strands``: input strand indices, or by default every strand whose positions
@@ -289,17 +310,13 @@ class ElasticSolver(Solver):
         after the solve, answers by pushing it out again: a chatter of millimetres with a period of
         two substeps that never settles (docs/elastic.md, "Hair authored inside a collider")."""
         m, lay = self.model, self.model.layout
-        x = m.points_from_device(state.positions, relative=False)                  # device coordinates
-        owner = np.repeat(np.arange(m.num_strands), m.counts)
-        if strands is None:
-            moved = np.abs(x - self._rest_points).max(axis=1) > 1.0e-2 * self.radius
-            strands = np.unique(owner[moved])
+        strands = self._strands_away(state, self._rest_points) if strands is None else strands
         strands = np.asarray(strands, dtype=np.int64).reshape(-1)
         if strands.size == 0:
             return strands
-        take = np.isin(owner, strands)
+        take = np.isin(np.repeat(np.arange(m.num_strands), m.counts), strands)
         points = self._rest_points.copy()
-        points[take] = x[take]
+        points[take] = m.points_from_device(state.positions, relative=False)[take]   # device coordinates
         self._build_rest(points)
         self._rest_points = points
         if self._clamp_relative:
