@@ -12,7 +12,8 @@ Each row runs the same groom with one feature; the last rows run the production 
 (the deforming body through its field, hair-hair, wind with curl noise and drag) with DFTL strands
 and with elastic strands (``ELASTIC``: 100 um hair, float32 arithmetic), beside the elastic strands
 with gravity only. The ratio is to the bare step timed in the same run. On CUDA the bare rows use the per-substep kernel (``fused=False``), the
-path features take; the fused-substep figure is given for reference.
+path features take; the fused-substep figure is given for reference. ``--only NAME ...`` runs the
+rows whose names start with one of these (and the bare row), without the collision measures.
 
     python scripts/bench_features.py --device cpu --out docs/bench/features-cpu
     python scripts/bench_features.py --device cuda:0 --out $OUT
@@ -308,8 +309,9 @@ def machine_line(device):
     return f"{cpu}, {os.cpu_count()} cores, Warp {wp.__version__} (CPU backend)"
 
 
-def run(device="cpu", out_dir=None, strands=None, repeats=None):
-    """Time every scenario on ``device``; return the markdown rows (header first)."""
+def run(device="cpu", out_dir=None, strands=None, repeats=None, only=None):
+    """Time every scenario on ``device`` (``only``: those whose names start with one of these
+    strings, and the bare row); return the markdown rows (header first)."""
     wp.config.quiet = True
     wp.config.log_level = wp.LOG_WARNING
     wp.init()
@@ -321,7 +323,11 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
     dt = 1.0 / FPS / SUBSTEPS
     runs = []
     updates = {}
-    for name, feats, extra in scenarios(pts, counts, roots):
+    rows = scenarios(pts, counts, roots)
+    if only:
+        rows = rows[:1] + [r for r in rows[1:] if r[0].startswith(tuple(only))]
+    for name, feats, extra in rows:
+        started = time.perf_counter()
         with wp.ScopedDevice(device):
             model = dw.Model.from_strands(pts, counts, device=device, widths=1e-4, features=feats)
             if extra.get("solver", "dftl") == "dftl":
@@ -348,6 +354,7 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
 
             for _ in range(SETTLE_FRAMES):  # warm-up (compile, capture), and let the groom settle
                 one_frame()
+            print(f"{name}: set up, compiled and settled in {time.perf_counter() - started:.1f} s", flush=True)
             if frames is not None:
                 del updates[name][:]
             runs.append((name, model, solver, state, control, one_frame, []))
@@ -382,16 +389,19 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None):
         results.append(dict(scenario="bare, fused substeps (reference)", flags=[], seconds_per_step=seconds,
                             particle_steps_per_s=particles / seconds, vs_bare=seconds / bare, max_stretch=0.0))
 
-    guarantees = collision_guarantees(device)
-    guarantees.update(body_penetration(device))
+    guarantees = {}
+    if not only:  # the collision measures come with the whole table
+        guarantees = collision_guarantees(device)
+        guarantees.update(body_penetration(device))
     rows = ["| scenario | kernel flags | time per step | particle-steps/s | vs bare |",
             "|---|---|---:|---:|---:|"]
     for r in results:
         flags = ", ".join(r["flags"]) or "(none: bare kernel)"
         rows.append(f"| {r['scenario']} | {flags} | {r['seconds_per_step'] * 1e3:.3f} ms | "
                     f"{r['particle_steps_per_s']:.3g} | {r['vs_bare']:.2f}x |")
-    rows += ["", "| collision measure (worst over every substep) | value |", "|---|---:|"]
-    rows += [f"| {k} | {v:.3g} |" for k, v in guarantees.items()]
+    if guarantees:
+        rows += ["", "| collision measure (worst over every substep) | value |", "|---|---:|"]
+        rows += [f"| {k} | {v:.3g} |" for k, v in guarantees.items()]
     deforming = [r for r in results if "mesh_update_per_frame_s" in r]
     if deforming:
         rows += ["", "| deforming body: per-frame mesh update (set_mesh_points: refit, field) | time per frame | "
@@ -422,8 +432,9 @@ def main(argv=None):
     ap.add_argument("--out", default=None, help="folder for features-<device>.md and .json")
     ap.add_argument("--strands", type=int, default=None, help="groom size (default 1k on CPU, 100k on CUDA)")
     ap.add_argument("--repeats", type=int, default=None)
+    ap.add_argument("--only", nargs="*", default=None, help="run only the rows whose names start with one of these")
     args = ap.parse_args(argv)
-    print("\n".join(run(args.device, args.out, args.strands, args.repeats)))
+    print("\n".join(run(args.device, args.out, args.strands, args.repeats, args.only)))
 
 
 if __name__ == "__main__":
