@@ -119,3 +119,30 @@ def test_float32_arithmetic_is_a_flag_and_a_styled_curl_still_holds(tmp_path):
     length = np.linalg.norm(np.diff(h, axis=0), axis=1).sum()
     assert np.abs(x - h).max() < 1e-5 * length
     assert provenance.read(out)["groups"]["group0"]["arithmetic"] == "float32"
+
+
+def test_info_counts_the_memory_of_each_prims_solver(tmp_path):
+    """``info``'s device memory is what the prims' solvers allocate: an elastic prim (widths) holds its
+    rest data, frames, tensions and factorization scratch, several times a DFTL chain's; measured
+    against the arrays of the solver built on the whole prim."""
+    from dftl_warp.commands.info import ELASTIC_SAMPLE_STRANDS, array_bytes, device_bytes
+    from dftl_warp.core.model import Model
+    from dftl_warp.solvers import make_solver
+
+    stage = new_stage(tmp_path / "in.usda")
+    strands = ELASTIC_SAMPLE_STRANDS + 44  # more than the sample: the estimate is scaled
+    h = _helix()
+    pts = np.concatenate([h + [0.03 * i, 0.0, 0.0] for i in range(strands)])
+    add_curves(stage, "/World/Hair", pts, [len(h)] * strands, widths=WIDTH, bending=None)
+    add_curves(stage, "/World/Chain", h + [0.0, 0.0, 0.05], [len(h)])  # no widths: DFTL
+    stage.Save()
+    scene = read_scene(str(tmp_path / "in.usda"))
+    hair, chain = scene.curves
+    whole = Model.from_strands(hair.points, hair.counts, device="cpu", precision="float32")
+    solver = make_solver(whole, "elastic")
+    elastic = array_bytes(whole, solver.state(), whole.control(), solver)
+    plain = Model.from_strands(chain.points, chain.counts, device="cpu", precision="float32")
+    dftl = make_solver(plain, "dftl")
+    dftl_bytes = array_bytes(plain, dftl.state(), plain.control(), dftl)
+    assert device_bytes(scene, "float32") == pytest.approx(elastic + dftl_bytes, rel=1e-3)
+    assert elastic / hair.num_points > 5 * dftl_bytes / chain.num_points

@@ -17,27 +17,69 @@ def add_parser(sub):
     p.set_defaults(run=run)
 
 
-def device_bytes(scene, precision: str, correction: str = "prior") -> int:
-    """Device memory (bytes) a simulation of ``scene``'s strands allocates: model, state and
-    control arrays, measured by building them on the CPU device (the layout does not change the
-    total)."""
-    import numpy as np
+#: the elastic prims' memory is measured on at most this many of their strands and scaled by particles
+ELASTIC_SAMPLE_STRANDS = 256
+
+
+def array_bytes(*objects) -> int:
+    """Bytes of the Warp arrays held by ``objects`` (and by the dftl_warp objects, lists and dicts
+    they hold, three levels down), each array once."""
     import warp as wp
 
+    seen, total = set(), 0
+
+    def visit(value, depth):
+        nonlocal total
+        if isinstance(value, wp.array):
+            if id(value) not in seen:
+                seen.add(id(value))
+                total += value.capacity
+        elif isinstance(value, (list, tuple)):
+            for v in value:
+                visit(v, depth)
+        elif isinstance(value, dict):
+            for v in value.values():
+                visit(v, depth)
+        elif depth > 0 and hasattr(value, "__dict__") and type(value).__module__.startswith("dftl_warp"):
+            for v in vars(value).values():
+                visit(v, depth - 1)
+
+    for obj in objects:
+        visit(obj, 3)
+    return total
+
+
+def device_bytes(scene, precision: str, correction: str = "prior") -> int:
+    """Device memory (bytes) a simulation of ``scene``'s strands allocates: model, state, control
+    and solver arrays, measured by building them on the CPU device with each prim's solver (the
+    layout does not change the total). The elastic solver's (rest data, frames, tensions and its
+    factorization's scratch, in its default float64 arithmetic: about 9x DFTL's per particle) is
+    measured on up to :data:`ELASTIC_SAMPLE_STRANDS` strands of each prim and scaled by its particles."""
+    import numpy as np
+
     from ..core.model import Model
+    from ..simulation.settings import SimulationOptions, group_settings
     from ..solvers import make_solver
 
-    points = np.concatenate([c.points for c in scene.curves])
-    counts = np.concatenate([c.counts for c in scene.curves])
-    model = Model.from_strands(points, counts, device="cpu", precision=precision)
-    state = make_solver(model, "dftl", correction=correction).state()
-    control = model.control()
-    total = 0
-    for obj in (model, state, control):
-        for value in vars(obj).values():
-            if isinstance(value, wp.array):
-                total += value.capacity
-    return int(total)
+    defaults = SimulationOptions()
+    plain, total = [], 0
+    for i, c in enumerate(scene.curves):
+        if group_settings(scene, defaults, i).solver != "elastic":
+            plain.append(c)
+            continue
+        k = min(int(c.num_strands), ELASTIC_SAMPLE_STRANDS)
+        n = int(c.counts[:k].sum())
+        model = Model.from_strands(c.points[:n], c.counts[:k], device="cpu", precision=precision)
+        solver = make_solver(model, "elastic")
+        sample = array_bytes(model, solver.state(), model.control(), solver)
+        total += sample * c.num_points / max(n, 1)
+    if plain:
+        points = np.concatenate([c.points for c in plain])
+        counts = np.concatenate([c.counts for c in plain])
+        model = Model.from_strands(points, counts, device="cpu", precision=precision)
+        solver = make_solver(model, "dftl", correction=correction)
+        total += array_bytes(model, solver.state(), model.control(), solver)
+    return int(round(total))
 
 
 def feature_summary(scene, precision: str = "float32") -> dict:
@@ -192,14 +234,17 @@ def run(args) -> int:
         bound = f"; {d['roots_bound_to_a_mesh']} roots bound to a mesh" if d["roots_bound_to_a_mesh"] else ""
         print(f"  features    {', '.join(d['features'])} ({_bytes(extra)} per strand and {_bytes(fixed)} "
               f"fixed in float32{bound})")
-    elif d["roots_bound_to_a_mesh"]:
-        print(f"  features    roots bound to a mesh ({d['roots_bound_to_a_mesh']}); the step is the bare DFTL step")
     else:
-        print("  features    none: the bare DFTL step")
+        # the bare step is DFTL's only where every prim runs DFTL
+        bare = "; the step is the bare DFTL step" if {c["solver"] for c in d["curves"]} <= {"dftl"} else ""
+        if d["roots_bound_to_a_mesh"]:
+            print(f"  features    roots bound to a mesh ({d['roots_bound_to_a_mesh']}){bare}")
+        else:
+            print(f"  features    none{bare}")
     per = d["device_bytes_per_strand"]
     print(f"  memory      {_bytes(per['float32'])} per strand in float32, {_bytes(per['float64'])} in float64 "
           f"(total {_bytes(d['device_bytes']['float32'])} / {_bytes(d['device_bytes']['float64'])}, "
-          f"features included)")
+          f"features included, with each prim's solver)")
     print(f"  curves      {len(d['curves'])} prim(s)")
     for c in d["curves"]:
         kind = c["type"] + (f" {c['basis']}" if c["basis"] else "") + f", {c['wrap']}"
