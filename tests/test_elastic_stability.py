@@ -1,10 +1,16 @@
-"""Rest shapes that are unstable equilibria: hair standing beyond its buckling length.
+"""Rest shapes that are unstable equilibria: hair standing beyond its buckling length, or held out
+horizontally beyond the length its twist can hold.
 
 A vertical column of hair clamped at its root buckles under its own weight at
 ``L = (7.837 EI / (rho A g))^(1/3) = 1.9863 l_b`` (Greenhill 1881). Inverse statics makes a taller
 standing strand an equilibrium, but an unstable one: the solver lets it fall at the first
 disturbance. The stability test (``dftl_warp/solvers/elastic_stability.py``) finds Greenhill's
 length, the solver holds a column below it and drops one above it, and ``simulate`` says so.
+
+A horizontal strand is held straight by a rest curvature against its weight; twisted about its
+axis, that curvature turns away from holding it, and beyond a length (2.97 l_b for 80 um hair) the
+twist stiffness cannot hold it: it twists over. No segment is compressed; only the frames (the
+twist couplings) show it. The test flags it with the frames, the solver drops it.
 """
 
 import numpy as np
@@ -82,8 +88,67 @@ def test_simulate_says_which_strands_can_fall(tmp_path, capsys):
     assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "out.usdc")]) == 0
     err = capsys.readouterr().err
     # both columns are 2.5 l_b: (2.5 / 1.9863)^3 = 1.994 holds them
-    assert ("/World/Mohawk: 2 of the 2 strands with compressed segments rest in an unstable equilibrium" in err
+    assert ("/World/Mohawk: 2 of the 3 strands rest in an unstable equilibrium" in err
             and "primvars:dftl:bendStiffnessScale of 1.99 holds half of them, 1.99 all" in err), err
+
+
+def test_the_frames_blocks_are_the_energys_second_derivatives():
+    """The frames' blocks of the stiffness (elastic_stability.frame_blocks) against central finite
+    differences of RodGroup.energy, in the positions and a rotation exp([w_j]) of each frame, on a
+    curved strand whose inverse statics carries bending moments and twist."""
+    from dftl_warp.solvers.elastic_rest import expm_so3
+    from dftl_warp.solvers.elastic_stability import frame_blocks
+
+    n = 6
+    t = np.linspace(0.0, 1.5, n + 1)
+    rest = np.stack([0.02 * np.sin(3 * t), 0.01 * t + 0.02 * np.cos(2 * t), 0.015 * t], -1)
+    grp = rod_group(rest)
+    assert np.abs(grp.b).max() > 0 and np.abs(grp.Qb - np.eye(3)).max() > 1e-6
+    cross, frames = frame_blocks(grp, np.arange(1))
+    m = 3 * n
+
+    def energy(z):
+        x = rest.copy()
+        x[1:] = z[:m].reshape(n, 3)
+        return grp.energy(x[None], np.zeros((1, n + 1, 3)), expm_so3(z[m:].reshape(1, n, 3)), grp.ghost,
+                          np.zeros(3))[0]
+
+    z0 = np.concatenate([rest[1:].ravel(), np.zeros(m)])
+    h = 1e-4
+    H = np.zeros((2 * m, 2 * m))
+    for i in range(2 * m):
+        for k in range(i, 2 * m):
+            e = [energy(z0 + a * h * np.eye(2 * m)[i] + b * h * np.eye(2 * m)[k]) for a, b in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+            H[i, k] = H[k, i] = (e[0] - e[1] - e[2] + e[3]) / (4 * h * h)
+    assert np.abs(cross[0] - H[:m, m:]).max() < 1e-6 * np.abs(H[:m, m:]).max()
+    assert np.abs(frames[0] - H[m:, m:]).max() < 1e-6 * np.abs(H[m:, m:]).max()
+
+
+def test_a_horizontal_strand_twists_over_beyond_what_its_twist_holds():
+    """Horizontal strands of 2.5 and 3.5 l_b, pushed sideways at 0.1 mm/s at the tip: after 4 s the
+    first is still within 1e-4 of its length, the second has turned over beyond 1% (and keeps going);
+    only the second is flagged. No segment is compressed: the bending-only test called both stable."""
+    from dftl_warp.solvers.elastic_stability import _constrained
+
+    moved = {}
+    for ratio in (2.5, 3.5):
+        s = np.linspace(0.0, ratio * LB, N + 1)
+        pts = np.stack([s, np.zeros_like(s), np.zeros_like(s)], -1)
+        grp = rod_group(pts)
+        Hb, Hg, _, _ = _constrained(grp, np.arange(1))
+        assert np.linalg.eigvalsh(Hb + Hg)[0, 0] > 0 and (grp.T_rest[:, 1:] >= -1e-12).all()
+        model = dw.Model.from_strands(pts, [N + 1], precision="float64")
+        solver = dw.make_solver(model, "elastic", radius=R)
+        state, control = solver.state(), model.control()
+        push = np.zeros((N + 1, 3))
+        push[:, 2] = 1e-4 * s / s[-1]
+        state.velocities.assign(model.points_to_device(push, relative=False))
+        flagged, _, tested, total = solver.unstable_strands()
+        assert tested == total == 1 and flagged.tolist() == ([0] if ratio > 3 else [])
+        for _ in range(96):
+            solver.advance(state, control, 1.0 / (24 * 8), 8)
+        moved[ratio] = np.linalg.norm(model.points_from_device(state.positions)[-1] - pts[-1]) / (ratio * LB)
+    assert moved[2.5] < 1e-4 and moved[3.5] > 1e-2, moved
 
 
 def test_a_costly_groom_is_tested_on_a_sample_within_the_budget():

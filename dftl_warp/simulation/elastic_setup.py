@@ -156,9 +156,10 @@ def note_unstable(scene, group) -> None:
     owner = np.repeat(np.arange(len(group.curves)), [c.num_strands for c in group.curves])
     prims = [group.curves[i].path for i in np.unique(owner[flagged])]
     where = ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
-    of = (f"of the {tested} strands with compressed segments" if tested == total else
-          f"of a random sample of {tested} of the {total} strands with compressed segments")
+    of = (f"of the {tested} strands" if tested == total else
+          f"of a random sample of {tested} of the {total} strands")
+    sampled = "" if scales.size == flagged.size else f" (from a random sample of {scales.size} of them)"
     _note(scene, f"{where}: {flagged.size} {of} rest in an unstable equilibrium for hair this stiff "
-                 "(they stand beyond their buckling length, docs/elastic.md) and can fall; "
-                 f"primvars:dftl:bendStiffnessScale of {np.median(scales):.3g} holds half of them, "
-                 f"{scales.max():.3g} all")
+                 "(standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
+                 f"fall at the first disturbance; primvars:dftl:bendStiffnessScale of {np.median(scales):.3g} "
+                 f"holds half of them, {scales.max():.3g} all{sampled}")

@@ -106,6 +106,10 @@ class RodGroup:
         self.S, self.N = S, N
         g = np.asarray(gravity, float)
         r = np.broadcast_to(np.asarray(radius, float), (S, n1))
+        #: the rest shape (S, N+1, 3), hair radii (S, N+1) and what else built the group (:meth:`scaled`)
+        self.rest, self.radius = rest, r
+        self._material = dict(E=E, G=G, rho=rho, gravity=gravity, inverse_statics=inverse_statics)
+        self._bend_scale = None if bend_scale is None else np.broadcast_to(np.asarray(bend_scale, float), (S, n1))
         seg = rest[:, 1:] - rest[:, :-1]
         lseg = np.linalg.norm(seg, axis=-1)
         l = np.zeros((S, n1 + 1))
@@ -150,6 +154,14 @@ class RodGroup:
         self.Qb = expm_so3(ax * th[..., None])                   # (S, N, 3, 3)
         self.curved = np.any(np.abs(self.b) > 0, axis=(1, 2))     # per strand
         self.k0, self.k1, self.k2 = self.bands()
+
+    def scaled(self, rows, factors) -> "RodGroup":
+        """The group of strands ``rows`` with their bending stiffness multiplied by ``factors`` (one
+        per row): what ``primvars:dftl:bendStiffnessScale`` times ``factors`` would build."""
+        rows = np.asarray(rows)
+        base = np.ones((rows.size, self.N + 1)) if self._bend_scale is None else self._bend_scale[rows]
+        return RodGroup(self.rest[rows], self.radius[rows], bend_scale=base * np.asarray(factors, float)[:, None],
+                        **self._material)
 
     def apply_D(self, x, xg):
         N = self.N

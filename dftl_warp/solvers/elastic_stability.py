@@ -7,13 +7,26 @@ g))^(1/3)``) is a broomstick balanced on end, and the smallest disturbance (roun
 fall. A game groom's gelled mohawk is such a shape for hair of human stiffness.
 
 The test: the smallest eigenvalue of the stiffness at the rest shape, on the motions the solver
-allows (the root and its clamp fixed, every segment's length kept): the bending matrix
-``K = D^T W D`` (the solver's bands ``k0, k1, k2``) plus the geometric stiffness of the
-inverse-statics tensions, ``T_k / l_k (I - e_k e_k^T)`` on each segment (negative under
-compression). A negative eigenvalue is a direction in which the strand falls. The frames' twist
-couplings are left out, so on curved strands the test may call a shape stable that is not; on
-straight ones it is the discrete Greenhill problem (``tests/test_elastic_stability.py``: 1.986 l_b
-within 1% at 32 segments).
+allows (the root and its clamp fixed, every segment's length kept), with the frames at the minimum
+of the energy for each shape (the solver sets them so every step; they carry no inertia). In the
+positions ``x`` and a small rotation ``w_j`` of each frame (``F_j = exp([w_j])``, identity at rest):
+
+- the bending matrix ``K = D^T W D`` (the solver's bands ``k0, k1, k2``) plus the geometric
+  stiffness of the inverse-statics tensions, ``T_k / l_k (I - e_k e_k^T)`` on each segment
+  (negative under compression);
+- the frames' coupling to the positions, ``W_j D_j^T [b_j]x``, and their own stiffness: from the
+  bending, ``W_j (|b_j|^2 I - b_j b_j^T) - (r_j b_j^T + b_j r_j^T) / 2 + (r_j . b_j) I`` with ``r_j =
+  (D x)_j - b_j`` the rest bending moment over ``W_j``; from each twist coupling ``G_j (3 - tr(F_j^T
+  F_{j-1} Q_j))``, ``G_j (tr Q_j I - sym Q_j)`` on each of the two frames and ``G_j (Q_j - tr Q_j I)``
+  between them (:class:`~dftl_warp.solvers.elastic_rest.RodGroup`'s energy; ``tests/test_elastic_stability.py``
+  checks these blocks against its finite differences);
+- the frames eliminated (the Schur complement), a negative eigenvalue is a direction in which the
+  strand falls.
+
+On a straight strand the frames decouple (``b = 0``, ``Q = I``) and this is the discrete Greenhill
+problem (1.986 l_b within 1% at 32 segments). On curved ones the frames matter: on AMD's Ratboy
+mohawk every strand that fell within 10 s at a static head was flagged, 15 of the 37 only through
+the frames (docs/elastic.md, "Styles that cannot stand").
 """
 
 from __future__ import annotations
@@ -21,9 +34,17 @@ from __future__ import annotations
 import numpy as np
 
 
+def _skew(a):
+    z = np.zeros(a.shape[:-1] + (3, 3))
+    z[..., 0, 1], z[..., 0, 2], z[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
+    z[..., 1, 0], z[..., 2, 0], z[..., 2, 1] = a[..., 2], -a[..., 1], a[..., 0]
+    return z
+
+
 def _constrained(grp, rows):
     """The bending and geometric stiffness of the strands ``rows`` of ``grp`` at the rest shape,
-    on the motions the constraints allow: (S, 2N, 2N) each, and the bending bands' scale."""
+    on the motions the constraints allow: (S, 2N, 2N) each; the basis of those motions (S, 3N, 2N);
+    and the bending bands' scale."""
     S, N = rows.size, grp.N
     k0, k1, k2 = grp.k0[rows], grp.k1[rows], grp.k2[rows]
     T, lengths = grp.T_rest[rows], grp.l[rows]
@@ -54,63 +75,141 @@ def _constrained(grp, rows):
         H = basis.transpose(0, 2, 1) @ K.transpose(0, 1, 3, 2, 4).reshape(S, 3 * N, 3 * N) @ basis
         return 0.5 * (H + H.transpose(0, 2, 1))
 
-    return project(Kb), project(Kg), np.abs(k0[:, 1:]).max(axis=1)
+    return project(Kb), project(Kg), basis, np.abs(k0[:, 1:]).max(axis=1)
+
+
+def frame_blocks(grp, rows):
+    """The Hessian blocks of the frames at the rest shape (see the module): positions-frames (S,
+    3N, 3N; rows the free particles 1..N, columns the frames 0..N-1) and frames-frames (S, 3N, 3N)."""
+    S, N = rows.size, grp.N
+    W, b, G, Q = grp.W[rows], grp.b[rows], grp.G[rows], grp.Qb[rows]
+    al, ga = grp.alpha[rows], grp.gamma[rows]
+    r = grp.apply_D(grp.rest, grp.ghost)[rows] - b               # the rest bending moments over W
+    # D on the free particles: (D x)_j = alpha_j x_{j-1} - (alpha_j + gamma_j) x_j + gamma_j x_{j+1}
+    D = np.zeros((S, N, N))
+    for j in range(N):
+        D[:, j, j] = ga[:, j]
+        if j >= 1:
+            D[:, j, j - 1] = -(al[:, j] + ga[:, j])
+        if j >= 2:
+            D[:, j, j - 2] = al[:, j]
+    eye = np.eye(3)
+    n = 3 * N
+    cross = np.einsum('sj,sjp,sjab->spajb', W, D, _skew(b)).reshape(S, n, n)
+    outer = np.einsum('sja,sjb->sjab', r, b)
+    own = W[..., None, None] * (np.sum(b * b, -1)[..., None, None] * eye - np.einsum('sja,sjb->sjab', b, b)
+                                - 0.5 * (outer + outer.transpose(0, 1, 3, 2))
+                                + np.sum(r * b, -1)[..., None, None] * eye)
+    trace = np.trace(Q, axis1=-2, axis2=-1)[..., None, None]
+    twist = G[..., None, None] * (trace * eye - 0.5 * (Q + Q.transpose(0, 1, 3, 2)))
+    between = G[..., None, None] * (Q - trace * eye)             # coupling j: (w_j, w_{j-1})
+    frames = np.zeros((S, n, n))
+    for j in range(N):
+        here = slice(3 * j, 3 * j + 3)
+        frames[:, here, here] += own[:, j] + twist[:, j]
+        if j >= 1:
+            before = slice(3 * j - 3, 3 * j)
+            frames[:, before, before] += twist[:, j]
+            frames[:, here, before] += between[:, j]
+            frames[:, before, here] += between[:, j].transpose(0, 2, 1)
+    return cross, frames
 
 
 def stiffness_margins(grp, rows=None) -> np.ndarray:
     """Per strand of a :class:`~dftl_warp.solvers.elastic_rest.RodGroup` (its ``rows``, or all): the
-    smallest eigenvalue of the constrained stiffness at the rest shape over the largest diagonal
-    entry of the bending matrix (unitless). Below zero (beyond round-off): the rest shape is an
-    unstable equilibrium."""
+    smallest eigenvalue of the constrained stiffness at the rest shape, the frames eliminated, over
+    the largest diagonal entry of the bending matrix (unitless). Below zero (beyond round-off): the
+    rest shape is an unstable equilibrium (also where the frames alone are: ``-inf``)."""
     rows = np.arange(grp.S) if rows is None else np.asarray(rows)
     if grp.N < 2:
         return np.ones(rows.size)
-    Hb, Hg, scale = _constrained(grp, rows)
-    return np.linalg.eigvalsh(Hb + Hg)[:, 0] / scale
+    Hb, Hg, basis, scale = _constrained(grp, rows)
+    cross, frames = frame_blocks(grp, rows)
+    held = np.linalg.eigvalsh(frames)[:, 0] > 0.0
+    coupled = basis.transpose(0, 2, 1) @ cross                    # (S, 2N, 3N)
+    H = Hb + Hg
+    H[held] -= coupled[held] @ np.linalg.solve(frames[held], coupled[held].transpose(0, 2, 1))
+    H = 0.5 * (H + H.transpose(0, 2, 1))
+    return np.where(held, np.linalg.eigvalsh(H)[:, 0] / scale, -np.inf)
 
 
-def holding_scales(grp, rows=None) -> np.ndarray:
+def holding_scales(grp, rows=None, *, tolerance: float = 0.002, smallest: float = 1.0e-3,
+                   largest: float = 1.0e6) -> np.ndarray:
     """Per strand: the smallest factor on its bending stiffness (``bendStiffnessScale``) that makes
-    its rest shape a stable equilibrium, the largest ``s`` with ``det(s Hb + Hg) = 0`` on the
-    constrained motions (the bending part is positive definite: the root is clamped); 0 where
-    tension alone holds the shape."""
+    its rest shape a stable equilibrium, within ``tolerance`` (relative); 0 where the strand holds at
+    ``smallest`` (tension holds it); ``largest`` where nothing up to it does. Each trial rebuilds
+    the strands (:meth:`~dftl_warp.solvers.elastic_rest.RodGroup.scaled`: inverse statics and the
+    twist couplings change with the stiffness); the search starts from the bending-only answer, the
+    largest ``s`` with ``det(s Hb + Hg) = 0`` on the constrained motions, which is exact on straight
+    strands (their frames decouple)."""
     rows = np.arange(grp.S) if rows is None else np.asarray(rows)
-    if grp.N < 2:
+    if grp.N < 2 or rows.size == 0:
         return np.zeros(rows.size)
-    Hb, Hg, _ = _constrained(grp, rows)
-    L = np.linalg.cholesky(Hb)
-    Li = np.linalg.inv(L)
-    mu = np.linalg.eigvalsh(Li @ (-Hg) @ Li.transpose(0, 2, 1))[:, -1]
-    return np.maximum(mu, 0.0)
+    Hb, Hg, _, _ = _constrained(grp, rows)
+    Li = np.linalg.inv(np.linalg.cholesky(Hb))
+    bending = np.maximum(np.linalg.eigvalsh(Li @ (-Hg) @ Li.transpose(0, 2, 1))[:, -1], 0.0)
+
+    def holds(idx, factors):
+        return stiffness_margins(grp.scaled(rows[idx], factors)) >= -1.0e-12
+
+    step = 1.0 + tolerance
+    hi = np.maximum(bending * (1.0 + 1e-6), smallest)          # a factor that holds, once found
+    lo = np.maximum(bending / step, smallest) / step           # one that does not (0: none)
+    todo = np.arange(rows.size)
+    while todo.size:                                           # raise hi until it holds
+        good = holds(todo, hi[todo])
+        grow = todo[~good & (hi[todo] < largest)]
+        lo[grow] = hi[grow]
+        hi[grow] = np.minimum(hi[grow] * 4.0, largest)
+        todo = grow
+    todo = np.flatnonzero(lo < hi)
+    while todo.size:                                           # lower lo until it does not
+        good = holds(todo, lo[todo])
+        hi[todo[good]] = lo[todo[good]]
+        lo[todo[good]] = lo[todo[good]] / 4.0
+        lo[todo[good & (lo[todo] < smallest)]] = 0.0
+        todo = todo[good & (lo[todo] > 0.0)]
+    todo = np.flatnonzero((lo > 0.0) & (hi > lo * step))
+    while todo.size:                                           # bisect (geometric)
+        mid = np.sqrt(lo[todo] * hi[todo])
+        good = holds(todo, mid)
+        hi[todo[good]] = mid[good]
+        lo[todo[~good]] = mid[~good]
+        todo = todo[hi[todo] > lo[todo] * step]
+    return np.where(lo > 0.0, hi, 0.0)
 
 
-def unstable_strands(groups, *, budget: int = 5000, seed: int = 0):
+def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed: int = 0):
     """Strands whose rest shape is an unstable equilibrium, from the solver's rest groups ((count,
-    input strand indices, RodGroup) triples). Only strands with a compressed segment can be
-    unstable (bending and tension are stiffnesses that only hold), so only they are tested: all of
-    them when that costs no more than ``budget`` strands of 32 segments (the test's cost grows as
-    the cube of the segments: about 0.5 ms for 32 on one core), else a random sample within that
-    budget. Returns (unstable input strand indices among those tested, their
-    :func:`holding_scales`, strands tested, strands with a compressed segment)."""
-    candidates = [(k, row) for k, (_, _, grp) in enumerate(groups) if grp.N >= 2
-                  for row in np.flatnonzero((grp.T_rest[:, 1:] < 0).any(axis=1))]
+    input strand indices, RodGroup) triples): every strand of two or more segments (through its
+    frames a strand can fall without a compressed segment) when that costs no more than ``budget``
+    strands of 32 segments (the test's cost grows as the cube of the segments: about 1.5 ms for 32
+    on the 2-core VM), else a random sample within that budget. Returns (unstable input
+    strand indices among those tested, the :func:`holding_scales` of up to ``scale_sample`` of them
+    drawn at random (each a search over rebuilt strands: about 20 ms a strand), strands tested,
+    strands that could be)."""
+    candidates = [(k, row) for k, (_, _, grp) in enumerate(groups) if grp.N >= 2 for row in range(grp.S)]
     total = len(candidates)
-    order = np.random.default_rng(seed).permutation(total) if total else np.zeros(0, np.int64)
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(total) if total else np.zeros(0, np.int64)
     cost = np.array([groups[candidates[i][0]][2].N for i in order], float) ** 3 / 32.0 ** 3
     take = order[np.cumsum(cost) <= budget] if cost.sum() > budget else order
     picked = {}
     for i in take:
         k, row = candidates[i]
         picked.setdefault(k, []).append(row)
-    flagged, scales = [np.zeros(0, np.int64)], [np.zeros(0)]
+    found = []                                                    # (group, rows) of the unstable strands
     for k, rows in sorted(picked.items()):
-        _, strands, grp = groups[k]
+        grp = groups[k][2]
         rows = np.sort(np.asarray(rows))
-        chunk = max(1, int(1.0e6 // grp.N ** 2))                 # about 72 MB per stiffness array
+        chunk = max(1, int(2.5e5 // grp.N ** 2))                 # about 70 MB of stiffness arrays at a time
         for part in np.array_split(rows, -(-rows.size // chunk)):
-            bad = part[stiffness_margins(grp, part) < -1.0e-12]
-            flagged.append(strands[bad])
-            scales.append(holding_scales(grp, bad) if bad.size else np.zeros(0))
-    flagged, scales = np.concatenate(flagged), np.concatenate(scales)
-    order = np.argsort(flagged)
-    return flagged[order], scales[order], len(take), total
+            found.append((k, part[stiffness_margins(grp, part) < -1.0e-12]))
+    flagged = np.concatenate([groups[k][1][rows] for k, rows in found] + [np.zeros(0, np.int64)])
+    where = [(k, r) for k, rows in found for r in rows]
+    sample = np.sort(rng.choice(len(where), min(scale_sample, len(where)), replace=False)) if where else []
+    scales = [np.zeros(0)]
+    for k in sorted({where[i][0] for i in sample}):
+        rows = np.array([where[i][1] for i in sample if where[i][0] == k])
+        scales.append(holding_scales(groups[k][2], rows))
+    return np.sort(flagged), np.concatenate(scales), len(take), total
