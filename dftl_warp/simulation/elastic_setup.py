@@ -158,8 +158,8 @@ def note_unstable(scene, group) -> None:
     where = ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
     of = (f"of the {tested} strands" if tested == total else
           f"of a random sample of {tested} of the {total} strands")
-    sampled = "" if scales.size == flagged.size else f" (from a random sample of {scales.size} of them)"
+    them = "of them" if scales.size == flagged.size else f"of a random sample of {scales.size} of them"
     _note(scene, f"{where}: {flagged.size} {of} rest in an unstable equilibrium for hair this stiff "
                  "(standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
                  f"fall at the first disturbance; primvars:dftl:bendStiffnessScale of {np.median(scales):.3g} "
-                 f"holds half of them, {scales.max():.3g} all{sampled}")
+                 f"holds half {them}, {scales.max():.3g} all")
