@@ -113,10 +113,9 @@ class Group:
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)
         self.clamps = None
         if elastic:
-            from .elastic_setup import ClampDriver, note_unstable
+            from .elastic_setup import ClampDriver
 
             self.clamps = ClampDriver(self, frame)
-            note_unstable(scene, self)
         #: device buffers of local_samples per part, made on first use
         self._sample_buffers = None
 

@@ -38,6 +38,7 @@ from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
 from . import root_paths
+from .elastic_setup import note_unstable
 from .group import Group
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
@@ -155,6 +156,9 @@ class Simulation:
         #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
         #: with the device line and kept in Summary.warnings
         self.start_notes: list[str] = self._clean_start()
+        for g in self.groups:   # styles that cannot stand, on the rest shapes the clean start left
+            if g.clamps is not None:
+                note_unstable(scene, g)
         note = root_paths.collider_note(scene)   # deforming collider meshes change once a frame
         if note is not None:
             self.start_notes.append(note)
