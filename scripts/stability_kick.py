@@ -28,6 +28,7 @@ def run(path, kick=0.03, seconds=4.0, threshold=0.05, seed=1, device="cpu"):
     """Per elastic group: strands, flagged, tested, and how many of the flagged and of the others fell."""
     import warp as wp
 
+    from dftl_warp.core.layout import strand_offsets
     from dftl_warp.simulation.settings import SimulationOptions
     from dftl_warp.simulation.simulate import Simulation
     from dftl_warp.usd.read import read_scene
@@ -44,7 +45,7 @@ def run(path, kick=0.03, seconds=4.0, threshold=0.05, seed=1, device="cpu"):
         model, state = g.model, g.state
         flagged, _, tested, total = g.solver.unstable_strands()
         counts = np.asarray(model.counts)
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        starts = strand_offsets(counts)
         x0 = model.points_from_device(state.positions)
         seg = np.r_[0.0, np.linalg.norm(np.diff(x0, axis=0), axis=1)]
         seg[starts] = 0.0

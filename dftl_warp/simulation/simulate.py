@@ -157,7 +157,7 @@ class Simulation:
         #: with the device line and kept in Summary.warnings
         self.start_notes: list[str] = self._clean_start()
         for g in self.groups:   # styles that cannot stand, on the rest shapes the clean start left
-            if g.clamps is not None:
+            if g.settings.solver == "elastic":
                 note_unstable(scene, g)
         note = root_paths.collider_note(scene)   # deforming collider meshes change once a frame
         if note is not None:

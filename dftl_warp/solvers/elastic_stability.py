@@ -33,12 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def _skew(a):
-    z = np.zeros(a.shape[:-1] + (3, 3))
-    z[..., 0, 1], z[..., 0, 2], z[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
-    z[..., 1, 0], z[..., 2, 0], z[..., 2, 1] = a[..., 2], -a[..., 1], a[..., 0]
-    return z
+from .elastic_rest import skew
 
 
 def _constrained(grp, rows):
@@ -95,7 +90,7 @@ def frame_blocks(grp, rows):
             D[:, j, j - 2] = al[:, j]
     eye = np.eye(3)
     n = 3 * N
-    cross = np.einsum('sj,sjp,sjab->spajb', W, D, _skew(b)).reshape(S, n, n)
+    cross = np.einsum('sj,sjp,sjab->spajb', W, D, skew(b)).reshape(S, n, n)
     outer = np.einsum('sja,sjb->sjab', r, b)
     own = W[..., None, None] * (np.sum(b * b, -1)[..., None, None] * eye - np.einsum('sja,sjb->sjab', b, b)
                                 - 0.5 * (outer + outer.transpose(0, 1, 3, 2))
