@@ -6,11 +6,18 @@ docs/bench/<machine>/ (copied there from the GPU run's $OUT). This script stitch
 under a summary that quotes the headline numbers from the JSON results.
 
     python scripts/make_benchmarks_doc.py
+    python scripts/make_benchmarks_doc.py --check   # exit 1 if docs/benchmarks.md is not what they give
+
+Text that belongs to no benchmark's own output (studies of several runs, such as issue 20's
+production scene) lives in a fragment of its own beside them (``docs/bench/h200/production/notes.md``):
+docs/benchmarks.md itself is never edited by hand.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -91,7 +98,8 @@ def headline(res: dict) -> list[str]:
     return lines
 
 
-def main():
+def render() -> str:
+    """The text of docs/benchmarks.md, from the fragments under docs/bench/."""
     h200 = BENCH / "h200"
     cpu = BENCH / "cpu"
     res = json.loads((h200 / "results-cuda0.json").read_text())
@@ -189,6 +197,7 @@ def main():
         "`python scripts/bench_features.py --device cuda:0 --strands 262144 --out $OUT` (2026-11-21):",
         "",
         fragment(h200 / "features-cuda0.md"),
+        fragment(h200 / "production" / "notes.md"),
         "## H200: rendering",
         "",
         "`python scripts/bench_render.py --device cuda:0 --out $OUT` (2026-11-21); the CPU figures are in",
@@ -209,9 +218,24 @@ def main():
     ]
     for extra in sorted(BENCH.glob("*/extra-*.md")):
         parts += [fragment(extra), ""]
-    (DOCS / "benchmarks.md").write_text("\n".join(parts))
-    print(f"wrote {DOCS / 'benchmarks.md'}")
+    return "\n".join(parts)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--check", action="store_true",
+                    help="write nothing; exit 1 if docs/benchmarks.md differs from what the fragments give")
+    args = ap.parse_args(argv)
+    text = render()
+    path = DOCS / "benchmarks.md"
+    if args.check:
+        same = path.read_text() == text
+        print(f"{path}: {'up to date' if same else 'differs from its fragments (edit the fragments, then rerun)'}")
+        return 0 if same else 1
+    path.write_text(text)
+    print(f"wrote {path}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
