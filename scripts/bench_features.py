@@ -167,6 +167,17 @@ def scenarios(pts, counts, roots):
 ELASTIC = dict(solver="elastic", solver_options=dict(compute_precision="float32"))
 
 
+def build_scene(pts, counts, feats, extra, device):
+    """(model, solver, state, control) of one row: the groom with ``feats``, its solver from
+    ``extra`` (DFTL substep by substep unless ``extra["solver"]`` names another)."""
+    model = dw.Model.from_strands(pts, counts, device=device, widths=1e-4, features=feats)
+    if extra.get("solver", "dftl") == "dftl":
+        solver = dw.DFTLSolver(model, gravity=G, fused=False)
+    else:
+        solver = dw.make_solver(model, extra["solver"], gravity=G, **extra.get("solver_options", {}))
+    return model, solver, solver.state(), model.control()
+
+
 def timed(fn, device, repeats):
     """Seconds of each of ``repeats`` calls of ``fn`` (device synchronised)."""
     wp.synchronize_device(device)
@@ -329,12 +340,7 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None, only=None):
     for name, feats, extra in rows:
         started = time.perf_counter()
         with wp.ScopedDevice(device):
-            model = dw.Model.from_strands(pts, counts, device=device, widths=1e-4, features=feats)
-            if extra.get("solver", "dftl") == "dftl":
-                solver = dw.DFTLSolver(model, gravity=G, fused=False)
-            else:
-                solver = dw.make_solver(model, extra["solver"], gravity=G, **extra.get("solver_options", {}))
-            state, control = solver.state(), model.control()
+            model, solver, state, control = build_scene(pts, counts, feats, extra, device)
             binding = model.feature_data is not None and model.feature_data.binding is not None
             frames = extra.get("body_frames")
             if frames is not None:

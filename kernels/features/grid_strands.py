@@ -12,7 +12,8 @@ other move writes all 8. Consecutive particles of a strand are about one segment
 writes a node a few times instead of once per particle: 1.75 node writes per particle instead of 8
 with cells of 4 segments (the default), 4.8 with cells of one segment (docs/features.md). The sums
 are the per-particle splat's up to floating-point rounding (their order differs, as the order of a
-GPU's atomics already does).
+GPU's atomics already does). On CUDA the lanes of a warp that write the same node sum their values
+before one of them writes (``grid_aggregate.py``).
 
 Both splat kernels (this one and ``grid.py``'s) can splat each particle where it will be ``lead``
 seconds later in a straight line, ``x + lead v``: a grid rebuilt every ``k`` substeps of ``dt``
@@ -27,6 +28,7 @@ import warp as wp
 
 from ..core.layout import particle
 from .grid import grid_cell_func
+from .grid_aggregate import node_add_func
 
 
 @functools.cache
@@ -63,14 +65,17 @@ def grid_bounds_strands_kernel(scalar):
 
 
 @functools.cache
-def grid_splat_strands_kernel(scalar, ahead: bool = False):
+def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = True):
     """Kernel (one thread per strand) splatting density (particles per node) and momentum (m/s per
     node) trilinearly, a strand's runs through one cell summed in registers first; ``ahead``: each
-    particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused)."""
+    particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused); ``aggregate``:
+    node writes aggregated over a warp's lanes on CUDA (``grid_aggregate.py``; False: one write per
+    thread, for measurements)."""
     AHEAD = bool(ahead)
     vec3 = wp.types.vector(3, scalar)
     vec8 = wp.types.vector(8, scalar)
     cell = grid_cell_func(scalar)
+    node_add = node_add_func(scalar, aggregate)
     one = scalar(1.0)
     zero = scalar(0.0)
 
@@ -157,8 +162,8 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False):
                             node_i = ci + (c & 1)
                             node_j = cj + ((c >> 1) & 1)
                             node_k = ck + ((c >> 2) & 1)
-                            wp.atomic_add(density, node_i, node_j, node_k, rho[c])
-                            wp.atomic_add(momentum, node_i, node_j, node_k, vec3(mx[c], my[c], mz[c]))
+                            node_add(density, momentum, node_i, node_j, node_k, ny, nz, rho[c],
+                                     vec3(mx[c], my[c], mz[c]))
                     if axis >= 0:
                         rho = shifted(rho, axis, up)
                         mx = shifted(mx, axis, up)
@@ -187,7 +192,6 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False):
                 node_i = ci + (c & 1)
                 node_j = cj + ((c >> 1) & 1)
                 node_k = ck + ((c >> 2) & 1)
-                wp.atomic_add(density, node_i, node_j, node_k, rho[c])
-                wp.atomic_add(momentum, node_i, node_j, node_k, vec3(mx[c], my[c], mz[c]))
+                node_add(density, momentum, node_i, node_j, node_k, ny, nz, rho[c], vec3(mx[c], my[c], mz[c]))
 
     return grid_splat_strands
