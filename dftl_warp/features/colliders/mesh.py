@@ -16,7 +16,7 @@ from ...core.precision import numpy_type
 from ...kernels.features.mesh import MESH
 from ..base import nonnegative
 from .base import ColliderShape
-from .sdf import MeshFields, estimated_bytes, field_band, field_settings
+from .sdf import MeshFields, bounds, estimated_bytes, field_band, field_settings
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,10 +120,10 @@ class MeshColliders:
             band[c] = s.depth_band
             if s.uses_sdf:
                 with_field.append((c, s, mesh))
-        self._ftype = f
         self.ids = wp.array(ids, dtype=wp.uint64, device=device)
-        self.lower = wp.array(lower.astype(f), dtype=model.vec3, device=device)
-        self.upper = wp.array(upper.astype(f), dtype=model.vec3, device=device)
+        self._lower_host, self._upper_host = lower.astype(f), upper.astype(f)
+        self.lower = wp.array(self._lower_host, dtype=model.vec3, device=device)
+        self.upper = wp.array(self._upper_host, dtype=model.vec3, device=device)
         self.depth_band = wp.array(band, dtype=model.scalar, device=device)
         radius = model.feature_data.collider_data.arrays["particle_radius"].numpy()
         self.fields = MeshFields(device, num_colliders, with_field, float(radius.max(initial=0.0)))
@@ -138,12 +138,13 @@ class MeshColliders:
             raise ValueError(f"mesh collider {index}: expected {mesh.points.shape[0]} points, got {pts.shape[0]}")
         mesh.points.assign(pts)
         mesh.refit()
-        lower, upper = self.lower.numpy(), self.upper.numpy()
-        lower[c], upper[c] = pts.min(0).astype(self._ftype), pts.max(0).astype(self._ftype)
-        self.lower.assign(lower)
-        self.upper.assign(upper)
+        lo, hi = bounds(pts)
+        # the host keeps the bounds it wrote (no read back from the device)
+        self._lower_host[c], self._upper_host[c] = lo, hi
+        self.lower.assign(self._lower_host)
+        self.upper.assign(self._upper_host)
         if c in self.fields.fields:
-            self.fields.build(c, pts)
+            self.fields.build(c, lo, hi)
 
     def fill_struct(self, st) -> None:
         st.collider_mesh = self.ids

@@ -47,6 +47,12 @@ MAX_BRICKS = 1 << 26
 BYTES_PER_BRICK = BRICK_NODES * (4 + 6) + BRICK_CELLS + 12
 
 
+def bounds(points) -> tuple[np.ndarray, np.ndarray]:
+    """The lower and upper corners (3,), m, of ``points`` (P, 3)."""
+    points = np.asarray(points).reshape(-1, 3)
+    return points.min(0), points.max(0)
+
+
 def mean_edge_length(points: np.ndarray, indices: np.ndarray) -> float:
     """Mean length (m) of the triangles' edges."""
     tri = points[indices]
@@ -96,10 +102,10 @@ class _Field:
         self.complete = True
         self._warned = set()
 
-    def grid(self, points: np.ndarray):
-        """The :class:`SdfGrid` for the mesh's current ``points``: the grid centred on their bounds,
-        on the lattice of the cell (so that a still mesh keeps its nodes)."""
-        lo, hi = points.min(0), points.max(0)
+    def grid(self, lo: np.ndarray, hi: np.ndarray):
+        """The :class:`SdfGrid` for the mesh's current bounds ``lo``, ``hi`` (3,), m: the grid
+        centred on them, on the lattice of the cell (so that a still mesh keeps its nodes)."""
+        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
         span = self.bricks * BRICK * self.cell
         origin = np.floor((0.5 * (lo + hi) - 0.5 * span) / self.cell) * self.cell
         self.complete = bool(np.all(origin <= lo - self.band) and np.all(origin + span >= hi + self.band))
@@ -157,7 +163,7 @@ class MeshFields:
         pool = 0
         for field, shape, mesh in plans:
             field.capacity = 0
-            needed = self._mark(field, mesh, shape.points, wp.empty(1, dtype=wp.vec3i, device=device))
+            needed = self._mark(field, mesh, *bounds(shape.points), wp.empty(1, dtype=wp.vec3i, device=device))
             field.pool_offset = pool
             field.capacity = int(min(field.num_bricks, max(2 * needed, needed + 64)))
             pool += field.capacity
@@ -170,7 +176,7 @@ class MeshFields:
         for field, shape, mesh in plans:
             self.fields[field.c] = field
             self._meshes[field.c] = mesh
-            self.build(field.c, shape.points)
+            self.build(field.c, *bounds(shape.points))
 
     @property
     def bytes(self) -> int:
@@ -178,20 +184,19 @@ class MeshFields:
         return int(self.brick_map.capacity + self.brick_coords.capacity + self.values.capacity
                    + self.gradients.capacity + self.cells.capacity + self.grids.capacity)
 
-    def _mark(self, field, mesh, points, coords) -> int:
-        grid = field.grid(np.asarray(points, dtype=np.float64))
+    def _mark(self, field, mesh, lo, hi, coords) -> int:
+        grid = field.grid(lo, hi)
         self._grids_host[field.c] = grid
         self._count.zero_()
         wp.launch(mark_bricks_kernel, dim=field.num_bricks, device=self.device,
                   inputs=[mesh.id, grid, field.capacity, self.brick_map, coords, self._count])
         return int(self._count.numpy()[0])
 
-    def build(self, c: int, points) -> None:
-        """Rebuild the field of device collider ``c`` from its mesh (already refitted to ``points``,
-        (P, 3) local, m)."""
+    def build(self, c: int, lo, hi) -> None:
+        """Rebuild the field of device collider ``c`` from its mesh (already refitted to points
+        whose bounds are ``lo``, ``hi`` (3,), local, m)."""
         field, mesh = self.fields[c], self._meshes[c]
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        field.needed = self._mark(field, mesh, points, self.brick_coords)
+        field.needed = self._mark(field, mesh, lo, hi, self.brick_coords)
         field.used = min(field.needed, field.capacity)
         grid = self._grids_host[c]
         self.grids.assign(wp.array(self._grids_host, dtype=SdfGrid, device="cpu"))
