@@ -297,3 +297,56 @@ def test_usd_point_cached_mesh_collides_through_its_field(tmp_path):
           f"written frames (bound {field_bound(0.004, kappa, delta, SQRT3 * 0.004) / 0.0005:.2g})")
     assert lowest < 0.002  # the hair did reach the body ...
     assert worst <= field_bound(0.004, kappa, delta, SQRT3 * 0.004)  # ... and sank no deeper than the field errs
+
+
+PLATE_DROP = """
+import json, sys
+import numpy as np
+import warp as wp
+from dftl_warp.kernels.features import mesh as mesh_kernels
+mesh_kernels.COUNT_FIELD_TESTS = sys.argv[1] == "on"
+import dftl_warp as dw
+from dftl_warp import features as F
+wp.config.quiet = True
+half = (0.1, 0.0004, 0.1)
+p = np.array([[x, y, z] for x in (-half[0], half[0]) for y in (-half[1], half[1]) for z in (-half[2], half[2])])
+quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+tris = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+shape = F.TriangleMesh(points=p + [0.0, 0.001, 0.0], indices=tris, sdf=True, sdf_cell=0.002)
+n = 20
+pts = np.stack([np.linspace(-0.05, 0.05, n), np.full(n, 0.03), np.zeros(n)], 1)
+model = dw.Model.from_strands(pts, [n], widths=0.001, features=[F.Colliders([shape])])
+solver = dw.DFTLSolver(model, gravity=(0.0, -9.81, 0.0))
+state, control = solver.state(), model.control()
+for _ in range(24):
+    for k in range(4):
+        solver.step(state, state, control, 1 / 96, (k + 1) / 4)
+print(json.dumps(control.features.colliders.kind_data["meshes"].fields.tests()))
+"""
+
+
+def test_field_tests_are_counted_by_outcome_only_when_asked():
+    """The diagnostic count of a field's tests (``kernels.features.mesh.COUNT_FIELD_TESTS``, in a
+    process of its own as it must be set before kernels are built): a strand dropped onto the thin
+    plate above has every free particle tested every substep; falling through free air it is
+    answered by one sample, approaching the plate by a trace, and once it rests on the plate (most
+    of the run) its paths end in the EXACT cells across the plate and go to the exact query. Off
+    (the default), the kernels count nothing."""
+    import json
+    import subprocess
+    import sys
+
+    from dftl_warp.kernels.features.sdf import EXACT_FROM, WHY_EXACT
+
+    def run(flag):
+        done = subprocess.run([sys.executable, "-c", PLATE_DROP, flag], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr[-2000:]
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    on, off = run("on"), run("off")
+    assert set(on) == set(WHY_EXACT) and sum(off.values()) == 0
+    # every free particle is tested at least once a substep (a touched one again, up to the rounds)
+    assert 19 * 24 * 4 <= sum(on.values()) <= 2 * 19 * 24 * 4
+    assert on[WHY_EXACT[0]] > 0 and on["answered by the field: traced along the path"] > 0
+    resting = on["exact query: the path's end in a cell the field cannot answer"]
+    assert resting == max(on.values()) and resting > sum(on[w] for w in WHY_EXACT[:EXACT_FROM])

@@ -21,7 +21,7 @@ import functools
 import warp as wp
 
 from .collide import ColliderKernel, named_func, respond_func, slide_func, tiny_length, transform_type
-from .sdf import collide_sdf_func, sdf_fields
+from .sdf import EXACT_FROM, TEST_SLOTS, collide_sdf_func, sdf_fields
 
 
 @functools.cache
@@ -118,8 +118,18 @@ def mesh_fields(scalar) -> dict:
                 collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3), **sdf_fields())
 
 
-@functools.cache
+#: diagnostic: kernels built while this is True count each test of a mesh collider's field by its
+#: outcome in ``sdf_tests`` (``dftl_warp.features.colliders.sdf.MeshFields.tests``); off, the
+#: kernels do not touch it. Set it before the first step of a process builds its kernels.
+COUNT_FIELD_TESTS = False
+
+
 def _collide_mesh_at(scalar, Features):
+    return _collide_mesh_at_built(scalar, Features, bool(COUNT_FIELD_TESTS))
+
+
+@functools.cache
+def _collide_mesh_at_built(scalar, Features, count: bool):
     vec3 = wp.types.vector(3, scalar)
     one = collide_mesh_func(scalar)
     field = collide_sdf_func(scalar)
@@ -129,10 +139,13 @@ def _collide_mesh_at(scalar, Features):
         grid = f.collider_sdf[c]
         if grid.cell > wp.float32(0.0):
             # through the collider's signed distance field, where it can answer
-            z, touched, answered = field(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
-                                         f.collider_inv_pose[c], f.collider_inv_pose_prev[c], grid, f.sdf_brick_map,
-                                         f.sdf_values, f.sdf_cells, f.collider_depth_band[c], f.collider_friction[c])
-            if answered:
+            z, touched, why = field(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
+                                    f.collider_inv_pose[c], f.collider_inv_pose_prev[c], grid, f.sdf_brick_map,
+                                    f.sdf_values, f.sdf_cells, f.collider_depth_band[c], f.collider_friction[c])
+            if wp.static(count):
+                slot = int(wp.abs(x[0] * scalar(7.3e4) + x[1] * scalar(3.1e4) + x[2] * scalar(1.7e4))) % TEST_SLOTS
+                wp.atomic_add(f.sdf_tests, why * TEST_SLOTS + slot, 1)
+            if why < EXACT_FROM:
                 return z, touched
         y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
                      f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c], f.collider_upper[c],

@@ -43,6 +43,25 @@ EXACT = 2
 FAR_BRICK = -1
 OVERFLOW_BRICK = -2
 
+#: counters per outcome in ``sdf_tests`` (a test adds to one of them, picked from its position, so
+#: that the GPU's atomics spread over several addresses)
+TEST_SLOTS = 64
+#: how a particle's test of a field ended (``collide_sdf``'s last result): below :data:`EXACT_FROM`
+#: the field answered (after one sample, the path's two ends, or a trace along the path); from it
+#: on, the reason it went to the exact mesh query
+WHY_EXACT = (
+    "answered by the field: one sample (the path's end)",
+    "answered by the field: two samples (the path's ends)",
+    "answered by the field: traced along the path",
+    "exact query: contact distance + depth band beyond the field's reach",
+    "exact query: the path's end in a cell the field cannot answer",
+    "exact query: the path's start in a cell the field cannot answer",
+    "exact query: the path's end beyond the band, not traced",
+    "exact query: from contact to where the field cannot say it stayed on the same side",
+    "exact query: trace not concluded (grazing, behind the surface, or an unanswerable cell on the way)",
+)
+EXACT_FROM = 3
+
 SQRT3 = math.sqrt(3.0)
 #: half the diagonal of a brick, in cells (a little more, for rounding)
 BRICK_HALF_DIAGONAL = wp.constant(wp.float32(4.0 * SQRT3 * 1.0001))
@@ -151,9 +170,10 @@ def sdf_sample(g: SdfGrid, brick_map: wp.array(dtype=wp.int32), values: wp.array
 @functools.cache
 def collide_sdf_func(scalar):
     """``collide_sdf(x, x_old, leader, rest, ccd, radius, pose, inv_pose, inv_pose_prev, grid,
-    brick_map, values, cells, depth_band, mu) -> (x, touched, answered)``: the collision of one
-    particle with one mesh collider through its field; ``answered`` False: the field could not
-    answer (the caller runs the exact mesh query instead, and ``x``, ``touched`` mean nothing).
+    brick_map, values, cells, depth_band, mu) -> (x, touched, why)``: the collision of one
+    particle with one mesh collider through its field, which ended as ``WHY_EXACT[why]``: below
+    :data:`EXACT_FROM` the field answered; from it on it could not (the caller runs the exact mesh
+    query instead, and ``x``, ``touched`` mean nothing).
 
     Contact: the particle is in contact where the sampled distance is below ``radius``; the
     response is the shared one (:func:`~dftl_warp.kernels.features.collide.respond_func`) along
@@ -182,33 +202,35 @@ def collide_sdf_func(scalar):
              values: wp.array(dtype=wp.float32), cells: wp.array(dtype=wp.uint8), depth_band: scalar,
              mu: scalar):
         if radius + depth_band >= scalar(grid.reach):
-            return x, False, False
+            return x, False, 3
         q = wp.transform_point(inv_pose, x)
         state, d32, n32 = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q))
         if state == EXACT:
-            return x, False, False
+            return x, False, 4
         dist = scalar(d32)
         n = vec3(n32)
         q_old = wp.transform_point(inv_pose_prev, x_old)
         path = q - q_old
         length = wp.length(path)
         lead = wp.transform_point(inv_pose, leader)
+        samples = int(0)  # WHY_EXACT's index of the field's answer: samples taken beyond the first
         # the path could have reached the surface (a far end's distance is a lower bound)
         if length > tiny and dist - radius < length:
             s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old))
+            samples = 1
             if s == EXACT:
-                return x, False, False
+                return x, False, 5
             if state == FAR and (not ccd or (s != FAR and scalar(ds) <= radius)):
                 # beyond the band at the end, not traced (a round without the continuous test, or
                 # a path from contact): which side it ended on is unknown, and the exact query
                 # reaches its whole path below the surface
-                return x, False, False
+                return x, False, 6
             if ccd:
                 stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
                 if scalar(ds) <= radius + stop and (state != ANSWERS or wp.dot(n, vec3(ns)) <= scalar(0.0)):
                     # from contact to where the field cannot say it stayed on the same side: the
                     # exact query decides
-                    return x, False, False
+                    return x, False, 7
                 # traced only from outside the contact distance: a particle that starts in contact
                 # and ends nearest a surface that looks the same way is left to the projection
                 # (resting hair dips below the surface every substep, gravity alone g h^2, more than
@@ -219,6 +241,7 @@ def collide_sdf_func(scalar):
                     behind = -(scalar(2.0) * scalar(grid.tolerance) + stop)
                     t = scalar(0.0)
                     concluded = bool(False)
+                    samples = 2
                     for _ in range(TRACE_ITERATIONS):
                         gap = scalar(ds) - radius
                         if gap <= stop:
@@ -229,7 +252,7 @@ def collide_sdf_func(scalar):
                             stop_at = q_old + t * direction + (radius - scalar(ds)) * nc
                             blocked = wp.max(wp.dot(stop_at - q, nc), scalar(0.0))
                             y = slide(stop_at, q_old, lead, rest, nc, mu * blocked)
-                            return wp.transform_point(pose, y), True, True
+                            return wp.transform_point(pose, y), True, 2
                         t = t + gap
                         if t >= length:
                             concluded = True
@@ -240,10 +263,10 @@ def collide_sdf_func(scalar):
                     if not concluded:
                         # a grazing path the trace could not follow to its end, or one found behind
                         # the surface without touching it: the exact ray decides
-                        return x, False, False
+                        return x, False, 8
         if dist >= radius:
-            return x, False, True
-        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True, True
+            return x, False, samples
+        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True, samples
 
     body.__name__ = body.__qualname__ = "collide_sdf_" + ("f64" if scalar == wp.float64 else "f32")
     return wp.func(body)
@@ -251,9 +274,13 @@ def collide_sdf_func(scalar):
 
 def sdf_fields() -> dict:
     """Struct fields of the mesh colliders' fields: per device collider its :class:`SdfGrid`
-    (``cell`` 0: none), and the brick maps, node distances and cell states of all of them."""
+    (``cell`` 0: none), the brick maps, node distances and cell states of all of them, and the
+    counts of their tests by outcome (``sdf_tests``, :data:`TEST_SLOTS` per entry of
+    :data:`WHY_EXACT`; written only by kernels built with ``kernels.features.mesh.
+    COUNT_FIELD_TESTS`` on, a diagnostic)."""
     return dict(collider_sdf=wp.array(dtype=SdfGrid), sdf_brick_map=wp.array(dtype=wp.int32),
-                sdf_values=wp.array(dtype=wp.float32), sdf_cells=wp.array(dtype=wp.uint8))
+                sdf_values=wp.array(dtype=wp.float32), sdf_cells=wp.array(dtype=wp.uint8),
+                sdf_tests=wp.array(dtype=wp.int32))
 
 
 # -- building the field (one collider, per frame) --------------------------------------------------

@@ -22,6 +22,8 @@ from ...kernels.features.sdf import (
     BRICK_NODES,
     FAR_BRICK,
     SQRT3,
+    TEST_SLOTS,
+    WHY_EXACT,
     SdfGrid,
     cell_states_kernel,
     fill_nodes_kernel,
@@ -172,6 +174,7 @@ class MeshFields:
         self.gradients = wp.zeros(max(pool, 1) * BRICK_NODES, dtype=wp.vec3h, device=device)
         self.cells = wp.zeros(max(pool, 1) * BRICK_CELLS, dtype=wp.uint8, device=device)
         self.grids = wp.array(self._grids_host, dtype=SdfGrid, device=device)
+        self.test_counts = wp.zeros(len(WHY_EXACT) * TEST_SLOTS, dtype=wp.int32, device=device)
         self._meshes = {}
         for field, shape, mesh in plans:
             self.fields[field.c] = field
@@ -219,6 +222,17 @@ class MeshFields:
         st.sdf_brick_map = self.brick_map
         st.sdf_values = self.values
         st.sdf_cells = self.cells
+        st.sdf_tests = self.test_counts
+
+    def tests(self, reset: bool = True) -> dict:
+        """How many tests of the fields ended how since the last reset: ``{WHY_EXACT entry: count}``
+        (the first ``EXACT_FROM`` entries: answered by the field, after one sample, two, or a
+        trace; the others went to the exact mesh query). Counted only by kernels built with
+        ``kernels.features.mesh.COUNT_FIELD_TESTS`` on (a diagnostic; zeros otherwise)."""
+        counts = self.test_counts.numpy().reshape(len(WHY_EXACT), TEST_SLOTS).sum(1)
+        if reset:
+            self.test_counts.zero_()
+        return {why: int(n) for why, n in zip(WHY_EXACT, counts)}
 
     def sample(self, c: int, points):
         """Probe the field of device collider ``c`` at local ``points`` (N, 3), m: ``(state,
