@@ -4,14 +4,18 @@ For every BasisCurves prim the two stages share and every time code both sample:
 distance between corresponding points (stage units, the prims' local space) and the same
 relative to the length of the point's strand (in A at that frame). The first frame whose max
 difference exceeds ``--tolerance`` (stage units; ``--relative``: a share of the strand length) is
-named. Exit status 0 when every frame is within tolerance, 1 otherwise, 2 for bad input
-(unreadable file, no shared prims, different point counts: one line).
+named. A prim's default-time points are compared only when neither file samples it in time; when
+one does and they share no time code that is bad input, and frames sampled in only one file are
+left out with one warning. Exit status 0 when every frame is within tolerance, 1 otherwise, 2 for
+bad input (missing or unreadable file, no shared prims or frames, different point counts: one
+line naming the files).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 
 
@@ -19,7 +23,8 @@ def add_parser(sub):
     p = sub.add_parser(
         "diff",
         help="compare two caches per frame and prim: max and RMS point difference; exit 1 beyond --tolerance",
-        description="Compare the time-sampled points of the BasisCurves prims of A and B, frame by frame. "
+        description="Compare the time-sampled points of the BasisCurves prims of A and B, frame by frame, at the "
+                    "frames both sample (none in common: bad input; frames in one file only: a warning). "
                     "Exit status 0 when within --tolerance, 1 otherwise, 2 for bad input.",
     )
     p.add_argument("a", metavar="A", help="USD stage (a dftl-warp output or any stage with BasisCurves)")
@@ -37,6 +42,10 @@ def _open(path):
 
     from ..errors import UserError
 
+    if not os.path.exists(path):
+        raise UserError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise UserError(f"{path}: is a folder, not a USD file")
     try:
         stage = Usd.Stage.Open(str(path))
     except Tf.ErrorException:
@@ -58,10 +67,44 @@ def _strand_lengths(points, counts):
     return cums[ends] - cums[starts]
 
 
+def frames_text(times) -> str:
+    """``times`` (sorted) as text: runs of whole-frame steps as ``1..10``, the rest listed."""
+    if not times:
+        return "no time samples"
+    runs = []
+    for t in times:
+        if runs and t - runs[-1][1] == 1.0:
+            runs[-1][1] = t
+        else:
+            runs.append([t, t])
+    parts = [f"{a:g}" if a == b else f"{a:g}..{b:g}" for a, b in runs]
+    if len(parts) > 6:
+        parts = [*parts[:3], "...", *parts[-2:]]
+    return ("frame " if len(times) == 1 else "frames ") + ", ".join(parts)
+
+
+def _common_times(path, a_path, b_path, ta, tb, only_a, only_b):
+    """The time codes to compare for prim ``path`` (``[None]``: its default-time points, when
+    neither file samples it); records the frames sampled in only one file."""
+    from ..errors import UserError
+
+    if not ta and not tb:
+        return [None]
+    common = sorted(set(ta) & set(tb))
+    if not common:
+        raise UserError(f"{a_path} ({frames_text(ta)}) and {b_path} ({frames_text(tb)}) share no frame "
+                        f"of {path}: nothing to compare")
+    only_a.update(set(ta) - set(tb))
+    only_b.update(set(tb) - set(ta))
+    return common
+
+
 def compare(a_path, b_path) -> dict:
     """Per prim and frame: ``max``, ``rms`` (stage units) and ``max_relative``, ``rms_relative``
-    (per point, divided by its strand's length in A)."""
+    (per point, divided by its strand's length in A). ``frames_only_in_a``/``_b``: frames sampled
+    in one file only (not compared; :func:`frames_warning`)."""
     import numpy as np
+    from pxr import Usd
 
     from ..errors import UserError
 
@@ -69,20 +112,23 @@ def compare(a_path, b_path) -> dict:
     shared = [p for p in a if p in b]
     if not shared:
         raise UserError(f"{a_path}, {b_path}: no BasisCurves prim in common")
-    prims = {}
+    prims, only_a, only_b = {}, set(), set()
     for path in shared:
         pa, pb = a[path].GetPointsAttr(), b[path].GetPointsAttr()
         counts = np.asarray(a[path].GetCurveVertexCountsAttr().Get(), dtype=np.int64)
-        times = sorted(set(pa.GetTimeSamples()) & set(pb.GetTimeSamples())) or [None]
+        times = _common_times(path, a_path, b_path, pa.GetTimeSamples(), pb.GetTimeSamples(), only_a, only_b)
         rows = []
         for t in times:
-            from pxr import Usd
-
             code = Usd.TimeCode.Default() if t is None else Usd.TimeCode(t)
-            xa = np.asarray(pa.Get(code), dtype=np.float64)
-            xb = np.asarray(pb.Get(code), dtype=np.float64)
+            when = "at the default time (no time samples)" if t is None else f"at frame {t:g}"
+            va, vb = pa.Get(code), pb.Get(code)
+            for value, file in ((va, a_path), (vb, b_path)):
+                if value is None:
+                    raise UserError(f"{file}: {path} has no points {when}")
+            xa = np.asarray(va, dtype=np.float64).reshape(-1, 3)
+            xb = np.asarray(vb, dtype=np.float64).reshape(-1, 3)
             if xa.shape != xb.shape:
-                raise UserError(f"{path}: {xa.shape[0]} points in A, {xb.shape[0]} in B at time {t}")
+                raise UserError(f"{path}: {xa.shape[0]} points in {a_path}, {xb.shape[0]} in {b_path} {when}")
             d = np.linalg.norm(xa - xb, axis=1) if xa.size else np.zeros(0)
             lengths = np.repeat(_strand_lengths(xa, counts), counts) if counts.sum() == len(xa) and len(xa) else \
                 np.ones(len(xa))
@@ -94,11 +140,20 @@ def compare(a_path, b_path) -> dict:
                          "rms_relative": float(math.sqrt(np.mean(rel * rel))) if rel.size else 0.0})
         prims[path] = rows
     return {"a": str(a_path), "b": str(b_path), "prims": prims,
-            "only_in_a": [p for p in a if p not in b], "only_in_b": [p for p in b if p not in a]}
+            "only_in_a": [p for p in a if p not in b], "only_in_b": [p for p in b if p not in a],
+            "frames_only_in_a": sorted(only_a), "frames_only_in_b": sorted(only_b)}
+
+
+def frames_warning(result: dict) -> str | None:
+    """One line naming the frames sampled in only one file (left out of the comparison), or None."""
+    parts = [f"{frames_text(result[f'frames_only_in_{x}'])} only in {result[x]}"
+             for x in ("a", "b") if result[f"frames_only_in_{x}"]]
+    return f"{'; '.join(parts)}: not compared" if parts else None
 
 
 def first_beyond(result: dict, tolerance: float, relative: bool = False):
-    """(time, prim, value) of the earliest frame whose max difference exceeds ``tolerance``, or None."""
+    """(time, prim, value) of the earliest frame whose max difference exceeds ``tolerance``, or None
+    (time None: the default-time points)."""
     key = "max_relative" if relative else "max"
     worst = None
     for path, rows in result["prims"].items():
@@ -109,6 +164,8 @@ def first_beyond(result: dict, tolerance: float, relative: bool = False):
                 if worst is None or t < worst[0]:
                     worst = (t, path, v)
                 break
+    if worst is not None and worst[0] == -math.inf:
+        worst = (None, *worst[1:])
     return worst
 
 
@@ -118,6 +175,9 @@ def run(args) -> int:
     if not math.isfinite(args.tolerance) or args.tolerance < 0:
         raise UserError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     result = compare(args.a, args.b)
+    warning = frames_warning(result)
+    if warning:
+        print(f"dftl-warp: warning: {warning}", file=sys.stderr)
     beyond = first_beyond(result, args.tolerance, args.relative)
     result["tolerance"] = args.tolerance
     result["relative"] = args.relative
@@ -136,6 +196,7 @@ def run(args) -> int:
         if beyond is None:
             print(f"within tolerance {args.tolerance:g} {unit}")
         else:
-            print(f"first difference beyond {args.tolerance:g} {unit}: frame {beyond[0]:g}, {beyond[1]} "
+            when = "the default time" if beyond[0] is None else f"frame {beyond[0]:g}"
+            print(f"first difference beyond {args.tolerance:g} {unit}: {when}, {beyond[1]} "
                   f"({beyond[2]:.4g})", file=sys.stdout)
     return 0 if beyond is None else 1

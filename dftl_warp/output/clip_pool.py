@@ -164,7 +164,7 @@ class ClipWriterPool:
         try:
             os.ftruncate(fd, size)
             self._memory = mmap.mmap(fd, size)
-            config = {"bytes": size, "slots": self.slots, "layout": self.layout,
+            config = {"bytes": size, "slots": self.slots, "floats": floats, "layout": self.layout,
                       "threads": max(2, cores() // self.writers),  # USD's own (Work) threads per process
                       "velocities": bool(velocities), "fsync": bool(fsync),
                       "targets": [(str(p), None if w is None else np.asarray(w, np.float32)) for p, w in targets]}

@@ -140,7 +140,9 @@ def serve(sock: socket.socket) -> None:
     Work.SetConcurrencyLimit(config["threads"])  # the writers share the cores
     memory = mmap.mmap(memory_fd, config["bytes"], prot=mmap.PROT_READ)
     os.close(memory_fd)  # the mapping stays
-    slots = np.frombuffer(memory, np.float32).reshape(config["slots"], -1)
+    # the mapping is rounded up to a whole page: the slots are its first ``slots * floats`` floats
+    slots = np.frombuffer(memory, np.float32, count=config["slots"] * config["floats"])
+    slots = slots.reshape(config["slots"], config["floats"])
     targets = config["targets"]
     widths = [None if w is None else Vt.FloatArray.FromNumpy(np.asarray(w, np.float32)) for _, w in targets]
     layout = config["layout"]  # per target: (points offset, velocities offset or None, count), in floats
