@@ -39,7 +39,7 @@ def output_lock(path, wait: float = 0.0, message: str | None = None):
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as exc:
-            raise UserError(f"{path}: cannot create the lock file: {exc.strerror or exc}") from None
+            raise UserError(_cannot_create(path, exc)) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -61,3 +61,15 @@ def output_lock(path, wait: float = 0.0, message: str | None = None):
         with contextlib.suppress(FileNotFoundError):
             os.remove(path)
         os.close(fd)
+
+
+def _cannot_create(path: Path, exc: OSError) -> str:
+    """The one line for a lock file that cannot be created: it names the output the user gave
+    (``OUT`` of ``.OUT.dftl-lock``), not the hidden lock file."""
+    reason = exc.strerror or str(exc)
+    reason = reason[:1].lower() + reason[1:]
+    name = path.name
+    if name.startswith(".") and name.endswith(".dftl-lock") and len(name) > len("..dftl-lock"):
+        output = path.with_name(name[1:-len(".dftl-lock")])
+        return f"{output}: cannot write: cannot create a file in folder {path.parent} ({reason})"
+    return f"{path}: cannot create the lock file: {reason}"

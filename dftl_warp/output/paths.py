@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 
@@ -25,3 +26,119 @@ def check_writable(path) -> Path:
     if path.exists() and not os.access(path, os.W_OK):
         raise UserError(f"{path}: cannot write: file is read-only")
     return path
+
+
+def _reason(exc: OSError) -> str:
+    text = exc.strerror or str(exc)
+    return text[:1].lower() + text[1:]
+
+
+def _nearest_folder(path: Path) -> Path:
+    """The nearest folder of ``path`` that exists (its own folder, or the ancestor where the
+    missing ones would be created)."""
+    existing = path.parent if str(path.parent) else Path(".")
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    return existing
+
+
+def check_output(output, input_path) -> Path:
+    """What ``simulate`` checks about ``output`` before any work beyond the writer's own checks
+    (``check_output_path``: extension, an unwritable place, the input itself; docs/usd.md,
+    "Errors"): a file actually created and removed in its folder (root passes ``os.access`` on
+    read-only file systems), and :func:`check_not_a_dependency`. A UserError naming ``output``."""
+    import tempfile
+
+    output = Path(os.fspath(output))
+    folder = _nearest_folder(output)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{output.name}.dftl-probe.", dir=folder)
+    except OSError as exc:
+        raise UserError(f"{output}: cannot write: cannot create a file in folder {folder} ({_reason(exc)})") from None
+    os.close(fd)
+    os.remove(probe)
+    check_not_a_dependency(output, input_path)
+    return output
+
+
+def check_not_a_dependency(output, input_path) -> None:
+    """A UserError when ``output`` is (by real path) a layer or asset the stage ``input_path``
+    uses: a sublayer, reference, payload, value clip or other asset, found with
+    ``UsdUtils.ComputeAllDependencies``, or such a layer that is missing now (writing it would
+    make the input load its own output). An input USD cannot read is left to the reader."""
+    from pxr import UsdUtils
+
+    target = os.path.realpath(output)
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # USD's warnings stay off the terminal
+    try:
+        layers, assets, unresolved = UsdUtils.ComputeAllDependencies(os.fspath(input_path))
+    except Exception:  # noqa: BLE001 - a broken input: read_scene refuses it in its own words
+        return
+    finally:
+        del delegate
+    for path in [layer.realPath for layer in layers if layer.realPath] + [str(a) for a in assets]:
+        if os.path.realpath(path) == target:
+            if os.path.realpath(input_path) == target:
+                raise UserError(f"{output}: the output would overwrite the input")
+            raise UserError(f"{output}: the output would overwrite {path}, which the input {input_path} uses")
+    for path in unresolved:
+        if os.path.realpath(str(path)) == target:
+            raise UserError(f"{output}: the input {input_path} uses this path as a layer (missing now): "
+                            f"the output would load itself")
+
+
+def frame_range_note(scene, first: int, last: int) -> None:
+    """Add a warning to ``scene.warnings`` when frames ``first..last`` reach outside the stage's
+    ``startTimeCode``..``endTimeCode`` and something in it is animated (a transform, a mesh's
+    points, a time-sampled wind): there the animation holds its first or last pose. A stage
+    without a time range or without animation gets none."""
+    start, end = scene.stage.start_time_code, scene.stage.end_time_code
+    if start is None or end is None or (start <= first and last <= end):
+        return
+    prims = [*scene.curves, *(c.root_mesh for c in scene.curves if c.root_mesh is not None), *scene.colliders]
+    wind = scene.features.get("wind")
+    if not any(getattr(p, "animated", False) or getattr(p, "points_sampler", None) is not None for p in prims) \
+            and not (wind is not None and getattr(wind, "ndim", 0) == 2):
+        return
+    where = "outside" if last < start or first > end else "partly outside"
+    scene.warnings.append(f"{scene.source}: frames {first}..{last} lie {where} the stage's time range "
+                          f"{start:g}..{end:g} (startTimeCode..endTimeCode): there the animation holds its "
+                          f"first or last pose")
+
+
+@contextlib.contextmanager
+def output_place(output):
+    """Where ``simulate`` writes ``output``: its missing folders created (and removed again,
+    when empty, if the run fails), the output lock held (:mod:`.lock`)."""
+    from .lock import lock_path, output_lock
+
+    output = Path(os.fspath(output))
+    missing, created = [], []   # created: deepest first
+    folder = output.parent if str(output.parent) else Path(".")
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    for f in reversed(missing):
+        try:
+            f.mkdir()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            _remove_empty(created)
+            raise UserError(f"{output}: cannot write: cannot create folder {f} ({_reason(exc)})") from None
+        created.insert(0, f)
+    try:
+        with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
+            yield
+    except BaseException:
+        _remove_empty(created)
+        raise
+
+
+def _remove_empty(folders) -> None:
+    """Remove the folders (deepest first) this run created, where they are still empty."""
+    for f in folders:
+        try:
+            f.rmdir()
+        except OSError:
+            return

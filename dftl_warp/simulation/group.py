@@ -107,7 +107,11 @@ class Group:
             from .monitor import EnergyMonitor
 
             setting = describe_setting(scene, members, settings, options)
-            monitors = [EnergyMonitor(s, setting, st) for s, st in zip(solvers, states)]
+            advice = None   # the default: DFTL with s < 1
+            if not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
+                advice = "more substeps per frame (--substeps, or --quality production) may hold it"
+            monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice)
+                        for s, st in zip(solvers, states)]
             self.monitor = SplitMonitor(monitors) if split else monitors[0]
         self._parts = list(zip(models, states))
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)
@@ -118,6 +122,11 @@ class Group:
             self.clamps = ClampDriver(self, frame)
         #: device buffers of local_samples per part, made on first use
         self._sample_buffers = None
+
+    def restart_monitor(self) -> None:
+        """The energy monitor (if any) takes the current state as the run's start."""
+        if self.monitor is not None:
+            self.monitor.restart(self.state)
 
     @property
     def num_strands(self) -> int:

@@ -11,7 +11,8 @@ Usage (one monitor per run, checked once per frame or as often as you like)::
 ``check`` issues one :class:`EnergyGrowthWarning` (a ``RuntimeWarning``, through :mod:`warnings`)
 the first time a strand's *available energy* (:mod:`dftl_warp.kernels.simulation.energy`: kinetic plus
 potential energy above each strand's hanging rest state, per unit particle mass, J/kg) exceeds
-its *budget*, or a position or velocity is not finite. Later checks stay silent.
+its *budget*, or a position or velocity is not finite. Later checks stay silent. The model's
+lengths are in stage units; the warning converts to J/kg with ``meters_per_unit``.
 
 Each strand is judged on its own (one unstable strand is not hidden in a large groom), against
 the smaller of two budgets, each with a safety ``factor`` (default 2)::
@@ -68,11 +69,16 @@ class EnergyMonitor:
             flagged (default 1e-4).
     """
 
-    def __init__(self, solver, setting: str, state=None, *, factor: float = 2.0, floor_fraction: float = 1.0e-4):
+    def __init__(self, solver, setting: str, state=None, *, factor: float = 2.0, floor_fraction: float = 1.0e-4,
+                 meters_per_unit: float = 1.0, advice: str | None = None):
         self.solver = solver
         self.model = model = solver.model
         self.setting = setting
         self.factor = float(factor)
+        #: the warning gives energies in J/kg: the model's lengths are stage units of this many m
+        self.meters_per_unit = float(meters_per_unit)
+        #: what the warning advises (default: the remedy for DFTL with damping s < 1)
+        self.advice = advice or "DFTL with damping s < 1 at small steps pumps energy in: use s = 1"
         self.warned = False
         self.message: str | None = None
         #: (frame, total available energy J/kg, total budget J/kg) of every check
@@ -104,6 +110,15 @@ class EnergyMonitor:
         self._bad = wp.zeros(n, dtype=wp.int32, device=dev)
         if state is not None:
             self.measure(state)
+
+    def restart(self, state) -> None:
+        """Take ``state`` as the start of the run (e.g. after a clean start moved hair out of a
+        collider, or a preroll: energy they add or remove is not the run's)."""
+        self._start = self._moved_energy = self._root_position = None
+        self._root_speed[:] = 0.0
+        self.unstable[:] = False
+        self.worst_ratio[:] = 0.0
+        self.measure(state)
 
     def measure(self, state):
         """Per device strand: (available energy J/kg, budget J/kg, not finite) of ``state``.
@@ -159,10 +174,11 @@ class EnergyMonitor:
                             "this setting is unstable")
         else:
             k = int(np.argmax(energy / budget))
+            joules = self.meters_per_unit**2  # (stage units / s)^2 -> J/kg
             self.message = (
-                f"{self.setting}: {which}: energy grew to {energy[k]:.3g} J/kg{at}, more than "
-                f"{budget[k]:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
-                "this setting is unstable (DFTL with damping s < 1 at small steps pumps energy in: use s = 1)"
+                f"{self.setting}: {which}: energy grew to {energy[k] * joules:.3g} J/kg{at}, more than "
+                f"{budget[k] * joules:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
+                f"this setting is unstable ({self.advice})"
             )
         self.warned = True
         warnings.warn(self.message, EnergyGrowthWarning, stacklevel=2)

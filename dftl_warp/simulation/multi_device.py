@@ -271,6 +271,10 @@ class SplitMonitor:
         self.warned = False
         self.message = None
 
+    def restart(self, state: SplitState) -> None:
+        for monitor, s in zip(self.parts, state.parts):
+            monitor.restart(s)
+
     def check(self, state: SplitState, frame=None) -> bool:
         if self.warned:
             return False

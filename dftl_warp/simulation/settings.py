@@ -144,7 +144,7 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int, toleran
 
 def describe_setting(scene: Scene, members: list[int], settings: GroupSettings, options) -> str:
     """How a group is simulated, as the energy monitor's warning names it."""
-    prims = ", ".join(scene.curves[i].path for i in members)
+    prims = f"{scene.source}: " + ", ".join(scene.curves[i].path for i in members)
     dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
     return (f"{prims}: {settings.solver} damping={settings.damping:g} {settings.correction}, "
             f"{settings.substeps} substeps/frame (dt={dt:.3g} s), {options.precision}")

@@ -156,7 +156,8 @@ class Simulation:
         #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
         #: with the device line and kept in Summary.warnings
         self.start_notes: list[str] = self._clean_start()
-        for g in self.groups:   # styles that cannot stand, on the rest shapes the clean start left
+        for g in self.groups:   # energy budgets, and styles that cannot stand, from what the clean start left
+            g.restart_monitor()
             if g.settings.solver == "elastic":
                 note_unstable(scene, g)
         note = root_paths.collider_note(scene)   # deforming collider meshes change once a frame
@@ -479,7 +480,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     (a tqdm bar on a terminal, else a line per 10 % or per minute) and, once the input is read,
     the device line and the lines ``notes`` (what a quality preset chose) on stderr.
     Bad input raises :class:`~dftl_warp.errors.UserError`; no output file is left behind on any
-    failure. The output's folder is created if missing. While the frames are written the
+    failure. A missing output folder is created (removed again if the run fails). While the frames are written the
     output is locked (:mod:`dftl_warp.output.lock`): a second run on the same output fails at
     once with "OUTPUT: another dftl-warp run is writing it" instead of waiting.
 
@@ -490,9 +491,9 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     and each written frame's QC.
     """
     from ..usd.read import read_scene
-    from ..output.lock import lock_path, output_lock
+    from ..output.paths import check_output, frame_range_note, output_place
     from ..output.progress import progress_bar
-    from ..output import check_output_path, ensure_folder, writer_for
+    from ..output import check_output_path, writer_for
     from ..core.devices import device_line, init_warp, resolve_device
 
     from ..options import OUTPUT_OPTIONS, check_api
@@ -512,9 +513,10 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     gates = parse_gates(out_opts["check"])
     init_warp()
     t0 = time.perf_counter()
-    check_output_path(output, input)
+    check_output(check_output_path(output, input), input)   # and: not a layer the input uses
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
+    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
     if not out_opts["no_clips"]:  # clips: their writer processes start while the simulation sets up
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides)
@@ -543,8 +545,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
                      device_line(sim.options.device)):
             print(line, file=sys.stderr)
 
-    ensure_folder(output)
-    with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
+    with output_place(output):   # missing folders made (gone again on failure), the output lock held
         bar = None
         if progress:
             bar = progress_bar(last_written - first + 1, desc="simulating", unit="frame")

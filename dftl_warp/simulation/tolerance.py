@@ -264,11 +264,15 @@ def pick_solver(group, scene, frame: int, last: int, tolerance: float, precision
 class Tolerance:
     """A simulation's ``--tolerance``: one controller per group (:func:`setup` builds it)."""
 
-    def __init__(self, tolerance: float):
+    def __init__(self, tolerance: float, warn=None, source: str = ""):
         self.tolerance = float(tolerance)
         self.controllers: list[ToleranceController] = []
         #: what the pilot chose, one line per group
         self.notes: list[str] = []
+        #: called once per group with a one-line warning when a frame's estimate passes the tolerance
+        self.warn = warn
+        self.source = source
+        self._unmet: set = set()
 
     def substeps(self, index: int, group, frame_dt: float, roots, frame: int, nxt: int) -> int:
         """Substeps of group ``index`` for the frame ``frame`` -> ``nxt`` (its control already set);
@@ -277,6 +281,13 @@ class Tolerance:
         carried = c.carried
         k = c.choose(frame_dt, roots, frame, nxt, group.state, group.model)
         rescale_corrections(group.model, group.state, carried, k)
+        err = c.history[-1][2]
+        if err > self.tolerance and index not in self._unmet and self.warn is not None:
+            self._unmet.add(index)
+            most = " (the most it takes)" if k >= LADDER[-1] else ""
+            self.warn(f"{self.source}: group {index}: --tolerance {self.tolerance:g} not met from frame {frame}: "
+                      f"estimated error {err:.3g} ({err / self.tolerance:.1f}x) at {k} substeps per frame{most}; "
+                      "the record dftl:tolerance has every frame's estimate")
         return k
 
     def lines(self) -> list[str]:
@@ -316,7 +327,12 @@ def setup(sim, tolerance: float) -> Tolerance:
     from .group import Group
     from .settings import resolve_frames
 
-    t = Tolerance(tolerance)
+    def warn(line: str) -> None:   # as the energy monitor's: kept in the run's warnings, shown as it happens
+        sim.warnings.append(line)
+        if sim.on_warning is not None:
+            sim.on_warning(line)
+
+    t = Tolerance(tolerance, warn, sim.scene.source)
     scene, options, frame = sim.scene, sim.options, sim.frame
     last = resolve_frames(scene, options.start, options.end)[1]
     frame_dt = 1.0 / scene.stage.time_codes_per_second
