@@ -333,11 +333,12 @@ def did_you_mean(name: str, known) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def unknown_message(names, known) -> str:
-    """``unknown attribute dftl:dampng (did you mean dftl:damping?)`` for one or more names."""
+def unknown_message(names, known, suggest=None) -> str:
+    """``unknown attribute dftl:dampng (did you mean dftl:damping?)`` for one or more names; each
+    name's suggestion is among ``suggest(name)`` if given, else among ``known``."""
     parts = []
     for name in names:
-        close = difflib.get_close_matches(name, list(known), n=1)
+        close = difflib.get_close_matches(name, sorted(suggest(name) if suggest else known), n=1)
         parts.append(name + (f" (did you mean {close[0]}?)" if close else ""))
     return f"unknown attribute{'s' if len(parts) > 1 else ''} " + ", ".join(parts)
 
@@ -363,15 +364,31 @@ def check_toml(key: str, value):
         raise ValueError(f"{key} must be {exc.expected}, got {value!r}") from None
 
 
-def usd_message(exc: BadValue, where: str, attribute: str | None = None) -> str:
-    """``FILE: PRIM: dftl:x = VALUE: problem`` for a bad authored attribute value."""
+def shown_value(value, attr=None) -> str:
+    """``value`` as a message shows it: a float authored as a 32-bit ``float`` (or ``half``, per
+    the USD attribute ``attr``) with the shortest digits that give it back (``-0.3``, not
+    ``-0.30000001192092896``), others as ``repr``."""
+    if isinstance(value, float):
+        type_name = str(attr.GetTypeName()) if attr is not None else ""
+        return str(np.float32(value)) if type_name in ("float", "half") else repr(value)
+    if isinstance(value, (np.floating, np.integer)):
+        return str(value)
+    return repr(value)
+
+
+#: the value types as the messages name them, with their article
+_TYPE_TEXT = {int: "an integer", float: "a float", bool: "a bool", str: "a string"}
+
+
+def usd_message(exc: BadValue, where: str, attribute: str | None = None, attr=None) -> str:
+    """``FILE: PRIM: dftl:x = VALUE: problem`` for a bad authored attribute value (``attr``: the
+    USD attribute, for how its value is shown)."""
     name = attribute or exc.option.usd
-    head = f"{where}: {name} = {exc.value!r}"
+    head = f"{where}: {name} = {shown_value(exc.value, attr)}"
     if exc.kind == "type":
         if exc.expected == "a finite number":
             return f"{head}: expected a finite number"
-        kind = exc.option.type
-        return f"{head}: expected a {kind.__name__ if isinstance(kind, type) else exc.expected}"
+        return f"{head}: expected {_TYPE_TEXT.get(exc.option.type, exc.expected)}"
     if exc.kind == "choice":
         choices = exc.option.choices
         if len(choices) == 2:

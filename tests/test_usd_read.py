@@ -127,7 +127,7 @@ def test_dftl_settings_are_read(tmp_path):
         ("dftl:damping", "String", "high", "dftl:damping = 'high': expected a float"),
         ("dftl:correction", "Token", "sideways", "dftl:correction = 'sideways': choose prior or posterior"),
         ("dftl:substeps", "Int", 0, "dftl:substeps = 0: must be >= 1"),
-        ("dftl:substeps", "Double", 2.5, "dftl:substeps = 2.5: expected a int"),
+        ("dftl:substeps", "Double", 2.5, "dftl:substeps = 2.5: expected an integer"),
         ("dftl:solver", "Token", "magic", "dftl:solver = 'magic': choose one of"),
         ("dftl:simulate", "Int", 1, "dftl:simulate = 1: expected a bool"),
     ],

@@ -137,13 +137,20 @@ def material_summary(scene, curve) -> dict:
 
 
 def describe(scene) -> dict:
-    """A JSON-able description of a :class:`~dftl_warp.usd.scene.Scene`."""
+    """A JSON-able description of a :class:`~dftl_warp.usd.scene.Scene`. Raises
+    :class:`~dftl_warp.errors.UserError` where `simulate` would refuse the prims (an elastic prim
+    with a zero-length segment)."""
     import numpy as np
 
     from ..simulation.settings import SimulationOptions, group_settings
 
+    from ..simulation.elastic_setup import check_rest_lengths
+
     info = scene.stage
     defaults = SimulationOptions()
+    for i, c in enumerate(scene.curves):  # what `simulate` refuses, refused here the same way
+        if group_settings(scene, defaults, i).solver == "elastic":
+            check_rest_lengths(scene.source, c, c.points if c.rest_points is None else c.rest_points)
     counts = np.concatenate([c.counts for c in scene.curves])
     strands = int(counts.size)
     memory = {p: device_bytes(scene, p) for p in ("float32", "float64")}

@@ -158,7 +158,7 @@ def lines(record: dict, indent: str = "  ") -> list[str]:
                 out.append(f"{indent * depth}{key}")
                 walk(value, depth + 1)
             else:
-                out.append(f"{indent * depth}{key:<12}{value}")
+                out.append(f"{indent * depth}{key:<12} {value}")
 
     walk(record, 1)
     return out

@@ -8,6 +8,9 @@ plain data, all in stage units (:mod:`dftl_warp.solvers.elastic_material` conver
 - the rest shape: ``physics:restShapePoints`` through the prim's transform, where authored;
 - ``dftl:inverseStatics``; a uniform ``dftl:drag`` (without wind) becomes the solver's implicit drag.
 
+The rest shape must have no zero-length segment (:func:`check_rest_lengths`: one line naming the
+file, prim, curve and segment, checked before the solver is built; ``dftl-warp info`` checks it too).
+
 And the clamp (:class:`ClampDriver`): each strand's authored ghost point in its prim's local space,
 moved every frame by the same matrices as the roots.
 """
@@ -31,6 +34,38 @@ def _note(scene, text: str) -> None:
     line = f"{scene.source}: {text}"
     if line not in scene.warnings:
         scene.warnings.append(line)
+
+
+def zero_length_segment(points, counts):
+    """(curve, segment) of the first segment of zero length (two consecutive points of one curve
+    coincide), both 0-based (segment ``i`` joins the curve's points ``i`` and ``i + 1``), or None."""
+    counts = np.asarray(counts, np.int64)
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    if points.shape[0] < 2:
+        return None
+    owner = np.repeat(np.arange(counts.size), counts)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    zero = np.all(points[1:] == points[:-1], axis=1) & (owner[1:] == owner[:-1])
+    if not zero.any():
+        return None
+    j = int(np.flatnonzero(zero)[0])
+    curve = int(owner[j])
+    return curve, j - int(starts[curve])
+
+
+def check_rest_lengths(source: str, curve, points) -> None:
+    """Refuse (:class:`UserError`) a prim whose rest shape ``points`` (its authored points, or its
+    ``physics:restShapePoints``) has a zero-length segment: the elastic solver needs non-zero rest
+    lengths (its bending and twist are per unit length). One line naming file, prim, curve and
+    segment (0-based, within the prim) and what to do."""
+    found = zero_length_segment(points, curve.counts)
+    if found is None:
+        return
+    k, i = found
+    what = "physics:restShapePoints" if curve.rest_points is not None else "points"
+    raise UserError(f"{source}: {curve.path}: curve {k}, segment {i}: {what} {i} and {i + 1} of the curve "
+                    "coincide (a zero-length segment); the elastic solver needs non-zero rest lengths: remove "
+                    "the coincident points, or use --solver dftl (or dftl:solver = \"dftl\"), which simulates them")
 
 
 def elastic_options(scene, curves, frame, features, widths, settings) -> tuple[dict, list]:
@@ -60,6 +95,7 @@ def elastic_options(scene, curves, frame, features, widths, settings) -> tuple[d
         s = mat.bend_scale(r) * (1.0 if c.bend_scale is None else c.bend_scale)
         scale.append(np.broadcast_to(s, (n,)))
         m = c.transform(frame)
+        check_rest_lengths(scene.source, c, c.points if c.rest_points is None else c.rest_points)
         if c.rest_points is not None:
             any_rest = True
             rest.append(transform_points(m, c.rest_points))

@@ -256,8 +256,10 @@ def build(points, counts, slot_of_point, strand_order, num_slots, radius, *, E, 
         seg = np.linalg.norm(np.diff(rest, axis=1), axis=-1)
         if np.any(seg <= 0.0):
             s, i = np.argwhere(seg <= 0.0)[0]
-            raise ValueError(f"strand {int(strands[s])}, segment {int(i) + 1}: the elastic solver needs "
-                             "non-zero rest lengths")
+            s, i = int(strands[s]), int(i)
+            raise ValueError(f"strand {s} of the model, segment {i}: points {i} and {i + 1} coincide (a zero-length "
+                             "segment); the elastic solver needs non-zero rest lengths: remove the coincident "
+                             "points, or use --solver dftl, which simulates them")
         grp = RodGroup(rest, radius[idx], E=E, G=G, rho=rho, gravity=gravity, inverse_statics=inverse_statics,
                        bend_scale=None if stiffness_scale is None else stiffness_scale[idx])
         groups.append((int(n), strands, grp))

@@ -70,7 +70,11 @@ class ReferenceSolver(Solver):
         free[starts[model.counts > 0]] = False
         if np.any(rest[free] <= 0.0):
             i = int(np.flatnonzero(free & (rest <= 0.0))[0])
-            raise ValueError(f"point {i}: the reference solver needs non-zero rest lengths")
+            s = int(np.searchsorted(starts, i, side="right")) - 1
+            k = i - int(starts[s])
+            raise ValueError(f"strand {s} of the model, segment {k - 1}: points {k - 1} and {k} coincide (a "
+                             "zero-length segment); the reference solver needs non-zero rest lengths: remove the "
+                             "coincident points, or use --solver dftl, which simulates them")
         super().__init__(model, gravity=gravity)
         self._gravity64 = wp.vec3d(*np.asarray(gravity, dtype=np.float64).reshape(3))
         self.tolerance = float(tolerance)

@@ -4,7 +4,10 @@
   (type and range) and returns them by attribute name; a bad value raises
   :class:`~dftl_warp.errors.UserError` naming file, prim and attribute.
 - :func:`unknown_attributes` warns (once per prim, with a did-you-mean) about authored ``dftl:``
-  attributes the table does not know, and about known ones on prims that do not read them.
+  attributes the table does not know, and about known ones on prims that do not read them. The
+  attributes dftl-warp itself writes into its outputs (:data:`OUTPUT_ATTRIBUTES`: the per-frame QC,
+  ``dftl:qc:*`` on ``/dftl_qc/*``) are known: a cache read back (``info``, or ``simulate`` of a
+  cache) gets no warning for them.
 """
 
 from __future__ import annotations
@@ -13,6 +16,16 @@ import numpy as np
 
 from ..errors import UserError
 from ..options import BY_USD, NAMESPACE, BadValue, unknown_message, usd_attributes, usd_message
+
+#: the namespace of the per-frame QC dftl-warp writes into its outputs (dftl_warp.output.qc)
+QC_NAMESPACE = "dftl:qc:"
+#: the attribute naming the simulated prim on each QC prim (written by dftl_warp.output.usd)
+QC_PRIM_ATTRIBUTE = "dftl:qc:prim"
+#: the ``dftl:`` attributes dftl-warp writes into its outputs: the QC prim's name and the values of
+#: ``dftl_warp.output.qc.ATTRIBUTES`` (spelled out here: the reader imports no output module;
+#: tests/test_usd_attributes_messages.py checks the two agree)
+OUTPUT_ATTRIBUTES = frozenset({QC_PRIM_ATTRIBUTE, "dftl:qc:maxStretch", "dftl:qc:maxPenetration", "dftl:qc:maxSpeed",
+                               "dftl:qc:energy", "dftl:qc:nanCount"})
 
 #: which prims read each scope, for the "not read here" warning
 _SCOPE_TEXT = {
@@ -56,7 +69,7 @@ def read_values(prim, where: str, scope: str, time_codes_per_second: float) -> d
         try:
             option.check(value)
         except BadValue as exc:
-            raise UserError(usd_message(exc, where)) from None
+            raise UserError(usd_message(exc, where, attr=attr)) from None
         values[name] = value
     return values
 
@@ -72,6 +85,7 @@ def unknown_attributes(prim, where: str, scopes) -> str | None:
     names = authored_names(prim)
     if not names:
         return None
+    names = [n for n in names if n not in OUTPUT_ATTRIBUTES]  # dftl-warp's own output: known
     unknown = [n for n in names if n not in BY_USD]
     misplaced = []
     for n in names:
@@ -84,7 +98,8 @@ def unknown_attributes(prim, where: str, scopes) -> str | None:
         misplaced.append(f"{n} (read on {_SCOPE_TEXT[option.scope]})")
     parts = []
     if unknown:
-        parts.append(unknown_message(unknown, BY_USD))
+        parts.append(unknown_message(unknown, BY_USD,
+                                     lambda n: OUTPUT_ATTRIBUTES if n.startswith(QC_NAMESPACE) else BY_USD))
     if misplaced:
         parts.append("not read on this prim: " + ", ".join(misplaced))
     if not parts:
