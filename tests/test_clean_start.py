@@ -136,6 +136,9 @@ def test_simulate_cli_moves_hair_out_of_a_sphere_and_prerolls(tmp_path, capsys):
     deep = float(line.split("up to ")[1].split(" m deep")[0])
     assert inside > 10 and 0.01 < deep < 0.1, line
     assert "preroll: " in err and ", settled" in err, err
+    # each line once, before the run (they were repeated after it as "warning:")
+    assert sum("clean start: " in w for w in err.splitlines()) == 1, err
+    assert sum("preroll: " in w for w in err.splitlines()) == 1, err
     samples = composed_samples(out, "/World/Hair")
     velocities = composed_samples(out, "/World/Hair", "velocities")
     first, second = samples[1.0], samples[2.0]

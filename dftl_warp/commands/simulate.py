@@ -80,9 +80,10 @@ def run(args) -> int:
     except QCError as exc:  # a --check gate broken: one line, exit status 3, no output left
         print(f"dftl-warp: error: {exc}", file=sys.stderr)
         return 3
-    if not args.quiet:
+    if not args.quiet:   # the clean start's lines were printed before the run, with the device line
         for w in summary.warnings:
-            print(f"dftl-warp: warning: {w}", file=sys.stderr)
+            if w not in summary.start_notes:
+                print(f"dftl-warp: warning: {w}", file=sys.stderr)
     s = summary
     for line in s.tolerance:   # --tolerance: what it chose
         print(f"dftl-warp: {line}", file=sys.stderr)

@@ -29,7 +29,7 @@ import math
 import sys
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 
 import numpy as np
 
@@ -40,6 +40,7 @@ from ..usd.scene import Scene, transform_points
 from . import root_paths
 from .elastic_setup import note_unstable
 from .group import Group
+from .summary import Summary  # noqa: F401  (re-exported: what simulate_usd returns)
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
     DEFAULT_DAMPING,
@@ -57,33 +58,6 @@ from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
 #: State arrays beyond positions, velocities and corrections that a checkpoint carries (the elastic
 #: solver's ElasticState)
 _EXTRA_STATE = ("tensions", "frames", "clamps")
-
-
-@dataclass
-class Summary:
-    """What :func:`simulate_usd` did. Times in seconds."""
-
-    output: str
-    prims: int
-    strands: int
-    particles: int
-    frames: int
-    first_frame: int
-    last_frame: int
-    colliders: int
-    seconds_loading: float
-    seconds_simulating: float
-    seconds_writing: float
-    groups: list[dict] = field(default_factory=list)
-    #: about the input (printed by the command after the run)
-    warnings: list[str] = field(default_factory=list)
-    #: raised while simulating, e.g. energy growth (printed as they happen when progress is shown)
-    run_warnings: list[str] = field(default_factory=list)
-    #: ``--tolerance``: what was chosen (simulation.tolerance.Tolerance.lines)
-    tolerance: list[str] = field(default_factory=list)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
 
 class Simulation:
@@ -597,4 +571,5 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         warnings=list(scene.warnings) + list(sim.start_notes),
         run_warnings=list(sim.warnings),
         tolerance=sim.tolerance.lines() if sim.tolerance is not None else [],
+        start_notes=list(sim.start_notes),
     )
