@@ -112,15 +112,30 @@ def test_rest_shape_points_are_named_when_they_are_the_zero_length_ones(tmp_path
 
 
 @pytest.mark.parametrize("solver", ["rattle", "reference"])
-def test_rattle_and_reference_messages_are_0_based_with_a_hint(tmp_path, capsys, solver):
+def test_rattle_and_reference_name_the_prim_curve_and_segment(tmp_path, capsys, solver):
     src = two_prims(tmp_path / "in.usda")
     assert cli.main(["simulate", str(src), "-o", str(tmp_path / "o.usda"), "--quiet", "--device", "cpu",
                      "--solver", solver]) == 2
     line = one_line(capsys.readouterr().err)
-    # strand 3 of the group (HairA's two, then HairB's curve 1), its points 1 and 2
-    assert line == (f"dftl-warp: error: {src}: strand 3 of the model, segment 1: points 1 and 2 coincide (a "
-                    f"zero-length segment); the {solver} solver needs non-zero rest lengths: remove the "
-                    "coincident points, or use --solver dftl, which simulates them")
+    # HairB's curve 1, its points 1 and 2 (strand 3 of the group, after HairA's two)
+    assert line == (f"dftl-warp: error: {src}: /World/HairB: curve 1, segment 1: points 1 and 2 of the curve "
+                    f"coincide (a zero-length segment); the {solver} solver needs non-zero rest lengths: remove the "
+                    "coincident points, or use --solver dftl (or dftl:solver = \"dftl\"), which simulates them")
+
+
+@pytest.mark.parametrize("solver", ["rattle", "reference"])
+def test_rattle_and_reference_model_messages_are_0_based_with_a_hint(solver):
+    """Through the Python API (no prim to name) the solvers' own message, 0-based."""
+    import dftl_warp as dw
+
+    pts = np.concatenate([straight((0, 1, 0), 3), straight((0.1, 1, 0), 3)])
+    pts[4] = pts[3]
+    model = dw.Model.from_strands(pts, [3, 3])
+    with pytest.raises(ValueError) as info:
+        dw.make_solver(model, solver)
+    assert str(info.value) == (f"strand 1 of the model, segment 0: points 0 and 1 coincide (a zero-length "
+                               f"segment); the {solver} solver needs non-zero rest lengths: remove the "
+                               "coincident points, or use --solver dftl, which simulates them")
 
 
 def test_zero_length_segment_finds_the_first_within_a_curve():

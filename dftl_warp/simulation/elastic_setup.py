@@ -53,18 +53,19 @@ def zero_length_segment(points, counts):
     return curve, j - int(starts[curve])
 
 
-def check_rest_lengths(source: str, curve, points) -> None:
+def check_rest_lengths(source: str, curve, points, solver: str = "elastic") -> None:
     """Refuse (:class:`UserError`) a prim whose rest shape ``points`` (its authored points, or its
     ``physics:restShapePoints``) has a zero-length segment: the elastic solver needs non-zero rest
-    lengths (its bending and twist are per unit length). One line naming file, prim, curve and
-    segment (0-based, within the prim) and what to do."""
+    lengths (its bending and twist are per unit length), as do ``rattle`` and ``reference`` (their
+    constraint directions). One line naming file, prim, curve and segment (0-based, within the
+    prim) and what to do."""
     found = zero_length_segment(points, curve.counts)
     if found is None:
         return
     k, i = found
     what = "physics:restShapePoints" if curve.rest_points is not None else "points"
     raise UserError(f"{source}: {curve.path}: curve {k}, segment {i}: {what} {i} and {i + 1} of the curve "
-                    "coincide (a zero-length segment); the elastic solver needs non-zero rest lengths: remove "
+                    f"coincide (a zero-length segment); the {solver} solver needs non-zero rest lengths: remove "
                     "the coincident points, or use --solver dftl (or dftl:solver = \"dftl\"), which simulates them")
 
 

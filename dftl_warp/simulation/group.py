@@ -64,6 +64,11 @@ class Group:
             grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
         extra = {} if options.iterations is None else {"iterations": options.iterations}
         elastic = settings.solver == "elastic"
+        if settings.solver in ("rattle", "reference"):   # as the elastic solver, they need non-zero rest lengths
+            from .elastic_setup import check_rest_lengths
+
+            for c in curves:
+                check_rest_lengths(scene.source, c, c.points, settings.solver)
         if elastic:
             from .elastic_setup import check_single_device, elastic_options
 
