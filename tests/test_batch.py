@@ -152,3 +152,25 @@ def test_ray_not_installed_is_one_line(tmp_path, inputs):
     assert result.returncode == 2
     assert result.stderr.strip() == "dftl-warp: error: --ray: Ray is not installed; install it with: pip install 'dftl-warp[ray]'"
     assert not (tmp_path / "out").exists()
+
+
+def test_a_job_writing_a_layer_its_input_uses_fails_alone(tmp_path, inputs):
+    """A job whose output is a sublayer of its input fails with one line naming both files, and
+    the layer is left as it was (as `simulate` refuses it); the other job completes."""
+    import shutil
+
+    hair = tmp_path / "hair.usda"
+    shutil.copy(inputs["a"], hair)
+    top = tmp_path / "top.usda"
+    top.write_text('#usda 1.0\n(\n    subLayers = [@./hair.usda@]\n)\n')
+    before = hair.read_bytes()
+    jobs = write_jobs(tmp_path / "jobs.toml", [
+        {"input": str(top), "output": str(hair)},
+        {"input": str(inputs["a"]), "output": "out/good.usdc", "end": 3},
+    ])
+    result = run_batch(jobs)
+    assert result.returncode == 1
+    errors = [line for line in result.stderr.splitlines() if line.startswith("dftl-warp: error:")]
+    assert len(errors) == 1 and f"the output would overwrite {hair}, which the input {top} uses" in errors[0], \
+        result.stderr
+    assert hair.read_bytes() == before and (tmp_path / "out" / "good.usdc").is_file()

@@ -282,6 +282,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     from ..simulation.simulate import Simulation, SimulationOptions, resolve_frames, run_frames
     from ..usd.read import read_scene
     from ..output import check_output_path, writer_for
+    from ..output.paths import check_not_a_dependency
     from ..core.devices import init_warp
 
     from ..options import OUTPUT_OPTIONS
@@ -295,6 +296,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     gates = parse_gates(out_opts["check"])
     step = out_opts["frame_step"] or 1
     check_output_path(job.output, job.input)
+    check_not_a_dependency(job.output, job.input)   # nor a layer the input uses
     scene = read_scene(job.input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
     last = first + (last - first) // step * step  # the last frame written
