@@ -109,3 +109,16 @@ def test_a_missing_file_or_folder_is_named_as_such(tmp_path, capsys):
     junk.write_text("not usd\n")
     code, out, err = diff(capsys, a, junk)
     assert code == 2 and err.count("\n") == 1 and f"{junk}: cannot open as a USD stage" in err
+
+
+def test_json_is_strict_where_points_are_not_finite(tmp_path, capsys):
+    """A frame whose points are NaN in one cache differs (exit 1) and its distances are null in
+    the JSON (Python's json wrote NaN, which strict parsers refuse)."""
+    a = cache(tmp_path / "a.usda", frames=(1, 2))
+    b = cache(tmp_path / "b.usda", frames=(1, 2), moved={2: np.nan})
+    code, out, _ = diff(capsys, a, b, "--json")
+    assert code == 1 and "NaN" not in out
+    rows = json.loads(out, parse_constant=lambda c: pytest.fail(f"non-standard JSON constant {c}"))["prims"]
+    frame2 = next(r for r in rows["/World/Hair"] if r["time"] == 2.0)
+    assert frame2["max"] is None and frame2["max_relative"] is None
+    assert json.loads(out)["first_beyond"]["time"] == 2.0
