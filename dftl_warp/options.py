@@ -327,6 +327,17 @@ def usd_attributes(scope: str) -> list[Option]:
 # -- front ends ----------------------------------------------------------------------------------
 
 
+def check_keywords(options: dict, accepts, where: str) -> None:
+    """A TypeError naming the first of ``options`` the dataclass ``accepts`` has no field for, with
+    a did-you-mean among its fields and the options table's names (those the caller took already)."""
+    import dataclasses
+
+    fields = {f.name for f in dataclasses.fields(accepts)}
+    for name in options:
+        if name not in fields:
+            raise TypeError(f"{where}: unknown keyword {name!r}{did_you_mean(name, sorted(fields | set(OPTIONS)))}")
+
+
 def did_you_mean(name: str, known) -> str:
     """`` (did you mean 'x'?)`` for the closest of ``known``, or ""."""
     close = difflib.get_close_matches(name, list(known), n=1)

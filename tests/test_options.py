@@ -251,3 +251,13 @@ def test_the_table_is_complete():
         assert o.usd is None or (o.usd.startswith("dftl:") and o.scope in options.SCOPES), o.name
         if o.default is not None and o.type in (int, float, bool, str):
             assert o.check(o.default) == o.default, o.name
+
+
+def test_simulate_usd_names_a_misspelt_keyword(tmp_path):
+    """A misspelt keyword of simulate_usd gets the did-you-mean the CLI and the TOML give (it was
+    Python's bare TypeError from the options dataclass); nothing is written."""
+    import dftl_warp as dw
+
+    with pytest.raises(TypeError, match=r"simulate_usd: unknown keyword 'substep' \(did you mean 'substeps'\?\)"):
+        dw.simulate_usd(tmp_path / "missing.usda", tmp_path / "out.usdc", substep=4)
+    assert not (tmp_path / "out.usdc").exists()

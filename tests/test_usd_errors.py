@@ -203,3 +203,13 @@ def test_console_script_prints_no_traceback(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip() == f"dftl-warp: error: {f}: /World/Hair: points[2] = (inf, 0, 0) is not finite"
     assert not (tmp_path / "o.usdc").exists()
+
+
+def test_a_cache_whose_input_moved_says_which_layer_did_not_load(tmp_path, capsys):
+    """A stage whose only hair is in a sublayer that is gone (a cache whose input was moved):
+    the refusal names the missing layer, not only "no BasisCurves prims"."""
+    f = tmp_path / "cache.usda"
+    f.write_text('#usda 1.0\n(\n    subLayers = [@./moved_away.usda@]\n)\n')
+    line = assert_refused(capsys, tmp_path, [f], f"{f}: the stage has no BasisCurves prims (no hair to simulate) "
+                                                 "(USD: Could not load sublayer")
+    assert "moved_away.usda" in line

@@ -470,7 +470,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     from ..output import check_output_path, writer_for
     from ..core.devices import device_line, init_warp, resolve_device
 
-    from ..options import OUTPUT_OPTIONS, check_api
+    from ..options import OUTPUT_OPTIONS, check_api, check_keywords
     from ..output import provenance
     from ..output.qc import FrameQC, parse_gates
     from ..output.clips import start_writers_early
@@ -483,6 +483,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     guides = {k: check_api(k, options.pop(k, None)) for k in GUIDE_OPTIONS}  # guides.scene (issue 22)
     if "device" in options and options["device"] is None:
         options = {**options, "device": resolve_device(None)}
+    check_keywords(options, SimulationOptions, "simulate_usd")   # a misspelt keyword: did you mean
     opts = SimulationOptions(**options, quality=quality)
     gates = parse_gates(out_opts["check"])
     init_warp()

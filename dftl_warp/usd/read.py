@@ -322,7 +322,10 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: every BasisCurves prim is under an instanceable prim ({instances[0][0].GetPath()}"
                             f"{' ...' if len(instances) > 1 else ''}): set instanceable = false to simulate them")
         if not selection:
-            raise UserError(f"{file}: the stage has no BasisCurves prims (no hair to simulate)")
+            # a layer that did not load (a cache whose input moved) is the likely reason: say so
+            missing = next((w for w in warnings or () if "Could not" in w and "layer" in w), None)
+            because = f" (USD: {missing.removeprefix(file + ': ')})" if missing else ""
+            raise UserError(f"{file}: the stage has no BasisCurves prims (no hair to simulate){because}")
     return found
 
 
