@@ -77,6 +77,10 @@ class JobResult:
     seconds: float = 0.0
     error: str | None = None
     notes: list[str] = field(default_factory=list)
+    #: what ``simulate`` prints as warnings: the input's (unknown attributes, frames outside the
+    #: stage's range), the clean start's (hair moved out of colliders, a preroll not settled or
+    #: not run) and the run's (energy growth), in order
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -234,6 +238,26 @@ def remove_job_files(files: JobFiles) -> None:
     shutil.rmtree(clips_partial_folder(files.output), ignore_errors=True)  # a clips job's chunks
 
 
+def clean_interrupted(output) -> bool:
+    """After the process working on ``output`` was killed (a crashed worker, an interrupted
+    batch): remove what only a live run uses -- the partial file, USD's temporary files of it,
+    half-written checkpoint temporaries and the lock file -- and keep the checkpoint a rerun
+    resumes from (a value-clips job's finished chunks too). Returns False, touching nothing, when
+    another process holds the job's lock (or it cannot be taken)."""
+    import glob
+
+    files = JobFiles(Path(output))
+    try:
+        with job_lock(files.lock, wait=0.0):   # removed again on leaving
+            leftovers = files.output.parent.glob(glob.escape(f".{files.output.name}.dftl-partial") + "*")
+            for path in [files.partial, *leftovers, *(files.temporary(p) for p in
+                                                      (files.checkpoint_usd, files.checkpoint_state))]:
+                _remove(path)
+    except (UserError, OSError):
+        return False
+    return True
+
+
 def job_lock(path: Path, wait: float | None = None):
     """Exclusive lock on ``path`` (created, removed on exit) so that two processes never work on
     the same output; waits up to ``wait`` s (default ``LOCK_WAIT_SECONDS``) for a holder (e.g. a
@@ -252,7 +276,8 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
     one matches. Never raises for the job's own problems: they come back as a failed result.
 
     ``progress`` (optional) is called with event dicts: ``{"event": "start", "total", "first",
-    "last", "resumed_from"}``, ``{"event": "frames", "done"}``, ``{"event": "note", "text"}``.
+    "last", "resumed_from"}``, ``{"event": "frames", "done"}``, ``{"event": "note", "text"}``,
+    ``{"event": "warning", "text"}`` (each also kept in :attr:`JobResult.warnings`).
     """
     policy = policy or CheckpointPolicy()
     start = time.perf_counter()
@@ -287,7 +312,16 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
 
     from ..options import OUTPUT_OPTIONS
     from ..output import provenance
+    from ..output.paths import frame_range_note
     from ..output.qc import FrameQC, parse_gates
+
+    def note(text):
+        result.notes.append(text)
+        emit({"event": "note", "text": text})
+
+    def warn(text):
+        result.warnings.append(text)
+        emit({"event": "warning", "text": text})
 
     init_warp()
     options = dict(job.options)
@@ -299,6 +333,9 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     check_not_a_dependency(job.output, job.input)   # nor a layer the input uses
     scene = read_scene(job.input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
+    frame_range_note(scene, first, last)   # frames outside the stage's animated range (as simulate)
+    for text in scene.warnings:   # unknown attributes, ...: what simulate prints as warnings
+        warn(text)
     last = first + (last - first) // step * step  # the last frame written
     if out_opts["no_clips"] and out_opts["clips"] is not None:
         raise UserError(f"{job.output}: clips and no_clips contradict each other")
@@ -314,12 +351,14 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         remove_job_files(files)  # left over when a run was killed right after its commit
         result.status = "skipped"
         return
+    shown = len(scene.warnings)
     sim = Simulation(scene, opts, first)
+    for text in scene.warnings[shown:]:   # found while setting up (e.g. an elastic style that cannot stand)
+        warn(text)
+    for text in sim.start_notes:   # the clean start: a settled preroll is a note, the rest warnings
+        (note if _plain_note(text) else warn)(text)
+    sim.on_warning = warn   # energy growth, as it happens
     signature = state_signature(sim)
-
-    def note(text):
-        result.notes.append(text)
-        emit({"event": "note", "text": text})
 
     clip_frames = None
     if out_opts["clips"] is not None:  # value clips: resumable per finished chunk (docs/caches.md)
@@ -384,6 +423,12 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         raise
     remove_job_files(files)
     result.status = "done"
+
+
+def _plain_note(text: str) -> bool:
+    """Whether a clean-start line only reports what was asked for (a preroll that settled), not
+    something moved, approximated or skipped (:meth:`~dftl_warp.simulation.simulate.Simulation._clean_start`)."""
+    return text == "preroll: none" or (text.startswith("preroll: ") and ", settled:" in text)
 
 
 def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:

@@ -1,9 +1,11 @@
 """The job list of ``dftl-warp batch``: a TOML file of ``[[job]]`` tables (``docs/batch.md``).
 
 Each job names an ``input`` stage and an ``output`` layer (paths relative to the TOML file's
-folder) and may set any ``dftl-warp simulate`` option by its long name (``start``, ``end``,
-``substeps``, ``damping``, ``correction``, ``solver``, ``iterations``, ``precision``, ``arithmetic``, ``quality``,
-``device``, ``prim``), plus a display ``name``. An optional ``[defaults]`` table gives options shared by every job.
+folder) and may set the ``dftl-warp simulate`` options by their long names (the options table's
+entries with a TOML key: ``start``, ``end``, ``substeps``, ``damping``, ``correction``, ``solver``,
+``iterations``, ``precision``, ``arithmetic``, ``quality``, ``device``, ``prim``, ``preroll`` and the
+output options ``frame_step``, ``no_velocities``, ``check``, ``clips``, ``no_clips``; not
+:data:`SIMULATE_ONLY`), plus a display ``name``. An optional ``[defaults]`` table gives options shared by every job.
 
 A file that cannot be read or parsed is an error of the whole batch; a job with an unknown option
 or a bad value is refused alone (:attr:`Job.error`) so that the others still run.
@@ -16,7 +18,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..options import BY_TOML, DEVICE_PATTERN as _DEVICE_PATTERN, check_toml, did_you_mean
+from ..options import BY_TOML, DEVICE_PATTERN as _DEVICE_PATTERN, GUIDE_OPTIONS, OPTIONS, check_toml, did_you_mean
 from ..errors import UserError
 
 if sys.version_info >= (3, 11):
@@ -28,13 +30,31 @@ else:  # pragma: no cover - Python 3.10
 JOB_KEYS = ("input", "output", "name")
 #: ``device`` values (the options table's pattern)
 DEVICE_PATTERN = _DEVICE_PATTERN
+#: ``simulate`` options a job does not take (docs/batch.md): the options table gives them no
+#: TOML key, and a resumed job could not continue them exactly (``--tolerance``'s substep
+#: controller is not in the checkpoint; guides change what the output holds)
+SIMULATE_ONLY = ("tolerance", *GUIDE_OPTIONS)
 
 
 def _validator(key):
     def check(value, name):
+        if key == "check" and isinstance(value, str):
+            _check_gates(value)
         return check_toml(key, value)
 
     return check
+
+
+def _check_gates(text: str) -> None:
+    """A bad ``check`` in the gates' words, as ``simulate --check`` and the API give them, naming
+    the key ``check`` instead of the flag; raises ValueError."""
+    from ..output.qc import parse_gates
+
+    try:
+        parse_gates(text)
+    except UserError as exc:
+        message, flag = str(exc), f"{OPTIONS['check'].cli} {text!r}"
+        raise ValueError(f"check {text!r}{message[len(flag):]}" if message.startswith(flag) else message) from None
 
 
 def _simulate_options():
@@ -77,6 +97,9 @@ def _check_options(table: dict, where: str, allowed_extra=()) -> dict:
     for key, value in table.items():
         if key in allowed_extra:
             continue
+        if key in SIMULATE_ONLY:
+            raise ValueError(f"option {key!r} ({OPTIONS[key].cli}) is not available in batch jobs: "
+                             f"run that input with dftl-warp simulate (docs/batch.md lists the options jobs take)")
         if key not in validators:
             raise ValueError(_unknown(key, list(validators) + list(allowed_extra)))
         options[key] = validators[key](value, key)

@@ -22,7 +22,7 @@ from dataclasses import asdict
 
 from ..core.devices import parse_devices
 from .jobs import Job
-from .checkpoint import CheckpointPolicy, JobResult
+from .checkpoint import CheckpointPolicy, JobResult, clean_interrupted
 
 
 # -- devices --------------------------------------------------------------------------------------
@@ -169,6 +169,9 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
                 if w.process.is_alive():
                     w.process.kill()
                     w.process.join()
+            for w in pool:  # interrupted jobs: partial and lock files go, checkpoints stay (resume)
+                if w.task is not None:
+                    clean_interrupted(w.task[0].output)
     return [results[job.index] for job in jobs]
 
 
@@ -197,6 +200,7 @@ def _dispatch(pool, pending, picker, policy, outbox, by_index, results, reporter
                     why = f"killed by signal {-code}" if code is not None and code < 0 else f"exit status {code}"
                     finish(w, JobResult(index=job.index, name=job.name, output=job.output, status="failed",
                                         device=device, error=f"{job.output}: worker process died ({why})"))
+                    clean_interrupted(job.output)  # its checkpoint stays: a rerun resumes from it
                     pool[k] = _Worker(ctx, outbox)
             continue
         worker = next((w for w in pool if w.task is not None and w.task[0].index == index), None)
@@ -241,6 +245,8 @@ class Reporter(NullReporter):
         self.devices: dict[int, str] = {}
         #: per-job line progress when stderr is not a terminal (dftl_warp.output.progress)
         self.lines: dict = {}
+        #: job index -> the warnings printed (or, with --quiet, held for the summary)
+        self.warned: dict[int, list[str]] = {}
         if not quiet and self.console.is_terminal:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -290,8 +296,28 @@ class Reporter(NullReporter):
             self.lines[job.index].set(event["done"])
         elif kind == "note":
             self._line(f"{self._label(job)}: {event['text']}")
+        elif kind == "warning":
+            self._warning(job, event["text"])
+
+    def _warning(self, job, text: str) -> None:
+        """``dftl-warp: warning: job N (NAME): ...`` on stderr, once per warning (with --quiet:
+        left to the summary, :func:`warning_lines`)."""
+        self.warned.setdefault(job.index, []).append(text)
+        if self.quiet:
+            return
+        line = f"dftl-warp: warning: {job_label(job.index, job.name)}: {text}"
+        if self.progress is not None:
+            self.progress.console.print(line, markup=False, highlight=False)
+        else:
+            print(line, file=sys.stderr, flush=True)
 
     def result(self, job, result):
+        shown = list(self.warned.get(job.index, []))
+        for text in result.warnings:  # those no event brought (Ray, a worker's last moments)
+            if text in shown:
+                shown.remove(text)
+            else:
+                self._warning(job, text)
         if self.progress is not None and job.index in self.tasks:
             self.progress.update(self.tasks[job.index], completed=result.total_frames if result.ok else None,
                                  status=result.status)
@@ -303,6 +329,16 @@ class Reporter(NullReporter):
             self.progress = None
 
 
+def job_label(index: int, name: str) -> str:
+    """``job 3 (sh020)``: how the error and warning lines name a job."""
+    return f"job {index} ({name})"
+
+
+def warning_lines(results: list[JobResult]) -> list[str]:
+    """``dftl-warp: warning: job N (NAME): ...`` for every warning of every job, in job order."""
+    return [f"dftl-warp: warning: {job_label(r.index, r.name)}: {w}" for r in results for w in r.warnings]
+
+
 def describe(result: JobResult) -> str:
     if result.status == "skipped":
         return "skipped: already complete"
@@ -311,6 +347,8 @@ def describe(result: JobResult) -> str:
     text = f"done: {result.frames} frames in {result.seconds:.2f} s ({result.frames_per_second:.1f} frames/s)"
     if result.resumed_from is not None:
         text += f", resumed after frame {result.resumed_from}"
+    if result.warnings:
+        text += f", {len(result.warnings)} warning{'s' if len(result.warnings) > 1 else ''}"
     return text
 
 
@@ -320,13 +358,14 @@ def summary_table(results: list[JobResult]):
 
     table = Table(title="dftl-warp batch", title_justify="left")
     for name, justify in (("#", "right"), ("job", "left"), ("device", "left"), ("frames", "right"),
-                          ("resumed", "right"), ("wall s", "right"), ("frames/s", "right"), ("status", "left")):
+                          ("resumed", "right"), ("wall s", "right"), ("frames/s", "right"), ("status", "left"),
+                          ("warnings", "right")):
         table.add_column(name, justify=justify)
     for r in results:
         table.add_row(
             str(r.index), r.name, r.device or "-", f"{r.frames}/{r.total_frames}",
             "-" if r.resumed_from is None else str(r.resumed_from), f"{r.seconds:.2f}",
-            f"{r.frames_per_second:.1f}" if r.frames else "-", r.status,
+            f"{r.frames_per_second:.1f}" if r.frames else "-", r.status, str(len(r.warnings)) if r.warnings else "-",
         )
     return table
 

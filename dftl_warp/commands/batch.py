@@ -60,7 +60,7 @@ def run(args) -> int:
 
     from rich.console import Console
 
-    from ..batch.scheduler import Reporter, run_local, summary_table, totals
+    from ..batch.scheduler import Reporter, job_label, run_local, summary_table, totals, warning_lines
     from ..errors import UserError
     from ..batch.jobs import load_jobs
     from ..batch.checkpoint import CheckpointPolicy
@@ -88,7 +88,10 @@ def run(args) -> int:
     out = Console(file=sys.stdout, width=None if sys.stdout.isatty() else 120)
     out.print(summary_table(results))
     print(totals(results, seconds), flush=True)
+    if args.quiet:  # the warnings were held back for the summary
+        for line in warning_lines(results):
+            print(line, file=sys.stderr)
     for r in results:
         if not r.ok:
-            print(f"dftl-warp: error: job {r.index} ({r.name}): {r.error}", file=sys.stderr)
+            print(f"dftl-warp: error: {job_label(r.index, r.name)}: {r.error}", file=sys.stderr)
     return 0 if all(r.ok for r in results) else 1
