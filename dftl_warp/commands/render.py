@@ -41,7 +41,8 @@ def add_parser(sub):
                    help="how the camera aperture meets a different image aspect (UsdRender policy; default expandAperture)")
     p.add_argument("--turntable", type=int, metavar="N", help="N frames orbiting the hair once around the up axis")
     p.add_argument("--contact-sheet", action="store_true", help="write all frames as one grid image to OUT")
-    p.add_argument("--fps", type=float, default=24.0, help="frames per second of a video OUT (default 24)")
+    p.add_argument("--fps", type=float, default=None,
+                   help="frames per second of a video OUT (.mp4, .gif, ...; default 24)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run)
@@ -97,6 +98,32 @@ def _check_output(args, n_images: int):
     return "pattern"
 
 
+def _check_frame_numbers(args, times, kind: str) -> None:
+    """A '#' pattern is numbered by frame, so every frame must be whole (``hair.0001.5.png`` is
+    no name an image-sequence tool reads)."""
+    from ..render.image import has_pattern, is_whole
+
+    if kind not in ("pattern", "png") or not has_pattern(args.output) or args.turntable:
+        return
+    for t in times:
+        if t is not None and not is_whole(t):
+            step = f" (--step {args.step:g})" if args.start is not None else ""
+            raise UserError(f"-o {args.output}: frame {t:g}{step} is not a whole number: a '#' pattern is "
+                            "numbered by frame; render whole frames, or write a video (.mp4, .gif) "
+                            "or --contact-sheet")
+
+
+def _check_fps(args) -> float:
+    """The video frame rate (default 24); --fps must be a positive, finite number."""
+    import math
+
+    if args.fps is None:
+        return 24.0
+    if not (math.isfinite(args.fps) and args.fps > 0):
+        raise UserError(f"--fps {args.fps:g}: must be a positive, finite number of frames per second")
+    return args.fps
+
+
 def run(args) -> int:
     from ..core.devices import device_line, resolve_device
     from ..output.paths import check_writable
@@ -104,16 +131,22 @@ def run(args) -> int:
     from ..render.renderer import Renderer, orbit_cameras, to_rgba8
 
     width, height = parse_resolution(args.resolution)
+    fps = _check_fps(args)
     if args.turntable is not None and args.turntable < 1:
         raise UserError(f"--turntable {args.turntable}: must be at least 1")
     if args.turntable and args.start is not None:
         raise UserError("--turntable orbits one frame: give --frame, not --start/--end")
 
-    stage = usd_scene.open_stage(args.input)
+    def warn(text):
+        print(f"dftl-warp: warning: {text}", file=sys.stderr)
+
+    stage_warnings = []
+    stage = usd_scene.open_stage(args.input, stage_warnings)
     source = args.input
     times = _frames(args, stage)
     n_images = args.turntable or len(times)
     kind = _check_output(args, n_images)
+    _check_frame_numbers(args, times, kind)
     # everything that can fail is checked before the first frame is rendered
     usd_scene.check_samples(stage, times, source)
     check_writable(image.frame_path(args.output, times[0] if times[0] is not None else 0)
@@ -149,7 +182,13 @@ def run(args) -> int:
         cams = orbit_cameras(camera_at(times[0], scene), scene, args.turntable)
         jobs = [(k, scene, c) for k, c in enumerate(cams)]
     else:
-        jobs = [(t, None, None) for t in times]
+        first = read(times[0])  # the first frame's data and camera are checked before any warning
+        jobs = [(times[0], first, camera_at(times[0], first))] + [(t, None, None) for t in times[1:]]
+    # warnings once nothing before the first image can fail; -q silences progress, not warnings
+    if args.fps is not None and kind != "video":
+        warn(f"--fps applies only to a video output (.mp4, .gif, .mov, .webm): ignored for -o {args.output}")
+    for w in stage_warnings:
+        warn(w)
 
     frames = []
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -174,7 +213,7 @@ def run(args) -> int:
             frames.append(rgba)
             say(f"frame {k + 1}/{n_images}  {dt:.2f} s")
     if kind == "video":
-        image.write_video(args.output, frames, fps=args.fps)
+        image.write_video(args.output, frames, fps=fps)
         say(f"{args.output}  {len(frames)} frames")
     elif frames:
         image.write_png(args.output, image.contact_sheet(frames))

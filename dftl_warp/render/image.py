@@ -56,6 +56,12 @@ def check_video(path) -> None:
             raise UserError(f"{path}: writing {suffix} needs imageio-ffmpeg: pip install 'dftl-warp[video]'") from None
 
 
+def check_fps(fps) -> None:
+    """ValueError unless ``fps`` is a positive, finite number of frames per second."""
+    if not (isinstance(fps, (int, float, np.number)) and math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps {fps!r}: must be a positive, finite number of frames per second")
+
+
 def write_png(path, rgba8: np.ndarray) -> None:
     """Write an (H, W, 4) uint8 straight-alpha image as an RGBA PNG."""
     from PIL import Image
@@ -70,13 +76,21 @@ def read_png(path) -> np.ndarray:
 
 
 def frame_path(pattern: str, frame: float) -> str:
-    """``pattern`` with its run of '#' replaced by the zero-padded frame number."""
+    """``pattern`` with its run of '#' replaced by the zero-padded frame number. A pattern names
+    whole frames only (sequence tools read ``hair.0001.png``, not ``hair.0001.5.png``): a
+    fractional ``frame`` raises ValueError."""
     m = re.search(r"#+", pattern)
     if not m:
         return pattern
+    if not is_whole(frame):
+        raise ValueError(f"{pattern}: frame {frame:g} is not a whole number: a '#' pattern numbers images by frame")
     width = len(m.group(0))
-    text = f"{int(round(frame)):0{width}d}" if float(frame).is_integer() else f"{frame:0{width + 2}.1f}"
-    return pattern[: m.start()] + text + pattern[m.end():]
+    return pattern[: m.start()] + f"{int(round(frame)):0{width}d}" + pattern[m.end():]
+
+
+def is_whole(frame) -> bool:
+    """True for a finite frame number without a fractional part (within 1e-6)."""
+    return math.isfinite(frame) and abs(frame - round(frame)) <= 1e-6
 
 
 def has_pattern(path: str) -> bool:
@@ -104,7 +118,9 @@ def over_background(rgba8: np.ndarray, background=(40, 40, 46)) -> np.ndarray:
 
 
 def write_video(path, frames, fps: float = 24.0) -> None:
-    """MP4/GIF/... of RGBA frames over a dark background, through imageio (extra ``video``)."""
+    """MP4/GIF/... of RGBA frames over a dark background, through imageio (extra ``video``).
+    ``fps`` must be a positive, finite number (ValueError otherwise)."""
+    check_fps(fps)
     try:
         import imageio.v3 as iio
     except ImportError:

@@ -187,7 +187,9 @@ class Renderer:
         return auto_frame(scene.hair_bounds() or scene.bounds(), self.width, self.height, scene.up_axis)
 
     def render(self, scene: RenderScene, camera: Camera | None = None) -> np.ndarray:
-        """(height, width, 4) float32: linear straight colour and alpha = coverage."""
+        """(height, width, 4) float32: linear straight colour and alpha = coverage. ValueError
+        (:meth:`RenderScene.check`) when the scene's strand arrays do not fit together."""
+        scene.check()
         if camera is None:
             camera = self.default_camera(scene)
         bounds = scene.bounds()

@@ -74,19 +74,44 @@ class RenderScene:
     def from_strands(cls, points, counts, widths=None, colors=None, **kw) -> "RenderScene":
         """Strands from numpy: ``points`` (N, 3); ``counts`` (S,); ``widths`` (diameters): a
         scalar, (S,) per strand or (N,) per vertex; ``colors``: None (default ramp), an RGB, (S, 3)
-        or (N, 3)."""
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        or (N, 3). Bad arrays (counts that do not sum to N, a negative count, a non-finite point,
+        a negative or non-finite width, widths or colours of another length) raise ValueError
+        naming the first bad index, with the messages of :meth:`dftl_warp.Model.from_strands`."""
+        points, counts = check_strands(points, counts)
         n = len(points)
         if widths is None:
             widths = default_width(points)
-        w = np.asarray(widths, dtype=np.float64).reshape(-1)
+        w = _float_array(widths, "widths").reshape(-1)
         if w.size == 1:
             w = np.full(n, w[0])
         elif w.size == len(counts) and w.size != n:
             w = np.repeat(w, counts)
+        elif w.size != n:
+            raise ValueError(f"{w.size} widths for {len(counts)} strands of {n} points: expected one, "
+                             f"one per strand or one per point")
+        _check_values(w, "widths", nonnegative=True)
+        if colors is not None:
+            c = _float_array(colors, "colors")
+            if c.size % 3:
+                raise ValueError(f"colors of shape {c.shape}: expected an RGB, (S, 3) or (N, 3)")
+            _check_values(c.reshape(-1, 3), "colors")
         return cls(points=points, curve_vertex_counts=counts, radii=0.5 * w,
                    colors=strand_colors(counts, colors), **kw)
+
+    def check(self) -> None:
+        """ValueError unless the strand arrays fit together (the renderer's kernels index them
+        by ``curve_vertex_counts``): counts not negative and summing to the points, finite points,
+        one finite, non-negative radius and one finite colour per point."""
+        check_strands(self.points, self.curve_vertex_counts)
+        n = len(np.asarray(self.points).reshape(-1, 3))
+        radii = np.asarray(self.radii, dtype=np.float64).reshape(-1)
+        colors = np.asarray(self.colors, dtype=np.float64)
+        if radii.size != n:
+            raise ValueError(f"{radii.size} radii for {n} points: expected one per point")
+        if colors.size != 3 * n:
+            raise ValueError(f"colors of shape {colors.shape} for {n} points: expected ({n}, 3)")
+        _check_values(radii, "radii", nonnegative=True)
+        _check_values(colors.reshape(-1, 3), "colors")
 
     @property
     def strand_count(self) -> int:
@@ -118,6 +143,48 @@ class RenderScene:
 
     def is_empty(self) -> bool:
         return self.segment_count == 0 and not self.shapes and len(self.mesh_triangles) == 0
+
+
+def check_strands(points, counts) -> tuple[np.ndarray, np.ndarray]:
+    """(points (N, 3) float64, counts (S,) int64) checked as :meth:`dftl_warp.Model.from_strands`
+    checks them (same messages), except that a strand may have 0 vertices (it draws nothing)."""
+    points = _float_array(points, "points")
+    if points.size % 3:
+        raise ValueError(f"points must have shape (N, 3), got {points.shape}")
+    points = points.reshape(-1, 3)
+    raw = np.asarray(counts).reshape(-1)
+    if raw.size and not (np.issubdtype(raw.dtype, np.integer)
+                         or (np.issubdtype(raw.dtype, np.floating) and np.all(np.mod(raw, 1) == 0))):
+        raise ValueError("counts must be a 1-D array of integers (vertices per strand)")
+    counts = raw.astype(np.int64)
+    if np.any(counts < 0):
+        i = int(np.flatnonzero(counts < 0)[0])
+        raise ValueError(f"strand {i} has {counts[i]} vertices; a vertex count cannot be negative")
+    if int(counts.sum()) != points.shape[0]:
+        raise ValueError(f"vertex counts sum to {int(counts.sum())} but there are {points.shape[0]} points")
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise ValueError(f"point {int(np.flatnonzero(bad)[0])} is not finite")
+    return points, counts
+
+
+def _float_array(values, name: str) -> np.ndarray:
+    try:
+        return np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers") from None
+
+
+def _check_values(values: np.ndarray, name: str, nonnegative: bool = False) -> None:
+    """ValueError naming the first non-finite (or, ``nonnegative``, negative) row of ``values``."""
+    if values.size == 0:
+        return
+    rows = values.reshape(len(values), -1) if values.ndim else values.reshape(1, 1)
+    bad = ~np.isfinite(rows).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{name}[{int(np.flatnonzero(bad)[0])}] is not finite")
+    if nonnegative and (rows < 0).any():
+        raise ValueError(f"{name}[{int(np.flatnonzero((rows < 0).any(axis=1))[0])}] is negative")
 
 
 def default_width(points: np.ndarray) -> float:

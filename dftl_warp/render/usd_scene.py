@@ -22,6 +22,7 @@ import numpy as np
 
 from ..core.layout import strand_offsets
 from ..errors import UserError
+from ..usd import curves as curve_checks
 from ..usd.scene import transform_points
 from .camera import Camera
 from .scene import BOX, CAPSULE, SPHERE, RenderScene, Shape, default_width, root_to_tip, strand_colors
@@ -36,27 +37,17 @@ _BASIS = {  # (4x4 basis matrix for [1, u, u^2, u^3] @ M @ [P0..P3], vstep)
 }
 
 
-def open_stage(path):
-    """Open a USD stage for reading, or raise UserError; also when a sublayer of it cannot be
-    found (e.g. a simulated output whose input has moved: it would render nothing)."""
-    from pxr import Usd, UsdUtils
+def open_stage(path, warnings: list | None = None):
+    """Open a USD stage for reading, or raise UserError, as the simulation's reader does
+    (:func:`dftl_warp.usd.read.open_stage`: the same one-line messages); also when a sublayer
+    of it cannot be found (e.g. a simulated output whose input has moved: it would render
+    nothing). Warnings USD posts while composing are appended to ``warnings`` (one line each)."""
+    from ..usd.read import open_stage as read_open_stage
 
-    p = Path(path)
-    if not p.exists():
-        raise UserError(f"{path}: no such file")
-    if p.is_dir():
-        raise UserError(f"{path}: is a folder, not a USD stage")
-    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # USD's warnings would be extra lines
-    try:
-        stage = Usd.Stage.Open(str(p))
-    except Exception as exc:  # pxr raises Tf.ErrorException
-        msg = str(exc).strip().splitlines()
-        raise UserError(f"{path}: cannot open as a USD stage: {msg[-1] if msg else exc}") from None
-    finally:
-        del delegate
-    if stage is None:
-        raise UserError(f"{path}: cannot open as a USD stage")
+    stage, found = read_open_stage(path)
     _check_sublayers(stage, path)
+    if warnings is not None:
+        warnings.extend(found)
     return stage
 
 
@@ -254,18 +245,6 @@ def _expected(interp, n_curves, n_vertices, n_varying):
             "faceVarying": n_varying, "vertex": n_vertices}.get(interp)
 
 
-def _spans(counts, curve_type, basis, wrap):
-    """Number of spans (linear segments or cubic pieces) per curve."""
-    if curve_type == "linear":
-        return counts if wrap == "periodic" else np.maximum(counts - 1, 0)
-    _, vstep = _BASIS[basis]
-    if wrap == "periodic":
-        return counts // vstep
-    if wrap == "pinned" and basis != "bezier":
-        return np.maximum(counts - 1, 0)
-    return np.maximum((counts - 4) // vstep + 1, 0)
-
-
 def _read_curves(prim, time, source):
     from pxr import UsdGeom
 
@@ -291,7 +270,9 @@ def _read_curves(prim, time, source):
         raise UserError(f"{source}: {path}: unsupported cubic basis {basis!r} (bezier, bspline, catmullRom)")
     if wrap not in ("nonperiodic", "periodic", "pinned"):
         raise UserError(f"{source}: {path}: unknown wrap {wrap!r}")
-    spans = _spans(counts, curve_type, basis, wrap)
+    # the simulation reader's rule: a cubic curve needs the control points its basis uses
+    curve_checks.check_vertex_counts(counts, curve_type, basis, wrap, f"{source}: {path}")
+    spans = curve_checks.curve_spans(counts, curve_type, basis, wrap)
     n_varying = int((spans + (0 if wrap == "periodic" else 1)).sum()) if curve_type == "cubic" else len(pts)
 
     def per_vertex(values, interp, name, width):

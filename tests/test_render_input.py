@@ -1,0 +1,216 @@
+"""Bad render input: the numpy API (``RenderScene.from_strands``, ``Renderer.render``) raises
+ValueError naming the index; ``dftl-warp render`` refuses invalid cubic curves, malformed layers,
+bad ``--fps`` and fractional frames in '#' patterns with one line and exit 2, writing nothing."""
+
+import numpy as np
+import pytest
+
+from dftl_warp import RenderScene, Renderer, cli
+from dftl_warp.render import image
+from dftl_warp.render.camera import Camera
+from render_util import add_camera, add_curves, new_stage
+
+PTS = np.array([[0.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, -2.0, 0.0]])
+
+
+# -- Python API -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("points, counts, widths, message", [
+    (PTS, [100000], 0.1, "vertex counts sum to 100000 but there are 3 points"),
+    (PTS, [4], 0.1, "vertex counts sum to 4 but there are 3 points"),
+    (PTS, [2, -1, 2], 0.1, "strand 1 has -1 vertices"),
+    (PTS, [1.5, 1.5], 0.1, "counts must be a 1-D array of integers"),
+    (np.zeros(7), [2], 0.1, "points must have shape (N, 3)"),
+    (np.where(np.arange(9).reshape(3, 3) == 4, np.nan, PTS), [3], 0.1, "point 1 is not finite"),
+    (PTS, [3], [0.1, -0.1, 0.1], "widths[1] is negative"),
+    (PTS, [3], -0.1, "widths[0] is negative"),
+    (PTS, [3], [0.1, 0.1, np.inf], "widths[2] is not finite"),
+    (PTS, [3], [0.1, 0.1], "2 widths for 1 strands of 3 points: expected one, one per strand or one per point"),
+    (PTS, [2, 1], [0.1, -0.2], "widths[2] is negative"),  # per strand, expanded per point
+])
+def test_from_strands_rejects_bad_arrays(points, counts, widths, message):
+    with pytest.raises(ValueError) as e:
+        RenderScene.from_strands(points, counts, widths)
+    assert message in str(e.value)
+
+
+def test_from_strands_rejects_bad_colors():
+    with pytest.raises(ValueError, match=r"colors\[1\] is not finite"):
+        RenderScene.from_strands(PTS, [3], 0.1, [[1, 0, 0], [0, np.nan, 0], [0, 0, 1]])
+    with pytest.raises(ValueError, match="colors of shape"):
+        RenderScene.from_strands(PTS, [3], 0.1, [1, 0])
+    with pytest.raises(ValueError, match="2 colours for 1 strands of 3 vertices"):
+        RenderScene.from_strands(PTS, [3], 0.1, [[1, 0, 0], [0, 1, 0]])
+
+
+def test_from_strands_accepts_every_width_layout_and_empty_strands():
+    for widths, radii in ((0.2, [0.1] * 3), ([0.2, 0.4], [0.1, 0.1, 0.2]), ([0.2, 0.4, 0.6], [0.1, 0.2, 0.3])):
+        counts = [2, 1] if len(np.atleast_1d(widths)) == 2 else [3]
+        s = RenderScene.from_strands(PTS, counts, widths)
+        assert np.allclose(s.radii, radii)
+    s = RenderScene.from_strands(PTS, np.array([0, 3, 0]), None)  # a strand of 0 vertices draws nothing
+    assert s.segment_count == 2 and s.radii.shape == (3,) and (s.radii > 0).all()
+    s = RenderScene.from_strands(PTS, np.array([3.0]), 0.0)  # whole float counts, zero width
+    assert s.curve_vertex_counts.dtype == np.int64 and s.segment_count == 2
+
+
+def test_renderer_refuses_a_scene_whose_arrays_do_not_fit():
+    """A RenderScene built by hand is checked before the kernels index its arrays."""
+    world_from_camera = np.eye(4)
+    world_from_camera[:3, 3] = (0.0, -1.0, 5.0)  # column vectors: looking down -Z at the strand
+    cam = Camera(world_from_camera=world_from_camera, path="/c")
+    bad = RenderScene(points=PTS, curve_vertex_counts=np.array([100000]), radii=np.full(3, 0.1),
+                      colors=np.zeros((3, 3)))
+    r = Renderer(8, 8, spp=1, device="cpu")
+    with pytest.raises(ValueError, match="vertex counts sum to 100000 but there are 3 points"):
+        r.render(bad, cam)
+    bad = RenderScene(points=PTS, curve_vertex_counts=np.array([3]), radii=np.full(2, 0.1), colors=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="2 radii for 3 points"):
+        r.render(bad, cam)
+    bad = RenderScene(points=PTS, curve_vertex_counts=np.array([3]), radii=np.full(3, 0.1), colors=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match=r"colors of shape \(2, 3\) for 3 points"):
+        r.render(bad, cam)
+    good = RenderScene.from_strands(PTS, [3], 0.5)
+    assert r.render(good, cam)[..., 3].sum() > 0
+
+
+def test_frame_path_and_write_video_check_their_arguments(tmp_path):
+    assert image.frame_path("a.####.png", 12) == "a.0012.png"
+    assert image.frame_path("a.####.png", 3.0000000001) == "a.0003.png"
+    assert image.frame_path("a.png", 1.5) == "a.png"
+    with pytest.raises(ValueError, match="frame 1.5 is not a whole number"):
+        image.frame_path("a.####.png", 1.5)
+    frames = [np.zeros((4, 4, 4), np.uint8)]
+    for fps in (0, -5, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="must be a positive, finite number"):
+            image.write_video(tmp_path / "v.gif", frames, fps=fps)
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- the command ----------------------------------------------------------------------------------
+
+
+def render(*args):
+    return cli.main(["render", *map(str, args), "-q"])
+
+
+def one_error(capsys, *fragments):
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("dftl-warp: error: "), err
+    assert "Traceback" not in err and "pxrInternal" not in err and "Error in '" not in err
+    for f in fragments:
+        assert f in lines[0], err
+    return lines[0]
+
+
+@pytest.fixture
+def groom(tmp_path):
+    path = tmp_path / "groom.usda"
+    stage = new_stage(path)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(3)
+    add_camera(stage, translate=(0, 0.5, 3))
+    strands = [np.array([[x, 0, 0], [x, 0.5, 0.1], [x + 0.1, 1.0, 0]]) for x in (-0.2, 0.0, 0.2)]
+    for f in (1, 2, 3):
+        add_curves(stage, "/hair", [s + [0.1 * f, 0, 0] for s in strands], widths=[0.03], time=f)
+    stage.Save()
+    return path
+
+
+def cubic_stage(path, counts, basis="bezier", wrap="nonperiodic"):
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, -1, 6))
+    strands = [np.column_stack([np.full(n, float(k)), -np.arange(n, dtype=float), np.zeros(n)])
+               for k, n in enumerate(counts)]
+    c = add_curves(stage, "/W/H", strands, widths=[0.05], curve_type="cubic")
+    c.CreateBasisAttr(basis)
+    c.CreateWrapAttr(wrap)
+    stage.Save()
+    return path
+
+
+@pytest.mark.parametrize("counts, basis, wrap, message", [
+    ([2, 4], "bezier", "nonperiodic",
+     "curveVertexCounts[0] = 2: a nonperiodic cubic bezier curve needs 3n + 1"),
+    ([4, 5], "bezier", "nonperiodic", "curveVertexCounts[1] = 5: a nonperiodic cubic bezier"),
+    ([3, 3], "bezier", "nonperiodic", "curveVertexCounts[0] = 3"),
+    ([4, 3], "bspline", "nonperiodic", "curveVertexCounts[1] = 3: a nonperiodic cubic bspline curve needs at least 4"),
+    ([1, 4], "catmullRom", "pinned", "curveVertexCounts[0] = 1: a pinned cubic catmullRom curve needs at least 2"),
+])
+def test_invalid_cubic_vertex_counts_are_refused_as_simulate_refuses_them(tmp_path, capsys, counts, basis, wrap,
+                                                                          message):
+    src = cubic_stage(tmp_path / "cubic.usda", counts, basis, wrap)
+    out = tmp_path / "out.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 2
+    line = one_error(capsys, f"{src}: /W/H: {message}")
+    assert not out.exists()
+    # the simulation's reader gives the same message
+    assert cli.main(["info", str(src)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+
+
+def test_valid_cubic_curves_still_render(tmp_path):
+    src = cubic_stage(tmp_path / "ok.usda", [4, 7])
+    out = tmp_path / "ok.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 0
+    assert image.read_png(out)[..., 3].sum() > 0
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("", "empty.usda: cannot open as a USD stage: "),
+    ("not usd at all\n", "empty.usda: cannot open as a USD stage: "),
+    ("#usda 1.0\ndef X \"a\" {\n", "empty.usda:3:1: syntax error: "),
+])
+def test_malformed_layer_is_one_line_like_simulate(tmp_path, capsys, text, fragment):
+    src = tmp_path / "empty.usda"
+    src.write_text(text)
+    out = tmp_path / "out.png"
+    assert render(src, "-o", out) == 2
+    line = one_error(capsys, fragment)
+    assert not out.exists()
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "sim.usdc")]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+
+
+@pytest.mark.parametrize("fps", ["0", "-5", "nan", "inf"])
+def test_bad_fps_is_refused_before_rendering(groom, tmp_path, capsys, fps):
+    out = tmp_path / "v.gif"
+    assert render(groom, "--start", 1, "--end", 3, "--fps", fps, "--resolution", "8x8", "--spp", 1, "-o", out) == 2
+    one_error(capsys, f"--fps {float(fps):g}: must be a positive, finite number")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["groom.usda"]
+
+
+def test_fps_with_an_image_output_warns_once(groom, tmp_path, capsys):
+    pattern = tmp_path / "f" / "p.####.png"
+    assert render(groom, "--start", 1, "--end", 2, "--fps", 12, "--resolution", "8x8", "--spp", 1, "-o", pattern) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dftl-warp: warning: --fps applies only to a video output (.mp4, .gif, .mov, .webm): "
+                   f"ignored for -o {pattern}"]
+    assert sorted(p.name for p in pattern.parent.iterdir()) == ["p.0001.png", "p.0002.png"]
+    gif = tmp_path / "v.gif"
+    assert render(groom, "--start", 1, "--end", 2, "--fps", 12, "--resolution", "8x8", "--spp", 1, "-o", gif) == 0
+    assert capsys.readouterr().err == ""
+    import imageio.v3 as iio
+
+    assert iio.immeta(gif, index=0).get("duration") == pytest.approx(1000 / 12, abs=10)  # GIF: centiseconds
+
+
+@pytest.mark.parametrize("args, frame", [
+    (["--start", 1, "--end", 2, "--step", 0.5], "frame 1.5 (--step 0.5) is not a whole number"),
+    (["--start", 1.5, "--end", 2.5], "frame 1.5 (--step 1) is not a whole number"),
+    (["--frame", 1.5], "frame 1.5 is not a whole number"),
+])
+def test_fractional_frames_in_a_pattern_are_refused(groom, tmp_path, capsys, args, frame):
+    pattern = tmp_path / "f" / "half.####.png"
+    assert render(groom, *args, "--resolution", "8x8", "--spp", 1, "-o", pattern) == 2
+    one_error(capsys, f"-o {pattern}: {frame}: a '#' pattern is numbered by frame")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["groom.usda"]
+
+
+def test_fractional_frames_into_a_video_or_sheet_are_fine(groom, tmp_path):
+    sheet = tmp_path / "sheet.png"
+    assert render(groom, "--start", 1, "--end", 2, "--step", 0.5, "--contact-sheet", "--resolution", "8x8",
+                  "--spp", 1, "-o", sheet) == 0
+    assert image.read_png(sheet).shape == (2 * 8 + 4, 2 * 8 + 4, 4)  # 3 frames on a 2x2 grid
