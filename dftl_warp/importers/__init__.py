@@ -38,6 +38,8 @@ class Groom:
     warnings: list[str] = field(default_factory=list)
     #: name of the reader
     format: str = ""
+    #: each strand's index among the strands the reader returned (kept through subsampling), or None
+    strand_ids: np.ndarray | None = None
 
     @property
     def num_strands(self) -> int:

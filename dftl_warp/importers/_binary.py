@@ -63,3 +63,14 @@ def check_finite(path: str, points: np.ndarray, counts: np.ndarray, what: str = 
         p = ", ".join(f"{v:g}" for v in points[i])
         raise UserError(f"{path}: strand {k}: {what} {j} = ({p}) is not finite "
                         f"(--drop-nonfinite drops such strands)")
+
+
+def drop_short_strands(path: str, points: np.ndarray, counts: np.ndarray, widths, warnings: list):
+    """Drop strands with fewer than 2 vertices (no segment: not a curve), with one warning giving
+    their count, the same for every format. Returns (points, counts, widths)."""
+    keep = counts >= 2
+    if keep.all():
+        return points, counts, widths
+    warnings.append(f"{path}: dropped {int((~keep).sum())} of {counts.size} strands with fewer than 2 vertices")
+    mask = np.repeat(keep, counts)
+    return points[mask], counts[keep], None if widths is None else widths[mask]

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import UserError
+from ..options import OPTIONS, BadValue, OptionError
 from . import Groom, GroomImportWarning, read_groom, reader_for
 from ._binary import check_finite
 
@@ -21,7 +22,9 @@ DEFAULT_WIDTH_M = 80e-6
 
 def parse_units(text) -> float:
     """``m``, ``cm``, ``mm``, ... or a positive number of metres per unit."""
-    if isinstance(text, (int, float)):
+    if isinstance(text, (bool, np.bool_)):
+        raise OptionError(f"--units {text!r}: expected one of {', '.join(UNITS)} or metres per unit")
+    if isinstance(text, (int, float, np.integer, np.floating)):
         value = float(text)
     else:
         t = str(text).strip().lower()
@@ -30,17 +33,17 @@ def parse_units(text) -> float:
         try:
             value = float(t)
         except ValueError:
-            raise UserError(f"--units {text!r}: expected one of {', '.join(UNITS)} or metres per unit "
-                            f"(a positive number)") from None
+            raise OptionError(f"--units {text!r}: expected one of {', '.join(UNITS)} or metres per unit "
+                              f"(a positive number)") from None
     if not (np.isfinite(value) and value > 0):
-        raise UserError(f"--units {text!r}: metres per unit must be a positive finite number")
+        raise OptionError(f"--units {text!r}: metres per unit must be a positive finite number")
     return value
 
 
 def parse_up_axis(text) -> str:
     t = str(text).strip().upper()
-    if t not in ("X", "Y", "Z"):
-        raise UserError(f"--up-axis {text!r}: expected X, Y or Z")
+    if not isinstance(text, str) or t not in ("X", "Y", "Z"):
+        raise OptionError(f"--up-axis {text!r}: expected X, Y or Z")
     return t
 
 
@@ -83,7 +86,8 @@ def select(groom: Groom, keep: np.ndarray) -> Groom:
     vmask = np.repeat(mask, groom.counts)
     return Groom(groom.points[vmask], groom.counts[mask],
                  widths=None if groom.widths is None else groom.widths[vmask],
-                 constant_width=groom.constant_width, warnings=groom.warnings, format=groom.format)
+                 constant_width=groom.constant_width, warnings=groom.warnings, format=groom.format,
+                 strand_ids=None if groom.strand_ids is None else groom.strand_ids[mask])
 
 
 def resample(groom: Groom, segments: int) -> Groom:
@@ -103,7 +107,69 @@ def resample(groom: Groom, segments: int) -> Groom:
         if wout is not None:
             wout[k * m:(k + 1) * m] = np.interp(t, s, groom.widths[starts[k]:starts[k + 1]])
     return Groom(out, np.full(groom.num_strands, m, dtype=np.int64), widths=wout,
-                 constant_width=groom.constant_width, warnings=groom.warnings, format=groom.format)
+                 constant_width=groom.constant_width, warnings=groom.warnings, format=groom.format,
+                 strand_ids=groom.strand_ids)
+
+
+def coincident_note(source: str, groom: Groom, resampled: bool) -> str | None:
+    """One warning for consecutive points of a strand that coincide (as written: float32), which
+    the elastic solver refuses (docs/usd.md, "Zero-length segments"); None if there are none."""
+    p = np.ascontiguousarray(groom.points, dtype=np.float32)
+    if p.shape[0] < 2:
+        return None
+    same = np.all(p[1:] == p[:-1], axis=1)
+    starts = np.cumsum(groom.counts)[:-1]
+    same[starts[starts > 0] - 1] = False  # pairs that join the last point of a strand to the next one's first
+    if not same.any():
+        return None
+    owner = np.repeat(np.arange(groom.num_strands), groom.counts)[:-1][same]
+    j = int(np.flatnonzero(same)[0])
+    k = int(owner[0])
+    i = j - int(np.concatenate([[0], starts])[k])
+    ids = groom.strand_ids
+    strand = f"strand {k}" if ids is None or int(ids[k]) == k else f"strand {int(ids[k])} (curve {k} of /Groom/Hair)"
+    n = np.unique(owner).size
+    after = " after --segments resampling" if resampled else ""
+    return (f"{source}: {strand}: points {i} and {i + 1} coincide{after} (a zero-length segment; {n} of "
+            f"{groom.num_strands} strands have coincident consecutive points); kept, but the elastic solver "
+            f"(simulate's default for hair with widths) refuses them: simulate with --solver dftl, which "
+            f"handles them, or remove the coincident points")
+
+
+def _check_count(name: str, value, low: int = 1):
+    """An integer option (``max_strands``, ``every``, ``segments``) as an int, or None if unset."""
+    if value is None:
+        return None
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if not ok or value < low:
+        raise OptionError(f"{name} / --{name.replace('_', '-')} = {value!r}: expected an integer >= {low}")
+    return int(value)
+
+
+def _check_number(name: str, value, low: float = 0.0, low_open: bool = True):
+    """A real-number option (``width``) as a float, or None if unset."""
+    if value is None:
+        return None
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not ok or not np.isfinite(value) or (value <= low if low_open else value < low):
+        raise OptionError(f"{name} / --{name.replace('_', '-')} = {value!r}: expected a finite number "
+                          f"{'>' if low_open else '>='} {low:g}")
+    return float(value)
+
+
+def check_head_friction(value):
+    """``head_friction`` (the head collider's ``dftl:friction``) checked by the options table's
+    ``friction`` option, as ``simulate`` checks the authored attribute; None if unset."""
+    if value is None:
+        return None
+    option = OPTIONS["friction"]
+    try:
+        return option.check(value)
+    except BadValue as exc:
+        expected = exc.expected
+        if exc.kind == "range" and isinstance(exc.value, float) and not np.isfinite(exc.value):
+            expected = f"a finite number {expected}"
+        raise OptionError(f"head_friction / --head-friction = {value!r}: {option.usd} must be {expected}") from None
 
 
 def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis: str | None = None,
@@ -120,10 +186,13 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
         width: hair width in the input's units; overrides the file's widths. Without it and without
             widths in the file: 80 um.
         head: an OBJ or PLY mesh (same units and axes as the hair) written as a collider Mesh.
+        head_friction: its ``dftl:friction``, a finite number >= 0 (checked as ``simulate`` checks it).
         max_strands, every: keep every ``every``-th strand, then at most ``max_strands`` evenly spaced.
         segments: resample every strand to this many segments by arc length.
         drop_nonfinite: drop strands with NaN/inf points (with a warning) instead of failing.
 
+    A bad argument raises :class:`~dftl_warp.options.OptionError` (a ValueError, and a UserError:
+    one line and exit status 2 from the command) before anything is read or written.
     Approximations and skipped data are reported with :class:`GroomImportWarning` (one per kind,
     with a count) and listed in the result's ``warnings``.
     """
@@ -134,11 +203,13 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
     output = check_output(output)
     if os.path.abspath(output) == os.path.abspath(source):
         raise UserError(f"{output}: the output would overwrite the input")
-    for name, value, low in (("--max-strands", max_strands, 1), ("--every", every, 1), ("--segments", segments, 1)):
-        if value is not None and value < low:
-            raise UserError(f"{name} {value}: expected an integer >= {low}")
-    if width is not None and not (np.isfinite(width) and width > 0):
-        raise UserError(f"--width {width}: expected a positive number")
+    max_strands = _check_count("max_strands", max_strands)
+    every = _check_count("every", every)
+    segments = _check_count("segments", segments)
+    width = _check_number("width", width)
+    head_friction = check_head_friction(head_friction)
+    if not isinstance(drop_nonfinite, (bool, np.bool_)):
+        raise OptionError(f"drop_nonfinite = {drop_nonfinite!r}: expected True or False")
     reader = reader_for(source, fmt)
     mpu = reader.meters_per_unit if units is None else parse_units(units)
     axis = reader.up_axis if up_axis is None else parse_up_axis(up_axis)
@@ -146,6 +217,9 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
     groom = read_groom(source, fmt)
     notes = list(groom.warnings)
     total = groom.num_strands
+    groom.strand_ids = np.arange(total)
+    if head_friction is not None and head is None:
+        notes.append(f"{source}: head_friction / --head-friction without a head mesh (--head); ignored")
     if drop_nonfinite:
         finite = np.isfinite(groom.points).all(axis=1)
         if groom.widths is not None:
@@ -181,6 +255,9 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
             mesh.points = mesh.points @ X_UP_TO_Y_UP.T
         notes.append(f"{source}: X-up input rotated a quarter turn about Z to Y up ((x, y, z) -> (-y, x, z))")
         axis = "Y"
+    coincident = coincident_note(source, groom, segments is not None)
+    if coincident:
+        notes.append(coincident)
 
     for note in notes:
         _warnings.warn(note, GroomImportWarning, stacklevel=2)

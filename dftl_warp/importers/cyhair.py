@@ -20,8 +20,9 @@ Layout, little endian::
 
 A strand of s segments has s + 1 points. Thickness is the strand's diameter, in the units of the
 points; it becomes the USD ``widths`` (per vertex with the thickness array, else constant
-``d_thickness``). Transparency and colors are not imported. The format has no unit; its models
-are Z-up.
+``d_thickness``, which must then be finite and >= 0; 0 means none). Strands of 0 segments (one
+point) are dropped with a warning, as in the other formats. Transparency and colors are not
+imported. The format has no unit; its models are Z-up.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import Groom, Reader
-from ._binary import Buffer
+from ._binary import Buffer, drop_short_strands
 
 SEGMENTS_BIT, POINTS_BIT, THICKNESS_BIT, TRANSPARENCY_BIT, COLORS_BIT = 1, 2, 4, 8, 16
 HEADER_SIZE = 128
@@ -78,8 +79,14 @@ def read(data: bytes, path: str) -> Groom:
             i = int(np.flatnonzero(bad)[0])
             raise buf.error(offset + 4 * i, f"thickness[{i}] = {widths[i]:g}: expected a finite number >= 0")
         offset += 4 * point_count
-    elif np.isfinite(d_thickness) and d_thickness > 0:
+    elif not (np.isfinite(d_thickness) and d_thickness >= 0):
+        raise buf.error(20, f"d_thickness (the header's default thickness) = {d_thickness:g}: expected a finite "
+                            f"number >= 0 (there is no thickness array)")
+    elif d_thickness > 0:
         constant = float(d_thickness)
+    if arrays & THICKNESS_BIT and not (np.isfinite(d_thickness) and d_thickness >= 0):
+        warnings.append(f"{path}: offset 20: d_thickness (the header's default thickness) = {d_thickness:g} is not a "
+                        f"width; ignored (the thickness array gives the widths)")
     if arrays & TRANSPARENCY_BIT:
         buf.need(offset, 4 * point_count, f"transparency array of {point_count} points")
         offset += 4 * point_count
@@ -88,6 +95,7 @@ def read(data: bytes, path: str) -> Groom:
         offset += 12 * point_count
     if offset < buf.size:
         warnings.append(f"{path}: {buf.size - offset} bytes after the last array (offset {offset}); ignored")
+    points, counts, widths = drop_short_strands(path, points, counts, widths, warnings)
     return Groom(points, counts, widths=widths, constant_width=constant, warnings=warnings)
 
 

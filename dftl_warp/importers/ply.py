@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import UserError
 from . import Groom, Reader
-from ._binary import Buffer
+from ._binary import Buffer, drop_short_strands
 
 TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -44,9 +44,33 @@ class Element:
         #: (name, dtype) for scalars, (name, count dtype, item dtype) for lists
         self.properties: list[tuple] = []
         self.data: dict[str, object] = {}
+        #: where the rows are: first line (ASCII), or first byte and bytes per row (binary, scalar rows)
+        self.line: int | None = None
+        self.offset: int | None = None
+        self.row_size: int | None = None
+        self.field_offsets: dict[str, int] = {}
 
     def has(self, name: str) -> bool:
         return name in self.data
+
+    def where(self, row: int, prop: str = "") -> str:
+        """``line N`` (ASCII) or ``offset N`` (binary) of row ``row`` (and property ``prop``), for messages."""
+        if self.line is not None:
+            return f"line {self.line + row}"
+        if self.offset is not None and self.row_size is not None:
+            return f"offset {self.offset + row * self.row_size + self.field_offsets.get(prop, 0)}"
+        return f"row {row}"
+
+
+class PlyElements(dict):
+    """The elements of a PLY file by name; ``check_end()`` raises if data follows the last element
+    (the element counts do not add up), which the strand reader checks after its own counts."""
+
+    end_error: UserError | None = None
+
+    def check_end(self) -> None:
+        if self.end_error is not None:
+            raise self.end_error
 
 
 def _parse_header(buf: Buffer):
@@ -66,6 +90,13 @@ def _parse_header(buf: Buffer):
         raise buf.error(exc.start, "non-ASCII byte in the PLY header") from None
     fmt = None
     elements: list[Element] = []
+    declared: list[int] = []  # header line of each element
+
+    def check_properties():
+        if elements and elements[-1].count and not elements[-1].properties:
+            raise UserError(f"{buf.path}: line {declared[-1]}: element {elements[-1].name!r} has "
+                            f"{elements[-1].count} rows but no properties")
+
     for i, raw in enumerate(lines[1:], start=2):
         words = raw.split()
         where = f"{buf.path}: line {i}"
@@ -78,10 +109,14 @@ def _parse_header(buf: Buffer):
         elif words[0] == "element":
             if len(words) != 3 or not re.fullmatch(r"\d+", words[2]):
                 raise UserError(f"{where}: bad element line {raw.strip()!r}")
+            check_properties()
             elements.append(Element(words[1], int(words[2])))
+            declared.append(i)
         elif words[0] == "property":
             if not elements:
                 raise UserError(f"{where}: property before any element")
+            if words[-1] in (p[0] for p in elements[-1].properties):
+                raise UserError(f"{where}: property {words[-1]!r} of element {elements[-1].name!r} is declared twice")
             if len(words) == 3 and words[1] in TYPES:
                 elements[-1].properties.append((words[2], np.dtype(TYPES[words[1]])))
             elif len(words) == 5 and words[1] == "list" and words[2] in TYPES and words[3] in TYPES \
@@ -91,9 +126,10 @@ def _parse_header(buf: Buffer):
                 raise UserError(f"{where}: bad property line {raw.strip()!r}")
         else:
             raise UserError(f"{where}: unknown header keyword {words[0]!r}")
+    check_properties()
     if fmt is None:
         raise buf.error(0, "no format line in the PLY header")
-    return fmt, elements, body, len(lines) + 1
+    return fmt, elements, body, len(lines) + 2  # the first body line: after the end_header line
 
 
 def _read_binary(buf: Buffer, elements, offset: int, order: str) -> int:
@@ -106,6 +142,8 @@ def _read_binary(buf: Buffer, elements, offset: int, order: str) -> int:
                                         f"needs {el.count * dtype.itemsize} bytes, the file has "
                                         f"{buf.size - offset} left")
             rows = np.frombuffer(buf.data, dtype=dtype, count=el.count, offset=offset)
+            el.offset, el.row_size = offset, dtype.itemsize
+            el.field_offsets = {p[0]: dtype.fields[f"p{j}"][1] for j, p in enumerate(el.properties)}
             for j, p in enumerate(el.properties):
                 el.data[p[0]] = rows[f"p{j}"].astype(p[1].newbyteorder("="))
             offset += el.count * dtype.itemsize
@@ -137,7 +175,9 @@ def _read_binary(buf: Buffer, elements, offset: int, order: str) -> int:
     return offset
 
 
-def _read_ascii(buf: Buffer, elements, offset: int, first_line: int) -> None:
+def _read_ascii(buf: Buffer, elements, offset: int, first_line: int) -> UserError | None:
+    """Fill the elements from an ASCII body, one row per line; returns the error for non-blank lines
+    after the last element (raised by the caller after its own checks), or None."""
     try:
         text = buf.data[offset:].decode("ascii")
     except UnicodeDecodeError as exc:
@@ -146,26 +186,29 @@ def _read_ascii(buf: Buffer, elements, offset: int, first_line: int) -> None:
     i = 0
     for el in elements:
         scalar = all(len(p) == 2 for p in el.properties)
+        el.line = first_line + i
         if i + el.count > len(lines):
             raise UserError(f"{buf.path}: line {first_line + len(lines)}: truncated: element {el.name!r} needs "
                             f"{el.count} lines, {len(lines) - i} left")
         if scalar:
-            chunk = lines[i:i + el.count]
+            rows = [line.split() for line in lines[i:i + el.count]]
             nprop = len(el.properties)
-            try:
-                values = np.array(" ".join(chunk).split(), dtype=np.float64)
-            except ValueError:
-                values = None
-            if values is None or values.size != el.count * nprop:
-                for r, line in enumerate(chunk):  # find the bad line
-                    words = line.split()
+            values = None
+            if all(len(words) == nprop for words in rows):
+                try:
+                    values = np.array([w for words in rows for w in words], dtype=np.float64)
+                except ValueError:
+                    pass
+            if values is None:
+                for r, words in enumerate(rows):  # find the bad line
                     try:
                         [float(w) for w in words]
                     except ValueError:
                         words = None
                     if words is None or len(words) != nprop:
                         raise UserError(f"{buf.path}: line {first_line + i + r}: element {el.name!r} row {r}: "
-                                        f"expected {nprop} numbers, got {line.strip()[:60]!r}")
+                                        f"expected {nprop} numbers, got {lines[i + r].strip()[:60]!r}")
+                raise UserError(f"{buf.path}: line {first_line + i}: element {el.name!r}: cannot parse its rows")
             values = values.reshape(el.count, nprop)
             for j, p in enumerate(el.properties):
                 el.data[p[0]] = values[:, j].astype(p[1]) if p[1].kind == "f" else \
@@ -187,6 +230,8 @@ def _read_ascii(buf: Buffer, elements, offset: int, first_line: int) -> None:
                                 raise ValueError
                             columns[p[0]].append(np.array(words[k + 1:k + 1 + n], dtype=np.float64))
                             k += 1 + n
+                    if k != len(words):
+                        raise ValueError
                 except (ValueError, IndexError):
                     raise UserError(f"{buf.path}: line {line_no}: element {el.name!r} row {r}: cannot parse "
                                     f"{lines[i + r].strip()[:60]!r}") from None
@@ -197,6 +242,12 @@ def _read_ascii(buf: Buffer, elements, offset: int, first_line: int) -> None:
                     el.data[p[0]] = [_ascii_int(v, p[2], buf.path, first_line + i, el.name, p[0]) if p[2].kind != "f"
                                      else v.astype(p[2]) for v in columns[p[0]]]
         i += el.count
+    for r in range(i, len(lines)):
+        if lines[r].strip():
+            last = f"the last element ({elements[-1].name!r}, {elements[-1].count} rows)" if elements else "the header"
+            return UserError(f"{buf.path}: line {first_line + r}: {lines[r].strip()[:60]!r} after {last}: the "
+                             f"element counts do not add up")
+    return None
 
 
 def _ascii_int(values, dtype, path, line, element, prop):
@@ -209,19 +260,28 @@ def _ascii_int(values, dtype, path, line, element, prop):
     return values.astype(dtype)
 
 
-def read_ply(data: bytes, path: str) -> dict[str, Element]:
-    """Parse a PLY file into its elements (name -> Element with ``data[property]``)."""
+def read_ply(data: bytes, path: str, *, defer_end: bool = False) -> PlyElements:
+    """Parse a PLY file into its elements (name -> Element with ``data[property]``). Data after
+    the last element is an error (the element counts do not add up), raised here or, with
+    ``defer_end``, by the result's ``check_end()``."""
     buf = Buffer(data, path)
     fmt, elements, body, first_line = _parse_header(buf)
     names = [e.name for e in elements]
     dupes = {n for n in names if names.count(n) > 1}
     if dupes:
         raise buf.error(0, f"element {sorted(dupes)[0]!r} is declared twice")
+    result = PlyElements((e.name, e) for e in elements)
     if fmt == "ascii":
-        _read_ascii(buf, elements, body, first_line)
+        result.end_error = _read_ascii(buf, elements, body, first_line)
     else:
-        _read_binary(buf, elements, body, FORMATS[fmt])
-    return {e.name: e for e in elements}
+        end = _read_binary(buf, elements, body, FORMATS[fmt])
+        if end < buf.size:
+            last = f"the last element ({elements[-1].name!r}, {elements[-1].count} rows)" if elements else "the header"
+            result.end_error = buf.error(end, f"{buf.size - end} bytes after {last}: the element counts do not "
+                                              f"add up (file size {buf.size})")
+    if not defer_end:
+        result.check_end()
+    return result
 
 
 def vertex_positions(elements: dict, path: str) -> np.ndarray:
@@ -245,8 +305,21 @@ def _scalar(el, name):
     return None if value is None or isinstance(value, list) else value
 
 
+def _integers(el, name: str, path: str) -> np.ndarray:
+    """The scalar property ``name`` of ``el`` as int64; a count or index must be a whole number
+    (a float property of 3.7 is an error, not 3)."""
+    col = el.data[name]
+    if col.dtype.kind == "f":
+        bad = ~np.isfinite(col) | (col != np.round(col)) | (np.abs(col) > 2.0 ** 53)
+        if bad.any():
+            r = int(np.flatnonzero(bad)[0])
+            raise UserError(f"{path}: {el.where(r, name)}: element {el.name!r} row {r} property {name!r} = {col[r]:g}: "
+                            f"expected a whole number")
+    return col.astype(np.int64)
+
+
 def read(data: bytes, path: str) -> Groom:
-    elements = read_ply(data, path)
+    elements = read_ply(data, path, defer_end=True)
     points = vertex_positions(elements, path)
     n = points.shape[0]
     vertex = elements["vertex"]
@@ -259,7 +332,7 @@ def read(data: bytes, path: str) -> Groom:
         for prop in SEGMENT_PROPS + VERTEX_COUNT_PROPS:
             col = _scalar(el, prop)
             if col is not None:
-                counts = col.astype(np.int64) + (1 if prop in SEGMENT_PROPS else 0)
+                counts = _integers(el, prop, path) + (1 if prop in SEGMENT_PROPS else 0)
                 how = f"element {name!r} property {prop!r}"
                 break
         if counts is not None:
@@ -280,7 +353,7 @@ def read(data: bytes, path: str) -> Groom:
         a, b = _scalar(e, "vertex1"), _scalar(e, "vertex2")
         if a is None or b is None:
             raise UserError(f"{path}: element 'edge' has no scalar vertex1/vertex2 properties")
-        a, b = a.astype(np.int64), b.astype(np.int64)
+        a, b = _integers(e, "vertex1", path), _integers(e, "vertex2", path)
         bad = (b != a + 1) | (a < 0) | (b >= n)
         if bad.any():
             r = int(np.flatnonzero(bad)[0])
@@ -300,6 +373,7 @@ def read(data: bytes, path: str) -> Groom:
     if int(counts.sum()) != n:
         raise UserError(f"{path}: {how} gives {int(counts.sum())} vertices for {counts.size} strands but the "
                         f"'vertex' element has {n}")
+    elements.check_end()
     widths = None
     for prop, scale in (("thickness", 1.0), ("width", 1.0), ("radius", 2.0)):
         col = _scalar(vertex, prop)
@@ -311,13 +385,7 @@ def read(data: bytes, path: str) -> Groom:
                 raise UserError(f"{path}: vertex {i}: {prop} = {col[i]:g}: expected a finite number >= 0")
             break
     warnings = []
-    keep = counts >= 2
-    if not keep.all():
-        dropped = int((~keep).sum())
-        warnings.append(f"{path}: dropped {dropped} of {counts.size} strands with fewer than 2 vertices")
-        mask = np.repeat(keep, counts)
-        points, counts = points[mask], counts[keep]
-        widths = None if widths is None else widths[mask]
+    points, counts, widths = drop_short_strands(path, points, counts, widths, warnings)
     return Groom(points, counts, widths=widths, warnings=warnings)
 
 
