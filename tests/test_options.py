@@ -261,3 +261,12 @@ def test_simulate_usd_names_a_misspelt_keyword(tmp_path):
     with pytest.raises(TypeError, match=r"simulate_usd: unknown keyword 'substep' \(did you mean 'substeps'\?\)"):
         dw.simulate_usd(tmp_path / "missing.usda", tmp_path / "out.usdc", substep=4)
     assert not (tmp_path / "out.usdc").exists()
+
+
+def test_a_bad_check_through_the_api_names_the_keyword_not_the_flag(tmp_path):
+    """simulate_usd(check=...) says `check`, the keyword it was given (it said `--check`)."""
+    import dftl_warp as dw
+    from dftl_warp.errors import UserError
+
+    with pytest.raises(UserError, match=r"^check 'strech<1e-3': each gate is METRIC<LIMIT"):
+        dw.simulate_usd(tmp_path / "missing.usda", tmp_path / "out.usdc", check="strech<1e-3")

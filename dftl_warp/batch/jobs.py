@@ -51,10 +51,9 @@ def _check_gates(text: str) -> None:
     from ..output.qc import parse_gates
 
     try:
-        parse_gates(text)
+        parse_gates(text, name="check")
     except UserError as exc:
-        message, flag = str(exc), f"{OPTIONS['check'].cli} {text!r}"
-        raise ValueError(f"check {text!r}{message[len(flag):]}" if message.startswith(flag) else message) from None
+        raise ValueError(str(exc)) from None
 
 
 def _simulate_options():

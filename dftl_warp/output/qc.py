@@ -64,21 +64,23 @@ class QCError(UserError):
     exit_status = 3
 
 
-def parse_gates(text: str | None) -> dict[str, float]:
-    """``'stretch<1e-3, penetration<0.05'`` -> ``{"stretch": 0.001, "penetration": 0.05}``."""
+def parse_gates(text: str | None, name: str = "--check") -> dict[str, float]:
+    """``'stretch<1e-3, penetration<0.05'`` -> ``{"stretch": 0.001, "penetration": 0.05}``; a bad
+    gate is a UserError naming the option as ``name`` (``--check`` on the command line, ``check``
+    for the API and job files)."""
     if not text:
         return {}
     gates = {}
     for part in text.split(","):
         m = re.fullmatch(r"\s*([a-z]+)\s*<\s*(\S+)\s*", part)
         if not m or m.group(1) not in METRICS:
-            raise UserError(f"--check {text!r}: each gate is METRIC<LIMIT with METRIC one of {', '.join(METRICS)}")
+            raise UserError(f"{name} {text!r}: each gate is METRIC<LIMIT with METRIC one of {', '.join(METRICS)}")
         try:
             limit = float(m.group(2))
         except ValueError:
-            raise UserError(f"--check {text!r}: {m.group(2)!r} is not a number") from None
+            raise UserError(f"{name} {text!r}: {m.group(2)!r} is not a number") from None
         if not math.isfinite(limit):
-            raise UserError(f"--check {text!r}: the limit of {m.group(1)} must be finite")
+            raise UserError(f"{name} {text!r}: the limit of {m.group(1)} must be finite")
         gates[m.group(1)] = limit
     return gates
 

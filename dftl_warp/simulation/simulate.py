@@ -475,7 +475,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     from ..output.qc import FrameQC, parse_gates
     from ..output.clips import start_writers_early
 
-    parse_gates(options.get("check"))  # a bad gate in the gates' words
+    parse_gates(options.get("check"), name="check")  # a bad gate in the gates' words (the CLI checked its own)
     out_opts = {k: check_api(k, options.pop(k, None)) for k in OUTPUT_OPTIONS}
     tolerance = check_api("tolerance", options.pop("tolerance", None))  # simulation.tolerance
     from ..options import GUIDE_OPTIONS
