@@ -10,6 +10,7 @@ kernel's register count (``EIATTR_REGCOUNT``) and frame size (``EIATTR_FRAME_SIZ
 thread). A frame above zero means local memory, whose traffic the GPU pays beside the State's.
 
     python scripts/kernel_resources.py --arch 90
+    python scripts/kernel_resources.py --only "elastic: gravity" "elastic: all" --elastic-caps 128 168 0
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from bench_features import ELASTIC, G  # noqa: E402
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402
+from dftl_warp.kernels.solvers import elastic as elastic_kernels  # noqa: E402
 
 #: EIATTR codes of the cubin's .nv.info section (each an SVAL of a symbol index and a value)
 EIATTR_FRAME_SIZE = 0x11
@@ -94,15 +96,25 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arch", type=int, default=90, help="CUDA architecture (90: H100, H200)")
     ap.add_argument("--only", nargs="*", default=None, help="rows whose names start with one of these")
+    ap.add_argument("--elastic-caps", type=int, nargs="*", default=None,
+                    help="compile the elastic rows under each of these CUDA register caps (0: none) instead "
+                         "of kernels/solvers/elastic.py's CUDA_MAX_REGISTERS_F32")
     args = ap.parse_args(argv)
     wp.config.quiet = True
     wp.init()
     pts = np.stack([np.zeros(4), -np.arange(4) * 0.01, np.zeros(4)], 1)
     print(f"| scene | kernel | registers | stack frame (B) |\n|---|---|---:|---:|")
+    default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
+    todo = []
+    for name, feats, extra in rows():
+        if args.only and not name.startswith(tuple(args.only)):
+            continue
+        caps = args.elastic_caps if extra.get("solver") == "elastic" and args.elastic_caps else [None]
+        todo += [(name if cap is None else f"{name}, cap {cap or 'none'}", feats, extra, cap) for cap in caps]
     with tempfile.TemporaryDirectory() as tmp:
-        for name, feats, extra in rows():
-            if args.only and not name.startswith(tuple(args.only)):
-                continue
+        for name, feats, extra, cap in todo:
+            elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None else (cap or None)
+            elastic_kernels.elastic_kernel.cache_clear()
             model = dw.Model.from_strands(pts, [4], widths=1e-4, features=feats, device="cpu")
             if extra.get("solver", "dftl") == "dftl":
                 solver = dw.DFTLSolver(model, gravity=G, fused=False)
@@ -116,6 +128,8 @@ def main(argv=None) -> int:
                     if function.endswith("_cuda_kernel_forward"):
                         print(f"| {name} | `{kernel.key.split('__')[0]}` | {r['registers']} | {r.get('frame', 0)} |",
                               flush=True)
+    elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap
+    elastic_kernels.elastic_kernel.cache_clear()
     return 0
 
 

@@ -12,6 +12,8 @@ step of the same run is the first row of every table's reference.
 
     python scripts/profile_features.py --device cuda:0 --out $OUT
     python scripts/profile_features.py --device cuda:0 --strands 1000000 --only "production scene:" --out $OUT
+    python scripts/profile_features.py --device cuda:0 --strands 1000000 --only "production scene with" \
+        --elastic-caps 128 168 0 --out $OUT
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from bench_features import (ELASTIC, FPS, SETTLE_FRAMES, SUBSTEPS, body_frames, 
                             groom, machine_line, scenarios)
 
 from dftl_warp import features as F  # noqa: E402
+from dftl_warp.kernels.solvers import elastic as elastic_kernels  # noqa: E402
 
 #: the rows profiled by default (name prefixes of ``bench_features.scenarios``)
 DEFAULT_ROWS = ("bare DFTL step", "deforming body mesh", "hair-hair", "wind with curl noise", "production scene",
@@ -124,6 +127,9 @@ def main(argv=None) -> int:
                     f"(default: {', '.join(DEFAULT_ROWS)}); the bare row always runs")
     ap.add_argument("--combinations", action="store_true",
                     help="also the production scene's features two at a time, and the elastic solver's one at a time")
+    ap.add_argument("--elastic-caps", type=int, nargs="*", default=None,
+                    help="profile the elastic rows under each of these CUDA register caps of the float32 "
+                         "kernel (0: none; kernels/solvers/elastic.py: CUDA_MAX_REGISTERS_F32)")
     ap.add_argument("--out", default=None, help="folder for profile-<device>.md")
     args = ap.parse_args(argv)
     wp.config.quiet = True
@@ -144,9 +150,16 @@ def main(argv=None) -> int:
            f"{SUBSTEPS} substeps per row after {SETTLE_FRAMES} settling frames; "
            f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
            f"`python scripts/profile_features.py {shlex.join(sys.argv[1:] if argv is None else argv)}`", ""]
-    bare = None
+    todo = []
     for name, feats, extra in rows:
+        caps = args.elastic_caps if extra.get("solver") == "elastic" and args.elastic_caps else [None]
+        todo += [(name if cap is None else f"{name}, register cap {cap or 'none'}", feats, extra, cap) for cap in caps]
+    default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
+    bare = None
+    for name, feats, extra, cap in todo:
         started = time.perf_counter()
+        elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None else (cap or None)
+        elastic_kernels.elastic_kernel.cache_clear()
         with wp.ScopedDevice(device):
             one_frame = build(pts, counts, feats, extra, device)
             kernels, wall = profile(one_frame, device, args.frames)
