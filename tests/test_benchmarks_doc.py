@@ -32,3 +32,4 @@ def test_check_writes_nothing_and_says_what_differs(tmp_path, monkeypatch):
     assert (docs / "benchmarks.md").read_text() == "edited by hand\n"
     assert mbd.main([]) == 0
     assert (docs / "benchmarks.md").read_text() == mbd.render()
+

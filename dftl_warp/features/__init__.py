@@ -8,7 +8,7 @@ any runs the bare DFTL kernel. Units are SI (m, s, m/s, 1/s), or stage units con
 One module per feature, each with its parameters, device data, per-frame control and USD mapping:
 
 - :mod:`.colliders`: :class:`Colliders` of registered shapes (:class:`Sphere`, :class:`Capsule`,
-  :class:`Box`, :class:`TriangleMesh`), each with a pose the Control animates per frame and a
+  :class:`Ellipsoid`, :class:`Box`, :class:`TriangleMesh`), each with a pose the Control animates per frame and a
   Coulomb friction;
 - :mod:`.binding`: :class:`RootBinding`, roots as barycentric points on a deforming mesh;
 - :mod:`.air`: :class:`Drag` (1/s) and :class:`Wind` (m/s, keyframed, optional curl noise);
@@ -21,7 +21,8 @@ then :mod:`.step` composes them (flags, Model data, ``control.features``, the fe
 from .air import Drag, Wind
 from .base import find
 from .binding import RootBinding
-from .colliders import SHAPE_KINDS, SHAPES, Box, Capsule, ColliderShape, Colliders, Sphere, TriangleMesh, register_shape
+from .colliders import (SHAPE_KINDS, SHAPES, Box, Capsule, ColliderShape, Colliders, Ellipsoid, Sphere, TriangleMesh,
+                        register_shape)
 from .hair_hair import HairHair, hair_hair_extent
 from .scene import (
     ATTRIBUTES,
@@ -47,7 +48,7 @@ from ..core.state import install_feature_hooks
 install_feature_hooks(build=build, control=FeatureControl)
 
 __all__ = [
-    "Colliders", "ColliderShape", "Sphere", "Capsule", "Box", "TriangleMesh", "SHAPES", "SHAPE_KINDS",
+    "Colliders", "ColliderShape", "Sphere", "Ellipsoid", "Capsule", "Box", "TriangleMesh", "SHAPES", "SHAPE_KINDS",
     "register_shape", "RootBinding", "Drag", "Wind", "HairHair",
     "FEATURE_TYPES", "check_features", "feature_flags", "find",
     "ModelFeatures", "FeatureControl", "FeatureStep", "build", "memory_estimate", "hair_hair_extent",
