@@ -2,7 +2,7 @@
 """Regenerate docs/accuracy.md and docs/accuracy/ (the accuracy study).
 
     python scripts/study.py                                    # CPU, full study, into docs/
-    python scripts/study.py --device cuda:0 --out docs/accuracy-h200 --docs docs/accuracy-h200.md
+    python scripts/study.py --device cuda:0 --out docs/accuracy-h200 --docs docs/accuracy-h200/accuracy-h200.md
     python scripts/study.py --fast --out /tmp/study            # the CI subset
 
 Arguments are those of ``dftl-warp study``; here ``--out`` defaults to docs/accuracy and
