@@ -119,9 +119,12 @@ class Model:
         ``interleave``: state vectors per 32-strand chunk of a particle-major layout (default
         :func:`~dftl_warp.core.layout.default_interleave`: on CUDA without features, 3, or 2 when
         ``corrections`` is False: the solver carries none, :func:`~dftl_warp.solvers.dftl.carries_corrections`).
+
+        ValueError for ``counts`` that are not whole numbers and for ``widths`` of another length
+        than one or one per point, non-finite or negative, whatever the features.
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+        counts = _checked_counts(counts)
         if np.any(counts < 1):
             i = int(np.flatnonzero(counts < 1)[0])
             raise ValueError(f"strand {i} has {counts[i]} vertices; every strand needs at least 1")
@@ -130,6 +133,7 @@ class Model:
         bad = ~np.isfinite(points).all(axis=1)
         if bad.any():
             raise ValueError(f"point {int(np.flatnonzero(bad)[0])} is not finite")
+        widths = _checked_widths(widths, points.shape[0])
         device = wp.get_device(device)
         layout_name = layout or default_layout(str(device))
         if layout_name not in LAYOUTS:
@@ -216,3 +220,37 @@ class Model:
         from .state import Control
 
         return Control.at_rest(self)
+
+
+def _checked_counts(counts) -> np.ndarray:
+    """``counts`` as (S,) int64; ValueError naming the first strand whose count is not a whole number."""
+    c = np.asarray(counts)
+    if c.dtype == np.bool_ or not (np.issubdtype(c.dtype, np.integer) or np.issubdtype(c.dtype, np.floating)
+                                   or c.size == 0):
+        raise ValueError(f"counts must be whole numbers of vertices per strand, got {counts!r}")
+    c = c.reshape(-1)
+    if np.issubdtype(c.dtype, np.floating):
+        bad = ~np.isfinite(c) | (c != np.round(c))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"counts[{i}] = {float(c[i])!r} is not a whole number of vertices")
+    return c.astype(np.int64)
+
+
+def _checked_widths(widths, num_points: int):
+    """``widths`` (one value or one per point) as a float64 array, or None; ValueError naming it
+    for another length, a non-finite or a negative value."""
+    if widths is None:
+        return None
+    try:
+        w = np.asarray(widths, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"widths must be numbers (m), got {widths!r}") from None
+    if w.size != 1 and w.reshape(-1).shape != (num_points,):
+        raise ValueError(f"widths must be one value or one per point ({num_points}), got {w.size} values")
+    flat = w.reshape(-1)
+    bad = ~np.isfinite(flat) | (flat < 0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"widths[{i}] = {float(flat[i])!r} must be finite and >= 0 (m)")
+    return w

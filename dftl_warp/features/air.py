@@ -15,7 +15,7 @@ import numpy as np
 import warp as wp
 
 from ..core.precision import numpy_type
-from .base import authored, authored_per_strand, nonnegative, per_strand
+from .base import authored, authored_per_strand, nonnegative, per_strand, vector
 
 #: name -> (type, where: "scene", "curves" or "both", description)
 ATTRIBUTES = {
@@ -69,8 +69,15 @@ class Wind:
             raise ValueError("wind keyframe times must increase")
         object.__setattr__(self, "velocity", v)
         nonnegative(self.noise_amplitude, "wind noise_amplitude")
-        if not float(self.noise_scale) > 0:
-            raise ValueError("wind noise_scale must be > 0 (m)")
+        for name, unit in (("noise_scale", "m"), ("noise_frequency", "1/s")):
+            value = getattr(self, name)
+            try:
+                v = float(value)
+            except (TypeError, ValueError):
+                v = float("nan")
+            if not (np.isfinite(v) and (v > 0 if name == "noise_scale" else v >= 0)):
+                raise ValueError(f"wind {name} must be a finite number {'>' if name == 'noise_scale' else '>='} 0 "
+                                 f"({unit}), got {value!r}")
 
     def at(self, time: float) -> np.ndarray:
         """Wind velocity (3,) at ``time`` (s)."""
@@ -109,8 +116,8 @@ class WindControl:
     def set_wind(self, start, end=None) -> None:
         """Wind velocity (3,) m/s at frame start and end (overrides the keyframes for this frame)."""
         f = numpy_type(self._precision)
-        start = np.asarray(start, dtype=np.float64).reshape(3)
-        end = start if end is None else np.asarray(end, dtype=np.float64).reshape(3)
+        start = vector(start, 3, "set_wind: start (wind velocity, m/s)")
+        end = start if end is None else vector(end, 3, "set_wind: end (wind velocity, m/s)")
         self.velocity.assign(np.array([start, end], dtype=f))
 
 

@@ -17,8 +17,38 @@ def vector(value, n: int, what: str) -> np.ndarray:
     return a
 
 
+def finite_rows(value, width: int, what: str) -> np.ndarray:
+    """``value`` as (N, ``width``) finite float64 rows (a copy); ValueError naming ``what`` for
+    another shape and naming the first row that is not finite."""
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be an (N, {width}) array of numbers, got {value!r}") from None
+    if a.ndim > 2 or (a.ndim == 2 and a.shape[1] != width) or a.size % width:
+        raise ValueError(f"{what} must be an (N, {width}) array, got shape {a.shape}")
+    a = a.reshape(-1, width)
+    bad = ~np.isfinite(a).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{what}: row {i} is not finite ({a[i].tolist()})")
+    return a
+
+
+def quaternion_rows(rows: np.ndarray, what: str) -> None:
+    """ValueError naming ``what`` and the row where the quaternion columns 3:7 of ``rows`` (N, 7)
+    have (near) zero length: no rotation to normalise."""
+    norm = np.linalg.norm(rows[:, 3:7], axis=1)
+    bad = norm < 1e-12
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{what}: row {i} has a zero-length quaternion (qx, qy, qz, qw) = {rows[i, 3:7].tolist()}")
+
+
 def unit_quaternion(rotation, what: str = "rotation") -> np.ndarray:
-    """``rotation`` (x, y, z, w) normalized; ValueError for a zero or non-finite one."""
+    """``rotation`` (x, y, z, w) normalized; ValueError for a zero or non-finite one.
+
+    A non-unit quaternion is accepted and normalised (it names the same rotation), as the
+    collider poses of :meth:`~dftl_warp.features.step.FeatureControl.set_collider_poses` are."""
     q = vector(rotation, 4, f"{what} (quaternion x, y, z, w)")
     norm = np.linalg.norm(q)
     if norm < 1e-12:

@@ -24,11 +24,16 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..core.precision import numpy_type
 from ..kernels.features.binding import bind_clamps_kernel, bind_roots_kernel, closest_face
+from .base import finite_rows
 
 #: name -> (type, where: "scene", "curves" or "both", description)
 ATTRIBUTES = {
     "dftl:rootMesh": ("rel", "curves", "a Mesh prim the roots are bound to (closest point at rest); follows its animated points"),
 }
+
+
+#: how far given barycentric weights may fall below 0 or their sum stray from 1
+BARYCENTRIC_TOLERANCE = 1.0e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,7 +42,8 @@ class RootBinding:
 
     ``points`` (P, 3) world rest positions (m), ``indices`` (T, 3). ``triangles`` (S,) and
     ``weights`` (S, 3) per input strand, or ``None`` to bind each root to the closest point of
-    the rest mesh. Animate with ``control.bind_roots(start, end)`` (the mesh's world points).
+    the rest mesh; given weights must be barycentric (each >= 0, summing to 1 within 1e-6).
+    Non-finite points or weights are refused. Animate with ``control.bind_roots(start, end)`` (the mesh's world points).
     Costs nothing per step: the root targets are computed once per frame.
     """
 
@@ -47,14 +53,34 @@ class RootBinding:
     weights: np.ndarray | None = None
 
     def __post_init__(self):
-        pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 3)
-        idx = np.asarray(self.indices, dtype=np.int64).reshape(-1, 3)
+        pts = finite_rows(self.points, 3, "root binding mesh points")
+        idx = np.asarray(self.indices)
+        if idx.size and not np.issubdtype(idx.dtype, np.integer):
+            raise ValueError(f"root binding mesh: indices must be integers, got dtype {idx.dtype}")
+        if idx.size % 3:
+            raise ValueError(f"root binding mesh: indices must be (T, 3) or a multiple of 3, got shape {idx.shape}")
+        idx = idx.astype(np.int64).reshape(-1, 3)
         if idx.size == 0 or idx.min() < 0 or idx.max() >= len(pts):
             raise ValueError("root binding mesh: indices must reference its points")
         object.__setattr__(self, "points", pts)
         object.__setattr__(self, "indices", idx.astype(np.int32))
         if (self.triangles is None) != (self.weights is None):
             raise ValueError("root binding: give both triangles and weights, or neither")
+        if self.triangles is not None:
+            tri = np.asarray(self.triangles)
+            if tri.size and not np.issubdtype(tri.dtype, np.integer):
+                raise ValueError(f"root binding: triangles must be integers, got dtype {tri.dtype}")
+            tri = tri.astype(np.int64).reshape(-1)
+            bad = np.flatnonzero((tri < 0) | (tri >= len(idx)))
+            if bad.size:
+                raise ValueError(f"root binding: triangles[{int(bad[0])}] = {int(tri[bad[0]])} is out of range "
+                                 f"0..{len(idx) - 1}")
+            w = finite_rows(self.weights, 3, "root binding weights")
+            bad = np.flatnonzero(np.any(w < -BARYCENTRIC_TOLERANCE, axis=1)
+                                 | (np.abs(w.sum(axis=1) - 1.0) > BARYCENTRIC_TOLERANCE))
+            if bad.size:
+                raise ValueError(f"root binding weights row {int(bad[0])} = {w[bad[0]].tolist()} is not barycentric "
+                                 "(each weight >= 0, summing to 1)")
 
     flags = frozenset()
 
@@ -118,8 +144,8 @@ class BindingControl:
         the next call) at frame start and end, from the mesh's world points (P, 3) then."""
         m, b = self.model, self.binding
         f = numpy_type(m.precision)
-        for dst, pts in zip(self.points, (start, start if end is None else end)):
-            pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+        for label, dst, pts in zip(("start", "end"), self.points, (start, start if end is None else end)):
+            pts = finite_rows(pts, 3, f"root binding mesh points ({label})")
             if pts.shape[0] != b["num_points"]:
                 raise ValueError(f"root binding mesh: expected {b['num_points']} points, got {pts.shape[0]}")
             dst.assign((pts - m.origin).astype(f))

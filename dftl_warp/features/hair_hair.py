@@ -16,7 +16,7 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
 from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
-from .base import authored, find, nonnegative
+from .base import authored, find, nonnegative, vector
 
 #: name -> (type, where: "scene", "curves" or "both", description)
 ATTRIBUTES = {
@@ -61,8 +61,20 @@ class HairHair:
     splat: str = "strands"
 
     def __post_init__(self):
-        if not float(self.cell_size) > 0:
-            raise ValueError(f"hair-hair cell_size must be > 0 (m), got {self.cell_size}")
+        try:
+            cell = float(self.cell_size)
+        except (TypeError, ValueError):
+            cell = float("nan")
+        if not (np.isfinite(cell) and cell > 0):
+            raise ValueError(f"hair-hair cell_size must be a finite number > 0 (m), got {self.cell_size!r}")
+        if self.extent is not None:
+            extent = vector(self.extent, 3, "hair-hair extent")
+            if np.any(extent <= 0):
+                raise ValueError(f"hair-hair extent must be 3 finite lengths > 0 (m), got {self.extent!r}")
+            object.__setattr__(self, "extent", extent)
+        n = self.max_cells
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"hair-hair max_cells must be an integer >= 1, got {n!r}")
         nonnegative(self.friction, "hair-hair friction")
         nonnegative(self.repulsion, "hair-hair repulsion")
         k = self.splat_interval

@@ -11,6 +11,9 @@ Each feature's own parameters, device data, per-frame control and USD mapping li
 
 from __future__ import annotations
 
+import math
+import numbers
+
 import numpy as np
 import warp as wp
 
@@ -184,7 +187,11 @@ class FeatureControl:
         return None if self.air is None else self.air.time
 
     def set_frame_time(self, start: float, end: float) -> None:
-        """The frame spans ``start`` -> ``end`` seconds: wind velocity from its keyframes, noise time."""
+        """The frame spans ``start`` -> ``end`` seconds: wind velocity from its keyframes, noise time.
+        ValueError unless both are finite numbers of seconds."""
+        for name, t in (("start", start), ("end", end)):
+            if isinstance(t, (bool, np.bool_)) or not isinstance(t, numbers.Real) or not math.isfinite(t):
+                raise ValueError(f"set_frame_time: {name} must be a finite number of seconds, got {t!r}")
         if self.air is not None:
             self.air.set_frame_time(start, end)
 

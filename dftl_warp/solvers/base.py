@@ -31,7 +31,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels.solvers.diagnostics import strand_diagnostics_kernel
-from ..options import add_choice
+from ..options import add_choice, did_you_mean
 
 #: standard gravity, m/s^2, along -Y (the default up axis)
 DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
@@ -59,6 +59,29 @@ def check_gravity(gravity) -> np.ndarray:
     if not np.isfinite(g).all():
         raise ValueError(f"gravity must be 3 finite numbers (an acceleration), got {tuple(g.tolist())}")
     return g
+
+
+def check_real(name: str, value, *, minimum: float = 0.0, inclusive: bool = False) -> float:
+    """``value`` as a float; ValueError naming ``name`` unless it is a finite real number above
+    ``minimum`` (at or above it where ``inclusive``)."""
+    ok = not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real) and math.isfinite(value)
+    if not ok or not (value >= minimum if inclusive else value > minimum):
+        raise ValueError(f"{name} must be {'>=' if inclusive else '>'} {minimum:g} and finite, got {value!r}")
+    return float(value)
+
+
+def check_integer(name: str, value, *, minimum: int = 1) -> int:
+    """``value`` as an int; ValueError naming ``name`` unless it is an integer >= ``minimum``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_bool(name: str, value) -> bool:
+    """``value`` as a bool; ValueError naming ``name`` unless it is True or False."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 def _checked_step(step):
@@ -214,7 +237,12 @@ def carries_corrections(solver: str, correction: str) -> bool:
 def make_solver(model, solver: str = "dftl", **options):
     """A solver by registry name (:data:`SOLVERS`), given the options its class lists
     (``gravity`` always); options that do not apply to it (``damping`` and ``correction`` for pbd
-    and reference, ``iterations`` for all but pbd) are dropped."""
+    and reference, ``iterations`` for all but pbd) are dropped. A name that no registered solver
+    knows (a typo such as ``dampnig``) raises TypeError with the closest known name."""
     cls = solver_class(solver)
+    known = {"gravity"}.union(*(c.options for c in SOLVERS.values()))
+    for k in options:
+        if k not in known:
+            raise TypeError(f"make_solver: unknown keyword {k!r} for any solver{did_you_mean(k, sorted(known))}")
     kept = {k: v for k, v in options.items() if k == "gravity" or k in cls.options}
     return cls(model, **kept)

@@ -70,7 +70,7 @@ from ..core.precision import numpy_type, scalar_type
 from ..core.state import State
 from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_kernel
 from . import elastic_rest
-from .base import DEFAULT_GRAVITY, Solver, check_gravity, register
+from .base import DEFAULT_GRAVITY, Solver, check_bool, check_gravity, register
 
 #: human hair: Young's modulus (Pa), shear modulus (Pa), density (kg/m^3) (Robbins 2002)
 HAIR_E = 3.89e9
@@ -121,6 +121,21 @@ class ElasticState(State):
             wp.copy(self.clamps, other.clamps)
 
 
+def _per_point(name: str, value, npts: int) -> np.ndarray:
+    """``value`` (one number or one per point) as a (npts,) float array; ValueError naming ``name``
+    for another length or a non-numeric value."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be one number or one per point ({npts}), got {value!r}") from None
+    arr = arr.reshape(-1)
+    if arr.shape[0] == 1:
+        return np.full(npts, float(arr[0]))
+    if arr.shape[0] != npts:
+        raise ValueError(f"{name} must be one number or one per point ({npts}), got {arr.shape[0]} values")
+    return arr.astype(float)
+
+
 @register
 class ElasticSolver(Solver):
     """Elastic rods, scheme K (see the module docstring).
@@ -159,6 +174,7 @@ class ElasticSolver(Solver):
                  drag: float = 0.0, compute_precision: str | None = None, stiffness_scale=None,
                  rest_shape=None):
         check_features(model)
+        inverse_statics = check_bool("inverse_statics", inverse_statics)
         if correction not in ("prior", "posterior"):
             raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
         if not (0.0 <= float(damping) <= 1.0):
@@ -192,14 +208,11 @@ class ElasticSolver(Solver):
         npts = model.num_points
         if radius is None:
             radius = 0.5 * model.widths if model.widths is not None else DEFAULT_RADIUS
-        radius = np.broadcast_to(np.asarray(radius, float).reshape(-1) if np.ndim(radius) else float(radius),
-                                 (npts,)).astype(float)
+        radius = _per_point("radius", radius, npts)
         if not np.all(np.isfinite(radius) & (radius > 0)):
             raise ValueError("radius must be finite and > 0")
         self.radius = radius
-        scale = np.ones(npts) if stiffness_scale is None else np.broadcast_to(
-            np.asarray(stiffness_scale, float).reshape(-1) if np.ndim(stiffness_scale) else float(stiffness_scale),
-            (npts,)).astype(float)
+        scale = np.ones(npts) if stiffness_scale is None else _per_point("stiffness_scale", stiffness_scale, npts)
         if not np.all(np.isfinite(scale) & (scale >= 0)):
             raise ValueError("stiffness_scale must be finite and >= 0")
         self.stiffness_scale = scale

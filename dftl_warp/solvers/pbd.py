@@ -11,7 +11,7 @@ import numpy as np
 import warp as wp
 
 from ..kernels.solvers.pbd import pbd_kernel
-from .base import DEFAULT_GRAVITY, Solver, register
+from .base import DEFAULT_GRAVITY, Solver, check_integer, register
 
 
 @register
@@ -28,8 +28,7 @@ class PBDSolver(Solver):
     options = ("iterations",)
 
     def __init__(self, model, *, iterations: int = 4, gravity=DEFAULT_GRAVITY):
-        if int(iterations) < 1:
-            raise ValueError(f"iterations must be >= 1, got {iterations}")
+        iterations = check_integer("iterations", iterations)
         super().__init__(model, gravity=gravity)
         self.iterations = int(iterations)
         self._kernel = pbd_kernel(model.scalar)

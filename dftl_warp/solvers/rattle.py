@@ -35,7 +35,7 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..kernels.solvers.rattle import rattle_kernel
 from ..kernels.solvers.rattle_fused import rattle_capacity, rattle_fused_kernel
-from .base import DEFAULT_GRAVITY, Solver, register
+from .base import DEFAULT_GRAVITY, Solver, check_bool, check_integer, check_real, register
 
 #: Newton iterations per step: 3 bring the relative squared-length residual of a float32 groom at
 #: production substeps (>= 8 per 1/24 s frame) to round-off (docs/accuracy-second-order.md)
@@ -94,10 +94,13 @@ class RattleSolver(Solver):
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, newton_iterations: int = DEFAULT_NEWTON_ITERATIONS,
                  fallback: float = DEFAULT_FALLBACK, accept: float = DEFAULT_ACCEPT,
                  max_halvings: int = DEFAULT_MAX_HALVINGS, on_chip: bool = False):
-        if int(newton_iterations) != newton_iterations or int(newton_iterations) < 1:
-            raise ValueError(f"newton_iterations must be an integer >= 1, got {newton_iterations!r}")
-        if not (float(fallback) > 0.0):
-            raise ValueError(f"fallback must be > 0, got {fallback!r}")
+        newton_iterations = check_integer("newton_iterations", newton_iterations)
+        fallback = check_real("fallback", fallback)
+        accept = check_real("accept", accept)
+        max_halvings = check_integer("max_halvings", max_halvings, minimum=0)
+        if max_halvings > 10:
+            raise ValueError(f"max_halvings must be an integer in [0, 10], got {max_halvings!r}")
+        on_chip = check_bool("on_chip", on_chip)
         if model.feature_flags:
             raise ValueError("the rattle solver steps gravity and roots only; this model has features "
                              f"({', '.join(sorted(model.feature_flags))}): use --solver dftl")
@@ -115,10 +118,6 @@ class RattleSolver(Solver):
         super().__init__(model, gravity=gravity)
         self.newton_iterations = int(newton_iterations)
         self.fallback = float(fallback)
-        if not (float(accept) > 0.0):
-            raise ValueError(f"accept must be > 0, got {accept!r}")
-        if int(max_halvings) != max_halvings or not (0 <= int(max_halvings) <= 10):
-            raise ValueError(f"max_halvings must be an integer in [0, 10], got {max_halvings!r}")
         self.accept = float(accept)
         self.max_halvings = int(max_halvings)
         self._kernel = rattle_kernel(model.scalar)

@@ -33,7 +33,7 @@ import warp as wp
 
 from ..core.layout import strand_offsets
 from ..kernels.solvers.reference import rattle_kernel
-from .base import DEFAULT_GRAVITY, Solver, register
+from .base import DEFAULT_GRAVITY, Solver, check_integer, check_real, register
 
 
 @register
@@ -64,6 +64,12 @@ class ReferenceSolver(Solver):
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY, tolerance: float = 1.0e-14, max_iterations: int = 30,
                  accept: float = 1.0e-10, elastic=None, drag: float = 0.0, frame_tolerance: float = 1.0e-11,
                  frame_iterations: int = 30):
+        tolerance = check_real("tolerance", tolerance)
+        max_iterations = check_integer("max_iterations", max_iterations)
+        accept = check_real("accept", accept)
+        drag = check_real("drag", drag, inclusive=True)
+        frame_tolerance = check_real("frame_tolerance", frame_tolerance)
+        frame_iterations = check_integer("frame_iterations", frame_iterations)
         rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
         starts = strand_offsets(model.counts)
         free = np.ones(rest.shape[0], dtype=bool)

@@ -28,6 +28,17 @@ from .base import ColliderShape, warn_approximation
 UNIFORM = 1.0e-6
 
 
+def _length(value, what: str, positive: bool = True) -> float:
+    """``value`` as a finite float > 0 (``positive``) or >= 0; ValueError naming ``what``."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} must be a finite number, got {value!r}") from None
+    if not np.isfinite(v) or not (v > 0 if positive else v >= 0):
+        raise ValueError(f"{what} must be {'>' if positive else '>='} 0 and finite, got {value!r}")
+    return v
+
+
 def _uniform(values) -> bool:
     a = np.abs(np.asarray(values, dtype=np.float64))
     return float(a.max() - a.min()) <= UNIFORM * float(a.max())
@@ -47,8 +58,7 @@ class Sphere(ColliderShape):
 
     def __post_init__(self):
         super().__post_init__()
-        if not float(self.radius) > 0:
-            raise ValueError(f"{self._label()} radius must be > 0, got {self.radius}")
+        _length(self.radius, f"{self._label()} radius")
 
     def size_axis(self):
         return (float(self.radius), 0.0, 0.0), (0.0, 0.0, 1.0)
@@ -84,7 +94,8 @@ class Ellipsoid(ColliderShape):
 @dataclass(frozen=True, eq=False)
 class Capsule(ColliderShape):
     """A capsule: points within ``radius`` (m) of the segment of half length ``half_height`` (m)
-    along the local ``axis`` ("X", "Y", "Z" as in UsdGeomCapsule, or a vector)."""
+    along the local ``axis``: "X", "Y" or "Z" (upper case, the UsdGeomCapsule tokens; anything else
+    is refused) or a vector of 3 finite numbers, not zero (normalised)."""
 
     radius: float = 1.0
     half_height: float = 1.0
@@ -95,8 +106,15 @@ class Capsule(ColliderShape):
 
     def __post_init__(self):
         super().__post_init__()
-        if not float(self.radius) > 0 or not float(self.half_height) >= 0:
-            raise ValueError(f"{self._label()} needs radius > 0 and half_height >= 0")
+        _length(self.radius, f"{self._label()} radius")
+        _length(self.half_height, f"{self._label()} half_height", positive=False)
+        if isinstance(self.axis, str):
+            if self.axis not in _AXES:
+                raise ValueError(f"{self._label()} axis must be \"X\", \"Y\" or \"Z\" (or a vector), got {self.axis!r}")
+        else:
+            axis = vector(self.axis, 3, f"{self._label()} axis")
+            if np.linalg.norm(axis) < 1e-12:
+                raise ValueError(f"{self._label()} axis must not be the zero vector, got {self.axis!r}")
 
     def size_axis(self):
         axis = np.asarray(_AXES[self.axis] if isinstance(self.axis, str) else self.axis, dtype=np.float64)

@@ -58,7 +58,9 @@ class ColliderShape:
 
     #: world position of the collider's local origin at rest, m
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    #: world rotation at rest, unit quaternion (x, y, z, w)
+    #: world rotation at rest, quaternion (x, y, z, w): a non-unit one is normalised (it names
+    #: the same rotation, as in the poses of ``set_collider_poses``); a zero or non-finite one is
+    #: refused
     rotation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     #: Coulomb friction coefficient (dimensionless, >= 0)
     friction: float = 0.3

@@ -13,7 +13,7 @@ import warp as wp
 
 from ...core.precision import numpy_type
 from ...kernels.features.collide import collider_pose_kernel, transform_type
-from ..base import quat_rotate
+from ..base import finite_rows, quat_rotate, quaternion_rows
 from .base import SHAPES, Colliders
 
 
@@ -132,9 +132,10 @@ class ColliderControl:
         f = numpy_type(m.precision)
         rows = {}
         for name, given in (("start", start), ("end", start if end is None else end)):
-            r = np.asarray(given, dtype=np.float64).reshape(-1, 7).copy()
+            r = finite_rows(given, 7, f"collider poses ({name})")
             if r.shape[0] != n:
                 raise ValueError(f"expected {n} collider poses, got {r.shape[0]}")
+            quaternion_rows(r, f"collider poses ({name})")
             r[:, :3] -= m.origin
             rows[name] = r
         # the end's quaternion on the start's hemisphere (the same rotation; the path then turns

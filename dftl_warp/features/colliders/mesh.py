@@ -14,7 +14,7 @@ import warp as wp
 
 from ...core.precision import numpy_type
 from ...kernels.features.mesh import MESH
-from ..base import nonnegative
+from ..base import finite_rows, nonnegative
 from .base import ColliderShape
 from .sdf import MeshFields, bounds, estimated_bytes, field_band, field_settings
 
@@ -48,8 +48,16 @@ class TriangleMesh(ColliderShape):
 
     def __post_init__(self):
         super().__post_init__()
-        pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 3)
-        idx = np.asarray(self.indices, dtype=np.int64).reshape(-1, 3)
+        pts = np.asarray(self.points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"{self._label()} points must be an array of shape (P, 3), got shape {pts.shape}")
+        idx = np.asarray(self.indices)
+        if idx.size and not np.issubdtype(idx.dtype, np.integer):
+            raise ValueError(f"{self._label()} indices must be integers, got dtype {idx.dtype}")
+        if (idx.ndim == 2 and idx.shape[1] != 3) or idx.ndim > 2 or idx.size % 3:
+            raise ValueError(f"{self._label()} indices must be (T, 3) or a flat list of a multiple of 3, "
+                             f"got shape {idx.shape}")
+        idx = idx.astype(np.int64).reshape(-1, 3)
         if idx.size == 0 or pts.size == 0:
             raise ValueError(f"{self._label()} has no triangles")
         if idx.min() < 0 or idx.max() >= len(pts):
@@ -63,6 +71,8 @@ class TriangleMesh(ColliderShape):
             band = 0.01 * float(np.linalg.norm(pts.max(0) - pts.min(0)))
         object.__setattr__(self, "depth_band", nonnegative(band, f"{self._label()} depth_band"))
         if self.sdf is not None:
+            if not isinstance(self.sdf, (bool, np.bool_)):
+                raise ValueError(f"{self._label()} sdf must be True, False or None, got {self.sdf!r}")
             object.__setattr__(self, "sdf", bool(self.sdf))
         for name in ("sdf_cell", "sdf_tolerance"):
             value = getattr(self, name)
@@ -133,7 +143,7 @@ class MeshColliders:
         if index not in self.meshes:
             raise ValueError(f"collider {index} is not a mesh")
         c, mesh = self.meshes[index]
-        pts = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+        pts = finite_rows(points, 3, f"mesh collider {index} points").astype(np.float32)
         if pts.shape[0] != mesh.points.shape[0]:
             raise ValueError(f"mesh collider {index}: expected {mesh.points.shape[0]} points, got {pts.shape[0]}")
         mesh.points.assign(pts)
