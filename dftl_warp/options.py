@@ -116,6 +116,8 @@ class Option:
         if self.type == "rel":
             return "a relationship"
         if self.pattern is not None:
+            if self.name == "guides":
+                return "a number of guides, a fraction or a percentage (such as 10, 0.1 or 10%)"
             return "cpu, cuda:N or a comma-separated list of them" if self.name == "device" else "a string"
         if self.choices:
             return self._choice_text()
@@ -501,7 +503,7 @@ OUTPUT_OPTIONS = tuple(o.name for o in _OUTPUT)
 _CLEAN_START = [
     Option("preroll", float, 0.0,
            "settle the groom at the first frame's pose for this long before the shot (hair inside a "
-           "collider is moved out first; the preroll goes on, up to 4x as long, until the groom is "
+           "collider is moved out first; the preroll goes on, up to 8x as long (whole frames), until the groom is "
            "settled); 0: no preroll", unit="s", low=0.0,
            cli="--preroll", metavar="SECONDS", toml="preroll", api="preroll"),
 ]

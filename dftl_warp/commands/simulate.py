@@ -70,13 +70,16 @@ def run(args) -> int:
     from ..simulation.quality import describe_quality, preset_settings
     from ..simulation.simulate import simulate_usd
 
+    notes = _check_flags(args)
     preset = preset_settings(args.quality) if args.quality else {}
     given = {n: getattr(args, n) for n in ("solver", "substeps", "precision", "damping", "correction")}
     for name in given:
         if getattr(args, name) is None and name in preset:
             setattr(args, name, preset[name])
+    if args.quality and args.tolerance is None:
+        notes.append(describe_quality(args.quality, given))
     try:
-        summary = _simulate(args, simulate_usd, given, describe_quality)
+        summary = _simulate(args, simulate_usd, notes)
     except QCError as exc:  # a --check gate broken: one line, exit status 3, no output left
         print(f"dftl-warp: error: {exc}", file=sys.stderr)
         return 3
@@ -97,12 +100,29 @@ def run(args) -> int:
     return 0
 
 
-def _simulate(args, simulate_usd, given, describe_quality):
+def _check_flags(args) -> list:
+    """Flags checked before anything is read: a bad --guides in the guides' own words; and the lines
+    (printed with the device line) for flags that do nothing here, so none is ignored silently."""
+    from ..guides.scene import parse_count
+
+    if args.guides is not None:
+        parse_count(args.guides)
+    notes = []
+    if args.guide_method is not None and args.guides is None:
+        notes.append(f"dftl-warp: warning: --guide-method {args.guide_method} does nothing without --guides (it picks the guides "
+                     "--guides asks for; prims with rel dftl:guides name their own)")
+    if args.quality and args.tolerance is not None:
+        notes.append(f"dftl-warp: warning: --quality {args.quality} with --tolerance {args.tolerance:g}: the tolerance chooses the "
+                     "solver and the substeps per frame; the preset gives only its precision, damping and correction")
+    return notes
+
+
+def _simulate(args, simulate_usd, notes):
     return simulate_usd(
         args.input,
         args.output,
         progress=not args.quiet,
-        notes=[describe_quality(args.quality, given)] if args.quality else [],
+        notes=notes,
         start=args.start,
         end=args.end,
         substeps=args.substeps,

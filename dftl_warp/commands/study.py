@@ -72,6 +72,18 @@ def _check_front_args(args) -> None:
         raise UserError("--docs: the front writes its report into --out (front.md); leave --docs out")
 
 
+def args_default(flag: str):
+    """The default of a --front flag (warned about when given without --front)."""
+    return {"particles": 32, "reference_substeps": 64}.get(flag)
+
+
+def _elapsed(args) -> str:
+    """The run's wall time so far, as the final line prints it (``4.3 s``)."""
+    import time
+
+    return f"{time.perf_counter() - args.started:.1f} s"
+
+
 def run_front(args, device, log) -> int:
     """``--front``: measure the front at scale and write it into ``--out``."""
     import warp as wp
@@ -87,13 +99,16 @@ def run_front(args, device, log) -> int:
             "cores": os.cpu_count(), "device": str(device), "device_name": device.name, "warp": wp.config.version,
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "fast": args.fast}
     written = write_front(result, meta, args.out)
-    log(f"study --front: {result['seconds']:.0f} s; wrote {', '.join(written)}")
+    log(f"study --front: {_elapsed(args)}; wrote {', '.join(written)}")
     return 0
 
 
 def run(args) -> int:
+    import time
+
     import warp as wp
 
+    args.started = time.perf_counter()   # the elapsed time printed at the end: the whole run, Warp's start included
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         raise UserError(f"--out {args.out}: exists and is not a folder")
     log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, flush=True))
@@ -108,6 +123,11 @@ def run(args) -> int:
         return 0
     if args.front:
         _check_front_args(args)
+    else:
+        for flag in ("strands", "frames", "particles", "reference_substeps"):
+            if getattr(args, flag) not in (None, args_default(flag)):
+                print(f"dftl-warp: warning: --{flag.replace('_', '-')} does nothing without --front (it sizes the "
+                      "front's groom)", file=sys.stderr)
 
     from ..core.devices import device_line, resolve_device
 
@@ -148,6 +168,6 @@ def run(args) -> int:
         "map_seconds": cfg.map_seconds,
     }
     written = write_results(results, meta, args.out, args.docs)
-    log(f"study: {results['seconds']:.0f} s; wrote {len(written)} files to {args.out}"
+    log(f"study: {_elapsed(args)}; wrote {len(written)} files to {args.out}"
         + (f" and {args.docs}" if args.docs else ""))
     return 0

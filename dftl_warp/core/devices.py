@@ -46,11 +46,20 @@ def parse_devices(text) -> list[str]:
 def default_device() -> str:
     """``$DFTL_WARP_DEVICE`` if set, else ``cuda:0`` when Warp finds a CUDA device, else ``cpu``."""
     chosen = os.environ.get(DEVICE_ENV, "").strip()
-    if chosen:
-        return chosen
     import warp as wp
 
     init_warp()
+    if chosen:   # checked here, so a bad value is reported as the variable's, not as --device's
+        for name in (d.strip() for d in chosen.split(",")):
+            try:
+                if not name:
+                    raise ValueError("empty device name in the list")
+                wp.get_device(name)
+            except (ValueError, RuntimeError, KeyError) as exc:
+                available = ", ".join(d.alias for d in wp.get_devices())
+                raise UserError(f"${DEVICE_ENV}={chosen}: device {name or repr(name)} is not available here "
+                                f"({available}): {exc}; set it to one of them or unset it") from None
+        return chosen
     return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
 
 

@@ -9,7 +9,7 @@ groom can settle at the first frame's pose (a preroll) before the shot.
   colliders are queried here to any depth (the step's ``depth_band`` does not apply);
 - :func:`preroll`: ``seconds`` of simulation with the roots and colliders held where the control
   puts them (the caller sets the first frame's pose, start = end), velocities damped every frame,
-  going on (up to 4x ``seconds``) until no particle moves more than the settling tolerance over a
+  going on (up to 8x ``seconds``) until no particle moves more than the settling tolerance over a
   frame, then zeroed, so the shot starts settled and at rest (:class:`PrerollReport`).
 
 Every registered collider shape is covered: the kernels (``kernels/features/clean_start.py``)

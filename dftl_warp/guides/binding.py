@@ -52,6 +52,22 @@ def check_strands(points, counts, points_name: str = "points", counts_name: str 
     return p, c, starts
 
 
+def zero_length_segment(points: np.ndarray, starts: np.ndarray, counts: np.ndarray):
+    """(strand, i) of the first strand whose points ``i`` and ``i + 1`` coincide, both 0-based, or None.
+
+    A guide with a zero-length segment has no tangent there, so its frame cannot carry an offset
+    (:mod:`.frames`): :func:`bind` refuses it rather than deform render strands off their rest shape."""
+    if points.shape[0] < 2:
+        return None
+    owner = np.repeat(np.arange(counts.shape[0]), counts)
+    zero = np.all(points[1:] == points[:-1], axis=1) & (owner[1:] == owner[:-1])
+    if not zero.any():
+        return None
+    j = int(np.flatnonzero(zero)[0])
+    g = int(owner[j])
+    return g, j - int(starts[g])
+
+
 def nearest(queries: np.ndarray, targets: np.ndarray, k: int, exclude_self: bool = False):
     """Indices (Q, k) and distances (Q, k) of the ``k`` nearest ``targets`` of each query, nearest first.
 
@@ -177,13 +193,18 @@ def bind(guide_points, guide_counts, render_points, render_counts, *, k: int = 4
             by default a render strand equal to a guide (same count, same points) is that guide.
 
     Raises:
-        ValueError naming the argument.
+        ValueError naming the argument; a guide with two consecutive coincident points (no frame
+        there) is refused (:func:`zero_length_segment`).
     """
     gp, gc, gs = check_strands(guide_points, guide_counts, "guide_points", "guide_counts")
     rp, rc, rs = check_strands(render_points, render_counts, "render_points", "render_counts")
     G, R = gc.shape[0], rc.shape[0]
     if G == 0:
         raise ValueError("guide_counts is empty: no guides to bind to")
+    found = zero_length_segment(gp, gs, gc)
+    if found is not None:
+        raise ValueError(f"guide_points: guide {found[0]}: points {found[1]} and {found[1] + 1} coincide (a "
+                         "zero-length segment): a guide needs non-zero segments to define its frames")
     if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 1 <= k <= MAX_K:
         raise ValueError(f"k must be an integer in 1..{MAX_K}, got {k!r}")
     if k > G:

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..usd.scene import CurvesPrim, Scene, transform_points
-from .binding import bind, bind_groom, check_strands
+from .binding import bind, bind_groom, check_strands, zero_length_segment
 from .select import METHODS, select_guides
 
 #: what ``--guides-output`` writes
@@ -40,6 +40,11 @@ def parse_count(text):
         value = text
     else:
         t = str(text).strip()
+        from ..options import OPTIONS
+
+        if not OPTIONS["guides"].pattern.match(t.replace(" ", "")):   # -3, nan, 1e-9, '': not a count
+            raise UserError(f"--guides {text}: expected a number of guides, a fraction or a percentage (such as 10, "
+                            "0.1 or 10%)")
         try:
             value = float(t[:-1]) / 100.0 if t.endswith("%") else (int(t) if t.isdigit() else float(t))
         except ValueError:
@@ -123,6 +128,7 @@ class GuideSet:
             m = c.transform(frame)
             if i in picked:
                 s, chosen = picked[i]
+                _check_guide_segments(file, sim[s], chosen=chosen)
                 try:
                     b = bind_groom(transform_points(m, c.points), c.counts, chosen, k=min(k, chosen.size))
                 except ValueError as exc:
@@ -130,6 +136,8 @@ class GuideSet:
                 self.renders.append(_Render(i, [s], b))
             elif c.guides:
                 sources = [sim_index[g] for g in c.guides]
+                for s in sources:
+                    _check_guide_segments(file, sim[s])
                 gp = np.concatenate([transform_points(sim[s].transform(frame), sim[s].points) for s in sources])
                 gc = np.concatenate([sim[s].counts for s in sources])
                 try:
@@ -253,6 +261,22 @@ def _attr(spec, name, type_name, value, uniform: bool = False):
                                                          Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
     a.default = value
     return a
+
+
+def _check_guide_segments(file: str, guide: CurvesPrim, chosen=None) -> None:
+    """Refuse (one line naming file, prim, curve and points) a guide curve with two consecutive
+    coincident points: no frame there, so the render strands bound to it could not keep their rest
+    shape. ``chosen``: the guide prim is those strands of a dense prim (named by their index there)."""
+    starts = np.concatenate([[0], np.cumsum(guide.counts)[:-1]]).astype(np.int64)
+    found = zero_length_segment(np.asarray(guide.points, np.float64), starts, np.asarray(guide.counts, np.int64))
+    if found is None:
+        return
+    k, i = found
+    path, curve = (guide.path, k) if chosen is None else (guide.path.removesuffix(GUIDES_SUFFIX), int(chosen[k]))
+    picked = "" if chosen is None else " (picked as a guide by --guides)"
+    raise UserError(f"{file}: {path}: curve {curve}{picked}: points {i} and {i + 1} coincide (a zero-length "
+                    "segment): a guide needs non-zero segments to carry its render strands; remove the repeated "
+                    "point")
 
 
 def _why(exc: ValueError, c: CurvesPrim) -> str:

@@ -510,7 +510,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         from ..output.clips import auto_clips  # large outputs: clips (measured size, docs/caches.md)
 
         out_opts["clips"] = auto_clips(sim.output_scene, (last_written - first) // step + 1, output)
-    record = provenance.build(sim, input, quality=quality, command=command, output_options={
+    shown = quality if quality is None or tolerance is None else f"{quality} (solver and substeps chosen by tolerance)"
+    record = provenance.build(sim, input, quality=shown, command=command, output_options={
         "frame_step": step, "velocities": not out_opts["no_velocities"], "check": out_opts["check"] or "none",
         "clips": "none" if out_opts["clips"] is None else out_opts["clips"]})
     qc = FrameQC(sim)

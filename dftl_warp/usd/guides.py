@@ -3,7 +3,7 @@ BasisCurves prim(s) it follows. Render prims are not simulated: their guides are
 curves are deformed from them (:mod:`dftl_warp.guides.scene`).
 
 Checked here, each problem one line naming the file and the prim (:class:`UserError`, exit 2): a
-target that is missing or not a BasisCurves prim, a prim naming itself, a guide prim that itself
+target that is missing, inactive or not a BasisCurves prim, a prim naming itself, a guide prim that itself
 names guides, and a render prim whose own ``dftl:`` solver settings differ from its guides'.
 """
 
@@ -35,6 +35,9 @@ def read_guide_paths(prim, file: str) -> tuple:
         target = stage.GetPrimAtPath(t)
         if not target:
             raise UserError(f"{where}: {RELATIONSHIP} -> {t}: no such prim")
+        if not target.IsActive():   # inactive hair prims are not simulated: nor is an inactive guide
+            raise UserError(f"{where}: {RELATIONSHIP} -> {t}: the guide prim is inactive (active = false): activate "
+                            f"it, or remove it from {RELATIONSHIP}")
         if not target.IsA(UsdGeom.BasisCurves):
             raise UserError(f"{where}: {RELATIONSHIP} -> {t}: not a BasisCurves prim ({target.GetTypeName() or 'untyped'})")
         if str(t) not in out:

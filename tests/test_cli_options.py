@@ -1,0 +1,104 @@
+"""Command-line options that were ignored or misreported: --guides in the guides' own words, flags
+that do nothing here warn once, --quality with --tolerance says what the tolerance overrode (and the
+provenance does not claim the preset), the preroll line with --guides and --tolerance, a bad
+$DFTL_WARP_DEVICE named as the variable, and study's elapsed time."""
+
+import json
+
+import numpy as np
+import pytest
+from pxr import Sdf
+from usd_stages import add_curves, new_stage
+
+from dftl_warp import cli
+
+N = 8
+
+
+def hair(path):
+    stage = new_stage(path, start=1, end=3)
+    pts = []
+    for a in np.linspace(0, 2 * np.pi, 12, endpoint=False):
+        for i in range(N):
+            pts.append([0.1 * np.cos(a) + 0.02 * i, -0.02 * i, 0.1 * np.sin(a)])
+    add_curves(stage, "/World/Hair", np.array(pts), [N] * 12)
+    stage.Save()
+    return path
+
+
+def simulate(capsys, *argv, quiet=True):
+    code = cli.main(["simulate", *map(str, argv), "--device", "cpu", "--end", "2", *(["--quiet"] if quiet else [])])
+    out = capsys.readouterr()
+    return code, out.err
+
+
+@pytest.mark.parametrize("bad", ["-3", "abc", "nan", "", "1e-9"])
+def test_bad_guides_get_the_guides_message(tmp_path, capsys, bad):
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usdc"
+    code, err = simulate(capsys, src, "-o", out, "--guides", bad)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "expected a number of guides, a fraction or a percentage" in err and "must be a string" not in err
+    assert not out.exists()
+
+
+def test_guides_api_message():
+    from dftl_warp.options import OptionError, check_api
+
+    with pytest.raises(OptionError, match="guides must be a number of guides, a fraction or a percentage"):
+        check_api("guides", "-3")
+
+
+def test_guide_method_without_guides_warns(tmp_path, capsys):
+    src = hair(tmp_path / "h.usda")
+    code, err = simulate(capsys, src, "-o", tmp_path / "o.usdc", "--guide-method", "fps", quiet=False)
+    assert code == 0
+    assert err.count("--guide-method fps does nothing without --guides") == 1
+
+
+def test_quality_with_tolerance_warns_and_provenance_says_so(tmp_path, capsys):
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usda"
+    code, err = simulate(capsys, src, "-o", out, "--quality", "draft", "--tolerance", "0.1", quiet=False)
+    assert code == 0
+    assert err.count("--quality draft with --tolerance 0.1: the tolerance chooses the solver and the substeps") == 1
+    assert "16 substeps per frame" not in err   # the preset's line would claim what did not run
+    layer = Sdf.Layer.FindOrOpen(str(out))
+    record = layer.customLayerData["dftl_warp_provenance"]
+    text = json.dumps(dict(record), default=str)
+    assert "draft (solver and substeps chosen by tolerance)" in text
+
+
+@pytest.mark.parametrize("extra", [[], ["--guides", "3"], ["--tolerance", "0.1"]])
+def test_preroll_line_is_printed_with_guides_and_tolerance(tmp_path, capsys, extra):
+    src = hair(tmp_path / "h.usda")
+    code, err = simulate(capsys, src, "-o", tmp_path / "o.usdc", "--preroll", "0.1", *extra, quiet=False)
+    assert code == 0
+    assert sum(line.startswith("preroll: ") for line in err.splitlines()) == 1, err
+
+
+def test_bad_device_variable_is_named(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("DFTL_WARP_DEVICE", "cuda:7")
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usdc"
+    code = cli.main(["simulate", str(src), "-o", str(out), "--end", "2", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "$DFTL_WARP_DEVICE=cuda:7" in err and "--device" not in err
+    assert not out.exists()
+
+
+def test_study_warns_front_flags_and_reports_elapsed_time(tmp_path, capsys, monkeypatch):
+    import time
+
+    from dftl_warp.study import report, sweeps
+
+    def slow_study(cfg, log):
+        time.sleep(1.3)
+        return {"seconds": 0.0}
+
+    monkeypatch.setattr(sweeps, "run_study", slow_study)
+    monkeypatch.setattr(report, "write_results", lambda results, meta, out, docs: [])
+    code = cli.main(["study", "--fast", "--device", "cpu", "--out", str(tmp_path / "s"), "--strands", "10"])
+    out = capsys.readouterr()
+    assert code == 0
+    assert out.err.count("--strands does nothing without --front") == 1
+    line = [x for x in out.out.splitlines() if x.startswith("study: ")][-1]
+    assert float(line.split()[1]) >= 1.3, line
