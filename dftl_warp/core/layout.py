@@ -48,6 +48,23 @@ LAYOUTS = ("strand-major", "particle-major")
 CHUNK_STRANDS = 32
 
 
+def zero_length_segment(points, counts):
+    """(strand, segment) of the first segment of zero length (two consecutive points of one strand
+    coincide) among strands ``points`` (N, 3) with vertex ``counts``, both 0-based (segment ``i``
+    joins the strand's points ``i`` and ``i + 1``), or None."""
+    counts = np.asarray(counts, np.int64).reshape(-1)
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    if points.shape[0] < 2:
+        return None
+    owner = np.repeat(np.arange(counts.size), counts)
+    zero = np.all(points[1:] == points[:-1], axis=1) & (owner[1:] == owner[:-1])
+    if not zero.any():
+        return None
+    j = int(np.flatnonzero(zero)[0])
+    strand = int(owner[j])
+    return strand, j - int(strand_offsets(counts)[strand])
+
+
 def strand_offsets(counts, *, with_end: bool = False) -> np.ndarray:
     """Index of each strand's first point in the concatenated points of strands with vertex
     ``counts`` (int64, one per strand); ``with_end``: one more entry, the total point count (so

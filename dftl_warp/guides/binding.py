@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.layout import zero_length_segment
 from .frames import arc_fractions, guide_frames, locate, normalize, sample
 
 #: the most guides one render strand may follow (the device kernel unrolls up to this many)
@@ -50,22 +51,6 @@ def check_strands(points, counts, points_name: str = "points", counts_name: str 
     starts = np.zeros(c.size, dtype=np.int64)
     starts[1:] = np.cumsum(c)[:-1]
     return p, c, starts
-
-
-def zero_length_segment(points: np.ndarray, starts: np.ndarray, counts: np.ndarray):
-    """(strand, i) of the first strand whose points ``i`` and ``i + 1`` coincide, both 0-based, or None.
-
-    A guide with a zero-length segment has no tangent there, so its frame cannot carry an offset
-    (:mod:`.frames`): :func:`bind` refuses it rather than deform render strands off their rest shape."""
-    if points.shape[0] < 2:
-        return None
-    owner = np.repeat(np.arange(counts.shape[0]), counts)
-    zero = np.all(points[1:] == points[:-1], axis=1) & (owner[1:] == owner[:-1])
-    if not zero.any():
-        return None
-    j = int(np.flatnonzero(zero)[0])
-    g = int(owner[j])
-    return g, j - int(starts[g])
 
 
 def nearest(queries: np.ndarray, targets: np.ndarray, k: int, exclude_self: bool = False):
@@ -194,14 +179,14 @@ def bind(guide_points, guide_counts, render_points, render_counts, *, k: int = 4
 
     Raises:
         ValueError naming the argument; a guide with two consecutive coincident points (no frame
-        there) is refused (:func:`zero_length_segment`).
+        there) is refused (:func:`~dftl_warp.core.layout.zero_length_segment`).
     """
     gp, gc, gs = check_strands(guide_points, guide_counts, "guide_points", "guide_counts")
     rp, rc, rs = check_strands(render_points, render_counts, "render_points", "render_counts")
     G, R = gc.shape[0], rc.shape[0]
     if G == 0:
         raise ValueError("guide_counts is empty: no guides to bind to")
-    found = zero_length_segment(gp, gs, gc)
+    found = zero_length_segment(gp, gc)   # no frame there: refused, not deformed off the rest shape
     if found is not None:
         raise ValueError(f"guide_points: guide {found[0]}: points {found[1]} and {found[1] + 1} coincide (a "
                          "zero-length segment): a guide needs non-zero segments to define its frames")

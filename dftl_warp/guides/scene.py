@@ -25,7 +25,8 @@ import numpy as np
 
 from ..errors import UserError
 from ..usd.scene import CurvesPrim, Scene, transform_points
-from .binding import bind, bind_groom, check_strands, zero_length_segment
+from ..core.layout import zero_length_segment
+from .binding import bind, bind_groom, check_strands
 from .select import METHODS, select_guides
 
 #: what ``--guides-output`` writes
@@ -267,8 +268,7 @@ def _check_guide_segments(file: str, guide: CurvesPrim, chosen=None) -> None:
     """Refuse (one line naming file, prim, curve and points) a guide curve with two consecutive
     coincident points: no frame there, so the render strands bound to it could not keep their rest
     shape. ``chosen``: the guide prim is those strands of a dense prim (named by their index there)."""
-    starts = np.concatenate([[0], np.cumsum(guide.counts)[:-1]]).astype(np.int64)
-    found = zero_length_segment(np.asarray(guide.points, np.float64), starts, np.asarray(guide.counts, np.int64))
+    found = zero_length_segment(guide.points, guide.counts)
     if found is None:
         return
     k, i = found

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.layout import zero_length_segment  # noqa: F401  (also imported from here)
 from ..errors import UserError
 from ..features import Drag, find
 from ..solvers.elastic_material import default_radius, stage_material
@@ -34,23 +35,6 @@ def _note(scene, text: str) -> None:
     line = f"{scene.source}: {text}"
     if line not in scene.warnings:
         scene.warnings.append(line)
-
-
-def zero_length_segment(points, counts):
-    """(curve, segment) of the first segment of zero length (two consecutive points of one curve
-    coincide), both 0-based (segment ``i`` joins the curve's points ``i`` and ``i + 1``), or None."""
-    counts = np.asarray(counts, np.int64)
-    points = np.asarray(points, np.float64).reshape(-1, 3)
-    if points.shape[0] < 2:
-        return None
-    owner = np.repeat(np.arange(counts.size), counts)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    zero = np.all(points[1:] == points[:-1], axis=1) & (owner[1:] == owner[:-1])
-    if not zero.any():
-        return None
-    j = int(np.flatnonzero(zero)[0])
-    curve = int(owner[j])
-    return curve, j - int(starts[curve])
 
 
 def check_rest_lengths(source: str, curve, points, solver: str = "elastic") -> None:
