@@ -305,6 +305,7 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
 
 def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     from ..simulation.simulate import Simulation, SimulationOptions, resolve_frames, run_frames
+    from ..simulation.settings import frame_range_note
     from ..usd.read import read_scene
     from ..output import check_output_path, writer_for
     from ..output.paths import check_not_a_dependency
@@ -312,7 +313,6 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
 
     from ..options import OUTPUT_OPTIONS
     from ..output import provenance
-    from ..output.paths import frame_range_note
     from ..output.qc import FrameQC, parse_gates
 
     def note(text):

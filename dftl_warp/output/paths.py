@@ -87,25 +87,6 @@ def check_not_a_dependency(output, input_path) -> None:
                             f"the output would load itself")
 
 
-def frame_range_note(scene, first: int, last: int) -> None:
-    """Add a warning to ``scene.warnings`` when frames ``first..last`` reach outside the stage's
-    ``startTimeCode``..``endTimeCode`` and something in it is animated (a transform, a mesh's
-    points, a time-sampled wind): there the animation holds its first or last pose. A stage
-    without a time range or without animation gets none."""
-    start, end = scene.stage.start_time_code, scene.stage.end_time_code
-    if start is None or end is None or (start <= first and last <= end):
-        return
-    prims = [*scene.curves, *(c.root_mesh for c in scene.curves if c.root_mesh is not None), *scene.colliders]
-    wind = scene.features.get("wind")
-    if not any(getattr(p, "animated", False) or getattr(p, "points_sampler", None) is not None for p in prims) \
-            and not (wind is not None and getattr(wind, "ndim", 0) == 2):
-        return
-    where = "outside" if last < start or first > end else "partly outside"
-    scene.warnings.append(f"{scene.source}: frames {first}..{last} lie {where} the stage's time range "
-                          f"{start:g}..{end:g} (startTimeCode..endTimeCode): there the animation holds its "
-                          f"first or last pose")
-
-
 @contextlib.contextmanager
 def output_place(output):
     """Where ``simulate`` writes ``output``: its missing folders created (and removed again,

@@ -93,6 +93,25 @@ def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
     return first, last
 
 
+def frame_range_note(scene, first: int, last: int) -> None:
+    """Add a warning to ``scene.warnings`` when frames ``first..last`` reach outside the stage's
+    ``startTimeCode``..``endTimeCode`` and something in it is animated (a transform, a mesh's
+    points, a time-sampled wind): there the animation holds its first or last pose. A stage
+    without a time range or without animation gets none."""
+    start, end = scene.stage.start_time_code, scene.stage.end_time_code
+    if start is None or end is None or (start <= first and last <= end):
+        return
+    prims = [*scene.curves, *(c.root_mesh for c in scene.curves if c.root_mesh is not None), *scene.colliders]
+    wind = scene.features.get("wind")
+    if not any(getattr(p, "animated", False) or getattr(p, "points_sampler", None) is not None for p in prims) \
+            and not (wind is not None and getattr(wind, "ndim", 0) == 2):
+        return
+    where = "outside" if last < start or first > end else "partly outside"
+    scene.warnings.append(f"{scene.source}: frames {first}..{last} lie {where} the stage's time range "
+                          f"{start:g}..{end:g} (startTimeCode..endTimeCode): there the animation holds its "
+                          f"first or last pose")
+
+
 def automatic_solver(scene: Scene, options: SimulationOptions, index: int, tolerance: bool = False) -> str:
     """The solver of ``scene.curves[index]`` where neither the command line nor the prim sets one:
     ``elastic`` for a prim with widths (hair of that thickness bends: docs/elastic.md) unless it

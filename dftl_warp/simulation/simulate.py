@@ -52,6 +52,7 @@ from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     check_extent,
     describe_setting,
     group_settings,
+    frame_range_note,
     resolve_frames,
 )
 
@@ -465,7 +466,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     and each written frame's QC.
     """
     from ..usd.read import read_scene
-    from ..output.paths import check_output, frame_range_note, output_place
+    from ..output.paths import check_output, output_place
     from ..output.progress import progress_bar
     from ..output import check_output_path, writer_for
     from ..core.devices import device_line, init_warp, resolve_device
