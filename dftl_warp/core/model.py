@@ -123,16 +123,7 @@ class Model:
         ValueError for ``counts`` that are not whole numbers and for ``widths`` of another length
         than one or one per point, non-finite or negative, whatever the features.
         """
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        counts = _checked_counts(counts)
-        if np.any(counts < 1):
-            i = int(np.flatnonzero(counts < 1)[0])
-            raise ValueError(f"strand {i} has {counts[i]} vertices; every strand needs at least 1")
-        if int(counts.sum()) != points.shape[0]:
-            raise ValueError(f"vertex counts sum to {int(counts.sum())} but there are {points.shape[0]} points")
-        bad = ~np.isfinite(points).all(axis=1)
-        if bad.any():
-            raise ValueError(f"point {int(np.flatnonzero(bad)[0])} is not finite")
+        points, counts = check_strand_arrays(points, counts)
         widths = _checked_widths(widths, points.shape[0])
         device = wp.get_device(device)
         layout_name = layout or default_layout(str(device))
@@ -220,6 +211,28 @@ class Model:
         from .state import Control
 
         return Control.at_rest(self)
+
+
+def check_strand_arrays(points, counts, least: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(points (N, 3) float64, counts (S,) int64) of strands given as concatenated ``points`` and
+    vertex ``counts``, or a ValueError naming the first bad index: counts that are not whole
+    numbers or below ``least`` (a renderer draws nothing for 0; a model needs a root), that do not
+    sum to the points, or a point that is not finite."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.size % 3:
+        raise ValueError(f"points must have shape (N, 3), got {points.shape}")
+    points = points.reshape(-1, 3)
+    counts = _checked_counts(counts)
+    if np.any(counts < least):
+        i = int(np.flatnonzero(counts < least)[0])
+        need = "a vertex count cannot be negative" if least == 0 else f"every strand needs at least {least}"
+        raise ValueError(f"strand {i} has {counts[i]} vertices; {need}")
+    if int(counts.sum()) != points.shape[0]:
+        raise ValueError(f"vertex counts sum to {int(counts.sum())} but there are {points.shape[0]} points")
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise ValueError(f"point {int(np.flatnonzero(bad)[0])} is not finite")
+    return points, counts
 
 
 def _checked_counts(counts) -> np.ndarray:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.layout import strand_offsets
+from ..core.model import check_strand_arrays
 #: default linear hair colour at the root and at the tip (a mid brown)
 DEFAULT_ROOT_COLOR = (0.045, 0.022, 0.010)
 DEFAULT_TIP_COLOR = (0.30, 0.17, 0.085)
@@ -147,25 +148,14 @@ class RenderScene:
 
 def check_strands(points, counts) -> tuple[np.ndarray, np.ndarray]:
     """(points (N, 3) float64, counts (S,) int64) checked as :meth:`dftl_warp.Model.from_strands`
-    checks them (same messages), except that a strand may have 0 vertices (it draws nothing)."""
+    checks them (:func:`~dftl_warp.core.model.check_strand_arrays`, same messages), except that a
+    strand may have 0 vertices (it draws nothing)."""
     points = _float_array(points, "points")
-    if points.size % 3:
-        raise ValueError(f"points must have shape (N, 3), got {points.shape}")
-    points = points.reshape(-1, 3)
     raw = np.asarray(counts).reshape(-1)
     if raw.size and not (np.issubdtype(raw.dtype, np.integer)
                          or (np.issubdtype(raw.dtype, np.floating) and np.all(np.mod(raw, 1) == 0))):
         raise ValueError("counts must be a 1-D array of integers (vertices per strand)")
-    counts = raw.astype(np.int64)
-    if np.any(counts < 0):
-        i = int(np.flatnonzero(counts < 0)[0])
-        raise ValueError(f"strand {i} has {counts[i]} vertices; a vertex count cannot be negative")
-    if int(counts.sum()) != points.shape[0]:
-        raise ValueError(f"vertex counts sum to {int(counts.sum())} but there are {points.shape[0]} points")
-    bad = ~np.isfinite(points).all(axis=1)
-    if bad.any():
-        raise ValueError(f"point {int(np.flatnonzero(bad)[0])} is not finite")
-    return points, counts
+    return check_strand_arrays(points, raw, least=0)
 
 
 def _float_array(values, name: str) -> np.ndarray:
