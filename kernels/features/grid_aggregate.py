@@ -14,6 +14,7 @@ to floating-point rounding (their order differs, as the order of a GPU's atomics
 """
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -66,15 +67,9 @@ def _node_add_f32(density: wp.array3d(dtype=wp.float32), momentum: wp.array3d(dt
 
 
 @wp.func
-def _node_add_f64(density: wp.array3d(dtype=wp.float64), momentum: wp.array3d(dtype=wp.vec3d), i: int, j: int,
-                  k: int, ny: int, nz: int, rho: wp.float64, momentum_value: wp.vec3d):
-    wp.atomic_add(density, i, j, k, rho)
-    wp.atomic_add(momentum, i, j, k, momentum_value)
-
-
-@wp.func
-def _node_add_plain_f32(density: wp.array3d(dtype=wp.float32), momentum: wp.array3d(dtype=wp.vec3f), i: int,
-                        j: int, k: int, ny: int, nz: int, rho: wp.float32, momentum_value: wp.vec3f):
+def _node_add_plain(density: wp.array3d(dtype=Any), momentum: wp.array3d(dtype=Any), i: int, j: int, k: int,
+                    ny: int, nz: int, rho: Any, momentum_value: Any):
+    """Each thread's own 4 atomics (float32 and float64; ``ny``, ``nz`` unused)."""
     wp.atomic_add(density, i, j, k, rho)
     wp.atomic_add(momentum, i, j, k, momentum_value)
 
@@ -85,6 +80,4 @@ def node_add_func(scalar, aggregate: bool = True):
     and momentum ``m`` (m/s) to node ``(i, j, k)`` of a grid of ``(nx, ny, nz)`` nodes (on CUDA in
     float32 aggregated over the lanes of a warp that write the same node; ``aggregate`` False: each
     thread writes its own values, for measurements)."""
-    if scalar != wp.float32:
-        return _node_add_f64
-    return _node_add_f32 if aggregate else _node_add_plain_f32
+    return _node_add_f32 if scalar == wp.float32 and aggregate else _node_add_plain
