@@ -40,6 +40,7 @@ import warp as wp
 
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402
+import dftl_warp.features.step as feature_step  # noqa: E402
 from dftl_warp.core.layout import strand_offsets  # noqa: E402
 from dftl_warp.features.colliders.sdf import mesh_signed_distance  # noqa: E402
 
@@ -424,7 +425,8 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None, only=None):
         header = (f"Feature costs on {machine_line(device)}; {strands} strands x 32 vertices "
                   f"({particles} particles), float32, prior correction, dt = 1/{FPS * SUBSTEPS} s, "
                   f"median of {repeats} frames of {SUBSTEPS} substeps after {SETTLE_FRAMES} settling frames (rounds over all scenarios); "
-                  f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.\n\n")
+                  f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; hair-hair, drag and wind "
+                  f"{'in their own pass before the sweep' if feature_step.VELOCITY_PASS else 'in the sweep'}.\n\n")
         (out / f"features-{tag}.md").write_text(header + "\n".join(rows) + "\n")
         (out / f"features-{tag}.json").write_text(json.dumps(
             dict(device=machine_line(device), strands=strands, particles=particles, results=results,
@@ -439,7 +441,12 @@ def main(argv=None):
     ap.add_argument("--strands", type=int, default=None, help="groom size (default 1k on CPU, 100k on CUDA)")
     ap.add_argument("--repeats", type=int, default=None)
     ap.add_argument("--only", nargs="*", default=None, help="run only the rows whose names start with one of these")
+    ap.add_argument("--no-velocity-pass", action="store_true",
+                    help="hair-hair, drag and wind in the sweep, as before their own pass "
+                         "(dftl_warp/features/step.py: VELOCITY_PASS)")
     args = ap.parse_args(argv)
+    if args.no_velocity_pass:
+        feature_step.VELOCITY_PASS = False
     print("\n".join(run(args.device, args.out, args.strands, args.repeats, args.only)))
 
 

@@ -9,6 +9,11 @@ in ``bench_features.py``, then its tests are counted over ``--frames`` frames.
 
     python scripts/count_field_tests.py --device cpu --strands 300
     python scripts/count_field_tests.py --device cuda:0 --strands 1000000 --only "production scene:"
+
+``--patch N`` keeps only the N strands of the ``--strands`` groom whose roots lie nearest the
+crown's side (a patch as dense as the whole groom, small enough for the CPU):
+
+    python scripts/count_field_tests.py --device cpu --strands 1000000 --patch 3000 --only "production scene:"
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -46,6 +52,8 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--strands", type=int, default=300)
     ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--patch", type=int, default=None,
+                    help="keep only this many strands of the groom, those rooted nearest one point (its density)")
     ap.add_argument("--only", nargs="*", default=None, help="rows whose names start with one of these "
                     f"(default: {'; '.join(DEFAULT_ROWS)})")
     args = ap.parse_args(argv)
@@ -54,6 +62,12 @@ def main(argv=None) -> int:
     wp.init()
     device = wp.get_device(args.device)
     pts, counts, roots = groom(args.strands)
+    if args.patch:
+        centre = np.array([0.6, 0.6, 0.53]) * np.linalg.norm(roots[0])
+        keep = np.sort(np.argsort(np.linalg.norm(roots - centre, axis=1))[:args.patch])
+        n = int(counts[0])
+        pts = pts.reshape(len(counts), n, 3)[keep].reshape(-1, 3)
+        counts, roots = counts[keep], roots[keep]
     rows = [r for r in scenarios(pts, counts, roots) if r[0].startswith(tuple(args.only or DEFAULT_ROWS))]
     rows = [r for r in rows if "body_frames" in r[2]]  # the deforming body's rows
     for name, feats, extra in rows:
@@ -63,7 +77,8 @@ def main(argv=None) -> int:
         if not total:
             print(f"{name}: no test of a field (the body collides through exact queries)")
             continue
-        print(f"{name}: {total} tests in {args.frames} frames of {SUBSTEPS} substeps, {args.strands} strands", flush=True)
+        size = f"{len(counts)} strands" + (f" (a patch of a {args.strands}-strand groom)" if args.patch else "")
+        print(f"{name}: {total} tests in {args.frames} frames of {SUBSTEPS} substeps, {size}", flush=True)
         for why, n in tests.items():
             if n:
                 print(f"    {n / total:9.5f}  {why}")

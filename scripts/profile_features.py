@@ -35,6 +35,7 @@ from bench_features import (ELASTIC, FPS, SETTLE_FRAMES, SUBSTEPS, body_frames, 
 
 from dftl_warp import features as F  # noqa: E402
 from dftl_warp.kernels.solvers import elastic as elastic_kernels  # noqa: E402
+import dftl_warp.features.step as feature_step  # noqa: E402
 
 #: the rows profiled by default (name prefixes of ``bench_features.scenarios``)
 DEFAULT_ROWS = ("bare DFTL step", "deforming body mesh", "hair-hair", "wind with curl noise", "production scene",
@@ -130,6 +131,9 @@ def main(argv=None) -> int:
     ap.add_argument("--elastic-caps", type=int, nargs="*", default=None,
                     help="profile the elastic rows under each of these CUDA register caps of the float32 "
                          "kernel (0: none; kernels/solvers/elastic.py: CUDA_MAX_REGISTERS_F32)")
+    ap.add_argument("--velocity-pass", choices=("on", "off", "both"), default="on",
+                    help="hair-hair, drag and wind in their own pass before the sweep (on, the default), in the "
+                         "sweep (off; dftl_warp/features/step.py: VELOCITY_PASS), or each row both ways")
     ap.add_argument("--out", default=None, help="folder for profile-<device>.md")
     args = ap.parse_args(argv)
     wp.config.quiet = True
@@ -151,13 +155,19 @@ def main(argv=None) -> int:
            f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.", "",
            f"`python scripts/profile_features.py {shlex.join(sys.argv[1:] if argv is None else argv)}`", ""]
     todo = []
+    passes = {"on": [True], "off": [False], "both": [False, True]}[args.velocity_pass]
     for name, feats, extra in rows:
         caps = args.elastic_caps if extra.get("solver") == "elastic" and args.elastic_caps else [None]
-        todo += [(name if cap is None else f"{name}, register cap {cap or 'none'}", feats, extra, cap) for cap in caps]
+        ways = passes if feats and args.velocity_pass == "both" else passes[-1:]
+        for on in ways:
+            label = name if len(ways) == 1 else f"{name}, velocity pass {'on' if on else 'off'}"
+            todo += [(label if cap is None else f"{label}, register cap {cap or 'none'}", feats, extra, cap, on)
+                     for cap in caps]
     default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
     bare = None
-    for name, feats, extra, cap in todo:
+    for name, feats, extra, cap, on in todo:
         started = time.perf_counter()
+        feature_step.VELOCITY_PASS = on
         elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None else (cap or None)
         elastic_kernels.elastic_kernel.cache_clear()
         with wp.ScopedDevice(device):

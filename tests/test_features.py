@@ -82,12 +82,15 @@ def test_colliders_without_wind_compile_no_wind_code():
     assert "collide_sphere" in source
     for absent in ("wind", "curlnoise", "drag", "grid", "shape", "collide_capsule", "collide_box", "mesh_query"):
         assert absent not in source, absent
-    # the same scene with wind does compile it, in a different kernel
+    # the same scene with wind compiles it into its velocity pass (kernels/features/air_grid.py); its
+    # sweep is this scene's, colliders only
     windy = dw.Model.from_strands(pts, [4], features=[F.Colliders([F.Sphere(radius=0.5)]), F.Drag(1.0),
                                                        F.Wind(velocity=(1.0, 0.0, 0.0))])
-    windy_kernel = dw.DFTLSolver(windy, gravity=G)._kernel
-    assert windy_kernel is not solver._kernel
-    assert "wind" in generated_source(windy_kernel)
+    windy_solver = dw.DFTLSolver(windy, gravity=G)
+    assert windy_solver._kernel is solver._kernel
+    assert windy_solver._features.pass_flags == {"drag", "wind"}
+    assert "wind" in generated_source(windy_solver._features._pass_kernel)
+    assert "collide_sphere" not in generated_source(windy_solver._features._pass_kernel)
 
 
 # -- colliders ---------------------------------------------------------------------------------------
@@ -360,6 +363,9 @@ def test_memory_estimate_counts_the_features():
     # State 36 B + rest length 4 B per particle, strand tables 12 B + root rest/targets 36 B
     assert bare["bytes_per_strand"] == 10 * 40 + 48 and bare["feature_bytes_per_strand"] == 0
     dragged = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.Drag(0.5)]))
-    assert dragged["feature_bytes_per_strand"] == 4  # the drag rate
+    # the drag rate, and the velocity pass's output: a velocity per particle (as the solver allocates)
+    assert dragged["feature_bytes_per_strand"] == 4 + 10 * 12
+    model = dw.Model.from_strands(pts, [10], features=[F.Drag(0.5)])
+    assert dw.DFTLSolver(model)._features.pass_output.capacity == 10 * 12
     grid = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.HairHair(cell_size=0.01)]))
-    assert grid["fixed_feature_bytes"] > 0 and grid["feature_bytes_per_strand"] == 0
+    assert grid["fixed_feature_bytes"] > 0 and grid["feature_bytes_per_strand"] == 10 * 12

@@ -122,8 +122,9 @@ def test_info_lists_features_and_memory(tmp_path, capsys):
 
     d = json.loads(capsys.readouterr().out)
     assert d["feature_flags"] == ["drag", "hair_hair", "spheres"]
-    # drag 4 B per strand + hair radius 4 B per particle; the grid is fixed memory
-    assert d["feature_bytes_per_strand"]["float32"] == 4 + 10 * 4
+    # drag 4 B per strand + hair radius 4 B and the velocity pass's output 12 B per particle; the
+    # grid is fixed memory
+    assert d["feature_bytes_per_strand"]["float32"] == 4 + 10 * (4 + 12)
     assert d["feature_fixed_bytes"]["float32"] > 0
 
 

@@ -18,7 +18,8 @@ import numpy as np
 import warp as wp
 
 from ..core.precision import numpy_type
-from ..kernels.features.collide import collider_pose_kernel
+from ..kernels.features.air_grid import blocks_per_strand, split_flags, velocity_features_kernel
+from ..kernels.features.collide import collider_flags, collider_pose_kernel
 from ..kernels.features.step import feature_struct
 from . import air, binding, colliders, hair_hair
 from .air import Drag, Wind
@@ -28,6 +29,23 @@ from .colliders import Colliders
 from .hair_hair import HairHair
 
 FEATURE_TYPES = (Colliders, RootBinding, Drag, Wind, HairHair)
+
+#: hair-hair, drag and wind run in their own pass before the sweep
+#: (``kernels/features/air_grid.py``), the sweep keeping the colliders only; False keeps them in
+#: the sweep (the same arithmetic: ``scripts/profile_features.py --no-velocity-pass`` compares)
+VELOCITY_PASS = True
+
+#: where ``root_alpha`` and ``dt`` sit in the DFTL sweep's leading inputs (``DFTLSolver.feature_head``)
+HEAD_ROOT_ALPHA, HEAD_DT = 7, 10
+
+
+def velocity_pass_flags(flags) -> tuple:
+    """``(pass_flags, sweep_flags)`` of a feature flag set: what the velocity pass applies (empty
+    when :data:`VELOCITY_PASS` is off) and what the sweep kernel is built for."""
+    flags = frozenset(flags)
+    if not VELOCITY_PASS or not flags:
+        return frozenset(), flags
+    return split_flags(flags)
 
 
 def check_features(features) -> tuple:
@@ -78,6 +96,8 @@ class ModelFeatures:
         b = 0
         if self.collider_data is not None:
             b += f
+        if velocity_pass_flags(self.flags)[0]:
+            b += 3 * f      # the velocity pass's output (DFTL's; the elastic step's is 4 words)
         return b
 
     def bytes_per_strand(self, precision: str) -> float:
@@ -213,13 +233,33 @@ class FeatureControl:
 
 
 class FeatureStep:
-    """One featured step: collider poses, hair-hair grid, then the specialized sweep."""
+    """One featured step: collider poses, hair-hair grid, then the specialized sweep.
 
-    def __init__(self, model, kernel):
+    ``kernel`` is the sweep, built for :attr:`sweep_flags`. With ``velocity_form`` (``"velocity"``
+    for DFTL, ``"acceleration"`` for the elastic step, whose arithmetic is ``real``) the velocity
+    features (:attr:`pass_flags`: hair-hair, drag, wind) run first in their own pass
+    (:meth:`velocity_pass`, ``kernels/features/air_grid.py``) into :attr:`pass_output`, which the
+    sweep reads; without it every feature is in the sweep."""
+
+    def __init__(self, model, kernel, velocity_form: str | None = None, real=None):
         self.model = model
         self.kernel = kernel
         mf = model.feature_data
         self.flags = mf.flags
+        self.pass_flags, self.sweep_flags = (velocity_pass_flags(self.flags) if velocity_form
+                                             else (frozenset(), self.flags))
+        self.velocity_form = velocity_form if self.pass_flags else None
+        self._pass_kernel = None
+        #: the velocity pass's output (velocities, or (a, c) in the acceleration form), or None
+        self.pass_output = None
+        if self.velocity_form is not None:
+            real = model.scalar if real is None else real
+            self._pass_kernel = velocity_features_kernel(model.scalar, real, self.pass_flags, self.velocity_form)
+            dtype = model.vec3 if self.velocity_form == "velocity" else wp.types.vector(4, real)
+            self.pass_output = wp.zeros(model.num_slots, dtype=dtype, device=model.device)
+            self._pass_dummy = wp.zeros(1, dtype=wp.types.vector(4, real) if self.velocity_form == "velocity"
+                                        else model.vec3, device=model.device)
+            self._pass_blocks = blocks_per_strand(int(model.layout.strand_count.max()) if model.num_strands else 0)
         self._structs = {}
         self._grid = None
         if "hair_hair" in self.flags:
@@ -230,27 +270,33 @@ class FeatureStep:
     def kernels(self):
         """Every kernel a step launches (to load before a CUDA graph capture)."""
         ks = [self.kernel]
+        if self._pass_kernel is not None:
+            ks.append(self._pass_kernel)
         if self.model.feature_data.collider_data is not None:
             ks.append(collider_pose_kernel(self.model.scalar))
         if self._grid is not None:
             ks += self._grid.kernels()
         return ks
 
-    def _struct(self, control):
-        key = id(control)
+    def _struct(self, control, flags=None):
+        """The feature struct of ``flags`` (default: the sweep's) for ``control``, cached per control."""
+        flags = self.sweep_flags if flags is None else flags
+        key = (id(control), flags)
         cached = self._structs.get(key)
         if cached is not None and cached[0] is control:
             return cached[1]
         m = self.model
         mf = m.feature_data
         fc = control.features
-        st = feature_struct(m.scalar, self.flags)()
-        flags = self.flags
-        if fc.colliders is not None:
-            fc.colliders.fill_struct(st)
-        air.fill_struct(st, flags, mf.arrays.get("drag"), fc.air)
-        if self._grid is not None:
-            self._grid.fill_struct(st, find(mf.features, HairHair))
+        if not flags:
+            st = None
+        else:
+            st = feature_struct(m.scalar, flags)()
+            if fc.colliders is not None and flags & set(collider_flags()):
+                fc.colliders.fill_struct(st)
+            air.fill_struct(st, flags, mf.arrays.get("drag"), fc.air)
+            if self._grid is not None and "hair_hair" in flags:
+                self._grid.fill_struct(st, find(mf.features, HairHair))
         self._structs[key] = (control, st)
         return st
 
@@ -284,11 +330,35 @@ class FeatureStep:
         if self._grid is not None:
             self._grid.splat(state_in.positions, state_in.velocities)
 
+    def velocity_pass(self, state_in, control, dt, root_alpha, drag: float = 0.0) -> None:
+        """Hair-hair, drag and wind of every free particle of ``state_in`` into :attr:`pass_output`
+        (after the grid's splat; ``drag``: the elastic solver's own, 1/s)."""
+        m = self.model
+        velocities = self.pass_output if self.velocity_form == "velocity" else self._pass_dummy
+        accelerations = self._pass_dummy if self.velocity_form == "velocity" else self.pass_output
+        wp.launch(self._pass_kernel, dim=(self._pass_blocks, m.num_strands), device=m.device,
+                  inputs=[m.strand_base, m.strand_stride, m.strand_count, float(root_alpha), float(dt), float(drag),
+                          self._struct(control, self.pass_flags), state_in.positions, state_in.velocities],
+                  outputs=[velocities, accelerations])
+
     def sweep(self, state_in, state_out, control, head_inputs) -> None:
-        """The featured sweep of every strand (reading the grid, if any)."""
+        """The featured sweep of every strand (reading the grid, if any): with the velocity pass,
+        the pass then the sweep of the colliders (or the bare step) from its velocities."""
+        velocities = state_in.velocities
+        if self.velocity_form is not None:
+            self.velocity_pass(state_in, control, head_inputs[HEAD_DT], head_inputs[HEAD_ROOT_ALPHA])
+            velocities = self.pass_output
+        if not self.sweep_flags:
+            # the bare step: no feature struct, corrections only in the prior form
+            prior = any(a.label == "corrections_in" for a in self.kernel.adj.args)
+            wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device,
+                      inputs=[*head_inputs, state_in.positions, velocities,
+                              *([state_in.corrections] if prior else [])],
+                      outputs=[state_out.positions, state_out.velocities, *([state_out.corrections] if prior else [])])
+            return
         st = self._struct(control)
         wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device,
-                  inputs=[*head_inputs, st, state_in.positions, state_in.velocities, state_in.corrections],
+                  inputs=[*head_inputs, st, state_in.positions, velocities, state_in.corrections],
                   outputs=[state_out.positions, state_out.velocities, state_out.corrections])
 
 

@@ -57,12 +57,15 @@ class DFTLSolver(Solver):
         self.damping = float(damping)
         self.correction = correction
         # the step specialized to the model's features; a gravity-only model gets the bare kernel
-        self._kernel = step_kernel(model.scalar, correction, model.feature_flags)
+        self._kernel = step_kernel(model.scalar, correction) if not model.feature_flags else None
         self._features = None
         if model.feature_flags:
-            from ..features.step import FeatureStep
+            from ..features.step import FeatureStep, velocity_pass_flags
 
-            self._features = FeatureStep(model, self._kernel)
+            # hair-hair, drag and wind in their own pass; the sweep keeps the colliders (or is bare)
+            pass_flags, sweep_flags = velocity_pass_flags(model.feature_flags)
+            self._kernel = step_kernel(model.scalar, correction, sweep_flags)
+            self._features = FeatureStep(model, self._kernel, velocity_form="velocity" if pass_flags else None)
         # the prior form fuses strands of any length (the pipelined kernel); the posterior form
         # keeps whole strands on chip
         fits = (correction == "prior" or model.num_strands == 0

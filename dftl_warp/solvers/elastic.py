@@ -246,16 +246,19 @@ class ElasticSolver(Solver):
                          wp.zeros(n, dtype=wp.types.vector(4, real), device=dev)]
         self._dummy = wp.zeros(1, dtype=model.vec3, device=dev)
         flags = model.feature_flags
-        self._kernel = elastic_kernel(model.scalar, real, correction, flags)
-        #: the featured DFTL step's host side (collider poses per substep, the feature struct)
+        self._kernel = elastic_kernel(model.scalar, real, correction) if not flags else None
+        #: the featured DFTL step's host side (collider poses per substep, the feature struct, the
+        #: velocity pass of hair-hair, drag and wind: ``kernels/features/air_grid.py``)
         self._features = None
-        self._no_features = None
+        self._no_features = NoFeatures()
+        self._no_accelerations = wp.zeros(1, dtype=wp.types.vector(4, real), device=dev)
         if flags:
-            from ..features.step import FeatureStep
+            from ..features.step import FeatureStep, velocity_pass_flags
 
-            self._features = FeatureStep(model, self._kernel)
-        else:
-            self._no_features = NoFeatures()
+            pass_flags, sweep_flags = velocity_pass_flags(flags)
+            self._kernel = elastic_kernel(model.scalar, real, correction, sweep_flags, accelerations=bool(pass_flags))
+            self._features = FeatureStep(model, self._kernel, velocity_form="acceleration" if pass_flags else None,
+                                         real=real)
 
     def _build_rest(self, points) -> None:
         """The rest data of the rest shape ``points`` (device coordinates, input order, float64): the
@@ -468,9 +471,14 @@ class ElasticSolver(Solver):
         if self._features is not None:
             # this substep's collider poses and the hair-hair grid (rebuilt every splat_interval substeps)
             self._features.prepare(state_in, control, dt, root_alpha)
-            features = self._features._struct(control)
+            features = self._features._struct(control) or self._no_features
+            accelerations = self._no_accelerations
+            if self._features.velocity_form is not None:
+                self._features.velocity_pass(state_in, control, dt, root_alpha, drag=self.drag)
+                accelerations = self._features.pass_output
         else:
             features = self._no_features
+            accelerations = self._no_accelerations
         wp.launch(
             self._kernel,
             dim=m.num_strands,
@@ -485,7 +493,7 @@ class ElasticSolver(Solver):
                 float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag, features,
                 state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,
                 state_in.tensions, state_in.frames, state_in.clamps,
-                *self._scratch,
+                *self._scratch, accelerations,
             ],
             outputs=[state_out.positions, state_out.velocities, state_out.corrections if prior else self._dummy,
                      state_out.tensions, state_out.frames, state_out.clamps],

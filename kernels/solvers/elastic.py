@@ -91,15 +91,22 @@ def elastic_features_struct(scalar, flags: frozenset):
 
 
 @functools.cache
-def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()):
+def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset(), accelerations: bool = False):
     """The scheme-K step kernel for States stored in ``scalar``, computing in ``real``, with the
     velocity correction in ``correction`` form (``"prior"`` or ``"posterior"``) and the features
     ``flags`` (:func:`elastic_flags`: colliders after the follow-the-leader projection; drag, wind
-    and hair-hair friction in the implicit solve, hair-hair repulsion as an explicit force)."""
+    and hair-hair friction in the implicit solve, hair-hair repulsion as an explicit force).
+
+    ``accelerations``: drag, wind and hair-hair come from the velocity pass before the step
+    (``kernels/features/air_grid.py``, its ``"acceleration"`` form) through the ``accelerations``
+    argument, ``(a, c)`` per particle, and ``flags`` holds the colliders only."""
     flags = check_flags(flags)
     extra = flags - elastic_flags()
     if extra:
         raise ValueError(f"the elastic step does not support the feature flags {sorted(extra)}")
+    if accelerations and flags & ELASTIC_OTHER_FLAGS:
+        raise ValueError("with the velocity pass's accelerations the step takes the collider flags only")
+    PASSED = bool(accelerations)
     Features = elastic_features_struct(scalar, flags)
     COLLIDE = bool(flags & set(collider_flags()))
     collide_all = collide_all_func(scalar, Features, flags) if COLLIDE else None
@@ -301,6 +308,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         factor_inv: wp.array(dtype=vec10),
         factor_up: wp.array(dtype=mat34),
         factor_rhs: wp.array(dtype=vec4),
+        # Data in (the velocity pass, when PASSED): (a, c) per particle, m/s^2 and 1/s
+        accelerations: wp.array(dtype=vec4),
         # State out:
         positions_out: wp.array(dtype=vec3s),
         velocities_out: wp.array(dtype=vec3s),
@@ -461,6 +470,10 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                     w_air = air + gust
                 rv = rv + (h * mk * drag_s) * w_air
             a_drag = drag_s
+            if wp.static(PASSED):
+                ac = accelerations[kk]
+                rv = rv + (h * mk) * vec3(ac[0], ac[1], ac[2])
+                a_drag = ac[3]
             if wp.static(HAIR_HAIR):
                 v_grid, grad = grid_sample(positions_in[kk], features.grid_lower, features.grid_inv_h,
                                            features.grid_nx, features.grid_ny, features.grid_nz,
