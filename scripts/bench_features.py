@@ -41,6 +41,7 @@ import warp as wp
 import dftl_warp as dw  # noqa: E402
 from dftl_warp import features as F  # noqa: E402
 import dftl_warp.features.step as feature_step  # noqa: E402
+from dftl_warp.kernels.features import sdf as sdf_kernels  # noqa: E402
 from dftl_warp.core.layout import strand_offsets  # noqa: E402
 from dftl_warp.features.colliders.sdf import mesh_signed_distance  # noqa: E402
 
@@ -426,7 +427,9 @@ def run(device="cpu", out_dir=None, strands=None, repeats=None, only=None):
                   f"({particles} particles), float32, prior correction, dt = 1/{FPS * SUBSTEPS} s, "
                   f"median of {repeats} frames of {SUBSTEPS} substeps after {SETTLE_FRAMES} settling frames (rounds over all scenarios); "
                   f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; hair-hair, drag and wind "
-                  f"{'in their own pass before the sweep' if feature_step.VELOCITY_PASS else 'in the sweep'}.\n\n")
+                  f"{'in their own pass before the sweep' if feature_step.VELOCITY_PASS else 'in the sweep'}; "
+                  f"the field's trace: path bounds {sdf_kernels.PATH_BOUNDS}, relaxation {sdf_kernels.RELAXATION}, "
+                  f"{sdf_kernels.FIELD_TRACE_ITERATIONS} steps.\n\n")
         (out / f"features-{tag}.md").write_text(header + "\n".join(rows) + "\n")
         (out / f"features-{tag}.json").write_text(json.dumps(
             dict(device=machine_line(device), strands=strands, particles=particles, results=results,
@@ -444,9 +447,14 @@ def main(argv=None):
     ap.add_argument("--no-velocity-pass", action="store_true",
                     help="hair-hair, drag and wind in the sweep, as before their own pass "
                          "(dftl_warp/features/step.py: VELOCITY_PASS)")
+    ap.add_argument("--plain-field-trace", action="store_true",
+                    help="the field's continuous test as before its path bounds and relaxed steps (16 plain steps; "
+                         "kernels/features/sdf.py: PATH_BOUNDS, RELAXATION, FIELD_TRACE_ITERATIONS)")
     args = ap.parse_args(argv)
     if args.no_velocity_pass:
         feature_step.VELOCITY_PASS = False
+    if args.plain_field_trace:  # before any kernel is built
+        sdf_kernels.PATH_BOUNDS, sdf_kernels.RELAXATION, sdf_kernels.FIELD_TRACE_ITERATIONS = 0, 1.0, 16
     print("\n".join(run(args.device, args.out, args.strands, args.repeats, args.only)))
 
 

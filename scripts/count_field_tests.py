@@ -44,7 +44,8 @@ def count(name, feats, extra, pts, counts, device, frames) -> dict:
             fields.tests()  # reset: count the frames after settling
         control.features.set_mesh_points(0, body[(f + 1) % len(body)])
         solver.advance(state, control, dt, SUBSTEPS)
-    return fields.tests()
+    samples = fields.samples()
+    return fields.tests(), samples
 
 
 def main(argv=None) -> int:
@@ -72,7 +73,7 @@ def main(argv=None) -> int:
     rows = [r for r in rows if "body_frames" in r[2]]  # the deforming body's rows
     for name, feats, extra in rows:
         with wp.ScopedDevice(device):
-            tests = count(name, feats, extra, pts, counts, device, args.frames)
+            tests, samples = count(name, feats, extra, pts, counts, device, args.frames)
         total = sum(tests.values())
         if not total:
             print(f"{name}: no test of a field (the body collides through exact queries)")
@@ -82,6 +83,7 @@ def main(argv=None) -> int:
         for why, n in tests.items():
             if n:
                 print(f"    {n / total:9.5f}  {why}")
+        print(f"    {samples / total:9.5f}  samples of the field per test")
     return 0
 
 

@@ -35,6 +35,7 @@ from bench_features import (ELASTIC, FPS, SETTLE_FRAMES, SUBSTEPS, body_frames, 
 
 from dftl_warp import features as F  # noqa: E402
 from dftl_warp.kernels.solvers import elastic as elastic_kernels  # noqa: E402
+from dftl_warp.kernels.solvers import featured as featured_kernels  # noqa: E402
 import dftl_warp.features.step as feature_step  # noqa: E402
 
 #: the rows profiled by default (name prefixes of ``bench_features.scenarios``)
@@ -131,6 +132,12 @@ def main(argv=None) -> int:
     ap.add_argument("--elastic-caps", type=int, nargs="*", default=None,
                     help="profile the elastic rows under each of these CUDA register caps of the float32 "
                          "kernel (0: none; kernels/solvers/elastic.py: CUDA_MAX_REGISTERS_F32)")
+    ap.add_argument("--sweep-caps", type=int, nargs="*", default=None,
+                    help="profile the DFTL rows with features under each of these CUDA register caps of the "
+                         "featured sweep (0: none; kernels/solvers/featured.py: CUDA_MAX_REGISTERS)")
+    ap.add_argument("--block-dims", type=int, nargs="*", default=None,
+                    help="profile the rows with features at each of these CUDA block sizes of the sweep and the "
+                         "elastic step (dftl_warp/features/step.py: SWEEP_BLOCK_DIM)")
     ap.add_argument("--velocity-pass", choices=("on", "off", "both"), default="on",
                     help="hair-hair, drag and wind in their own pass before the sweep (on, the default), in the "
                          "sweep (off; dftl_warp/features/step.py: VELOCITY_PASS), or each row both ways")
@@ -157,19 +164,30 @@ def main(argv=None) -> int:
     todo = []
     passes = {"on": [True], "off": [False], "both": [False, True]}[args.velocity_pass]
     for name, feats, extra in rows:
-        caps = args.elastic_caps if extra.get("solver") == "elastic" and args.elastic_caps else [None]
+        elastic = extra.get("solver") == "elastic"
+        caps = (args.elastic_caps if elastic else args.sweep_caps if feats else None) or [None]
+        blocks = (args.block_dims if feats else None) or [None]
         ways = passes if feats and args.velocity_pass == "both" else passes[-1:]
         for on in ways:
             label = name if len(ways) == 1 else f"{name}, velocity pass {'on' if on else 'off'}"
-            todo += [(label if cap is None else f"{label}, register cap {cap or 'none'}", feats, extra, cap, on)
-                     for cap in caps]
+            for cap in caps:
+                for block in blocks:
+                    tag = label if cap is None else f"{label}, register cap {cap or 'none'}"
+                    tag = tag if block is None else f"{tag}, {block} threads per block"
+                    todo.append((tag, feats, extra, cap, on, block))
     default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
+    default_sweep_cap = featured_kernels.CUDA_MAX_REGISTERS
+    default_block = feature_step.SWEEP_BLOCK_DIM
     bare = None
-    for name, feats, extra, cap, on in todo:
+    for name, feats, extra, cap, on, block in todo:
         started = time.perf_counter()
         feature_step.VELOCITY_PASS = on
-        elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None else (cap or None)
+        feature_step.SWEEP_BLOCK_DIM = default_block if block is None else block
+        elastic = extra.get("solver") == "elastic"
+        elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None or not elastic else (cap or None)
+        featured_kernels.CUDA_MAX_REGISTERS = default_sweep_cap if cap is None or elastic else (cap or None)
         elastic_kernels.elastic_kernel.cache_clear()
+        featured_kernels.featured_step_kernel.cache_clear()
         with wp.ScopedDevice(device):
             one_frame = build(pts, counts, feats, extra, device)
             kernels, wall = profile(one_frame, device, args.frames)

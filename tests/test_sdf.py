@@ -350,3 +350,72 @@ def test_field_tests_are_counted_by_outcome_only_when_asked():
     assert on[WHY_EXACT[0]] > 0 and on["answered by the field: traced along the path"] > 0
     resting = on["exact query: the path's end in a cell the field cannot answer"]
     assert resting == max(on.values()) and resting > sum(on[w] for w in WHY_EXACT[:EXACT_FROM])
+
+
+def test_the_continuous_test_through_the_field_never_misses_a_crossing_the_mesh_has():
+    """Short fast paths near a sphere mesh, many of them grazing it: the field's continuous test
+    (the ends' clearances, the over-relaxed trace) reports contact, or leaves the path to the exact
+    query, on every path whose closest approach to the mesh (sampled along it against the exact
+    mesh distance) lies below the contact distance by more than the field's tolerance; and it
+    never reports contact on a path that stays clear of it by as much."""
+    from dftl_warp.kernels.features.sdf import EXACT_FROM, SdfGrid, collide_sdf_func
+
+    sphere = 0.01
+    dirs, tris = uv_sphere(60, 120)
+    meshes = one_collider(F.TriangleMesh(points=sphere * dirs, indices=tris, sdf=True))
+    fields = meshes.fields
+    tolerance = fields.fields[0].tolerance
+    collide = collide_sdf_func(wp.float32)
+
+    @wp.kernel
+    def continuous_test(grids: wp.array(dtype=SdfGrid), brick_map: wp.array(dtype=wp.int32),
+                        values: wp.array(dtype=wp.float32), cells: wp.array(dtype=wp.uint8),
+                        starts: wp.array(dtype=wp.vec3), ends: wp.array(dtype=wp.vec3), radius: float,
+                        touched: wp.array(dtype=wp.int32), why: wp.array(dtype=wp.int32)):
+        i = wp.tid()
+        pose = wp.transform_identity(dtype=float)
+        y, hit, w, taken = collide(ends[i], starts[i], starts[i], 0.01, True, radius, pose, pose, pose, grids[0],
+                                     brick_map, values, cells, 0.0, 0.0)
+        touched[i] = wp.where(hit, 1, 0)
+        why[i] = w
+
+    rng = np.random.default_rng(5)
+    n, radius = 20000, 5e-5
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    tangent = np.cross(normal, rng.normal(size=(n, 3)))
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    length = rng.uniform(0.0005, 0.01, n)
+    # half of them start clear of the surface, mostly along it, some toward it; the other half are
+    # chords 6-20 mm long through the sphere's cap, their middle up to 0.1 mm inside, both ends
+    # outside (a step too long would jump across the cap)
+    half = n // 2
+    slope = rng.uniform(-0.4, 0.2, half)[:, None]
+    direction = tangent[:half] + slope * normal[:half]
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    starts = normal[:half] * (sphere + radius + 1e-5 + rng.uniform(0.0, 0.002, half))[:, None]
+    ends = starts + direction * length[:half, None]
+    middle = normal[half:] * (sphere - rng.uniform(0.0, 0.0001, n - half))[:, None]
+    chord = tangent[half:] * rng.uniform(0.003, 0.01, (n - half, 1))
+    starts, ends = np.concatenate([starts, middle - chord]), np.concatenate([ends, middle + chord])
+    t = np.linspace(0.0, 1.0, 401)
+    along = starts[:, None] + t[None, :, None] * (ends - starts)[:, None]
+    exact, _ = mesh_signed_distance(meshes.meshes[0][1], along.reshape(-1, 3))
+    closest = exact.reshape(n, -1).min(axis=1)
+    touched = wp.zeros(n, dtype=wp.int32)
+    why = wp.zeros(n, dtype=wp.int32)
+    wp.launch(continuous_test, dim=n, inputs=[fields.grids, fields.brick_map, fields.values, fields.cells,
+                                              wp.array(starts, dtype=wp.vec3), wp.array(ends, dtype=wp.vec3),
+                                              radius], outputs=[touched, why])
+    touched, why = touched.numpy() == 1, why.numpy()
+    answered = why < EXACT_FROM
+    slack = tolerance + np.linalg.norm(ends - starts, axis=1).max() / 400
+    # paths from outside the contact distance (a particle in contact or inside is not traced)
+    outside = exact.reshape(n, -1)[:, 0] > radius + slack
+    crossing = outside & (closest < radius - slack)
+    clear = outside & (closest > radius + slack)
+    assert crossing.sum() > 3000 and clear.sum() > 3000 and answered[outside].mean() > 0.95, np.bincount(why)
+    print(f"\n{crossing.sum()} crossing paths ({(crossing & answered).sum()} answered by the field), "
+          f"{clear.sum()} clear ({(clear & answered).sum()}); outcomes {np.bincount(why, minlength=10).tolist()}")
+    assert np.all(touched[crossing & answered])          # never a missed crossing
+    assert not np.any(touched[clear & answered])         # never a contact that is not there

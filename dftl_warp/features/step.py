@@ -35,6 +35,10 @@ FEATURE_TYPES = (Colliders, RootBinding, Drag, Wind, HairHair)
 #: the sweep (the same arithmetic: ``scripts/profile_features.py --no-velocity-pass`` compares)
 VELOCITY_PASS = True
 
+#: CUDA threads per block of the featured sweep and the elastic step (``scripts/profile_features.py
+#: --block-dims`` measures others)
+SWEEP_BLOCK_DIM = 256
+
 #: where ``root_alpha`` and ``dt`` sit in the DFTL sweep's leading inputs (``DFTLSolver.feature_head``)
 HEAD_ROOT_ALPHA, HEAD_DT = 7, 10
 
@@ -351,13 +355,13 @@ class FeatureStep:
         if not self.sweep_flags:
             # the bare step: no feature struct, corrections only in the prior form
             prior = any(a.label == "corrections_in" for a in self.kernel.adj.args)
-            wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device,
+            wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device, block_dim=SWEEP_BLOCK_DIM,
                       inputs=[*head_inputs, state_in.positions, velocities,
                               *([state_in.corrections] if prior else [])],
                       outputs=[state_out.positions, state_out.velocities, *([state_out.corrections] if prior else [])])
             return
         st = self._struct(control)
-        wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device,
+        wp.launch(self.kernel, dim=self.model.num_strands, device=self.model.device, block_dim=SWEEP_BLOCK_DIM,
                   inputs=[*head_inputs, st, state_in.positions, velocities, state_in.corrections],
                   outputs=[state_out.positions, state_out.velocities, state_out.corrections])
 

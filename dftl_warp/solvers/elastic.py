@@ -479,9 +479,12 @@ class ElasticSolver(Solver):
         else:
             features = self._no_features
             accelerations = self._no_accelerations
+        from ..features import step as feature_step
+
         wp.launch(
             self._kernel,
             dim=m.num_strands,
+            block_dim=feature_step.SWEEP_BLOCK_DIM,
             inputs=[
                 m.strand_base, m.strand_stride, m.strand_count,
                 f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],

@@ -21,7 +21,7 @@ import functools
 import warp as wp
 
 from .collide import ColliderKernel, named_func, respond_func, slide_func, tiny_length, transform_type
-from .sdf import EXACT_FROM, TEST_SLOTS, collide_sdf_func, sdf_fields
+from .sdf import EXACT_FROM, TEST_SLOTS, WHY_EXACT, collide_sdf_func, sdf_fields
 
 
 @functools.cache
@@ -139,12 +139,15 @@ def _collide_mesh_at_built(scalar, Features, count: bool):
         grid = f.collider_sdf[c]
         if grid.cell > wp.float32(0.0):
             # through the collider's signed distance field, where it can answer
-            z, touched, why = field(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
-                                    f.collider_inv_pose[c], f.collider_inv_pose_prev[c], grid, f.sdf_brick_map,
-                                    f.sdf_values, f.sdf_cells, f.collider_depth_band[c], f.collider_friction[c])
+            z, touched, why, taken = field(x, x_old, leader, rest, ccd, radius, f.collider_pose[c],
+                                           f.collider_inv_pose[c], f.collider_inv_pose_prev[c], grid,
+                                           f.sdf_brick_map, f.sdf_values, f.sdf_cells, f.collider_depth_band[c],
+                                           f.collider_friction[c])
             if wp.static(count):
                 slot = int(wp.abs(x[0] * scalar(7.3e4) + x[1] * scalar(3.1e4) + x[2] * scalar(1.7e4))) % TEST_SLOTS
                 wp.atomic_add(f.sdf_tests, why * TEST_SLOTS + slot, 1)
+                # the row after the outcomes: the field's samples taken
+                wp.atomic_add(f.sdf_tests, wp.static(len(WHY_EXACT)) * TEST_SLOTS + slot, taken)
             if why < EXACT_FROM:
                 return z, touched
         y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],

@@ -26,7 +26,7 @@ import math
 
 import warp as wp
 
-from .collide import TRACE_ITERATIONS, respond_func, slide_func, tiny_length, transform_type
+from .collide import respond_func, slide_func, tiny_length, transform_type
 
 #: cells per brick edge
 BRICK = 8
@@ -47,12 +47,13 @@ OVERFLOW_BRICK = -2
 #: that the GPU's atomics spread over several addresses)
 TEST_SLOTS = 64
 #: how a particle's test of a field ended (``collide_sdf``'s last result): below :data:`EXACT_FROM`
-#: the field answered (after one sample, the path's two ends, or a trace along the path); from it
-#: on, the reason it went to the exact mesh query
+#: the field answered (after one sample, the path's two ends, a trace along the path, or the two
+#: ends' distances covering the whole path); from it on, the reason it went to the exact mesh query
 WHY_EXACT = (
     "answered by the field: one sample (the path's end)",
     "answered by the field: two samples (the path's ends)",
     "answered by the field: traced along the path",
+    "answered by the field: the ends' distances clear the whole path",
     "exact query: contact distance + depth band beyond the field's reach",
     "exact query: the path's end in a cell the field cannot answer",
     "exact query: the path's start in a cell the field cannot answer",
@@ -60,7 +61,18 @@ WHY_EXACT = (
     "exact query: from contact to where the field cannot say it stayed on the same side",
     "exact query: trace not concluded (grazing, behind the surface, or an unanswerable cell on the way)",
 )
-EXACT_FROM = 3
+EXACT_FROM = 4
+
+#: how the continuous test uses the path's end: 0 not at all (the trace from the start decides), 1
+#: the two ends' clearances answer a path they cover before any trace, 2 also at every step of the
+#: trace (its rest covered by the step's clearance and the end's)
+PATH_BOUNDS = 2
+#: over-relaxed sphere tracing (Keinert et al. 2014): steps of RELAXATION times the clearance while
+#: consecutive samples' clearances overlap, back to the plain step where they do not
+RELAXATION = 1.6
+#: steps of the trace through a field before the exact query decides (a sample is cheaper than an
+#: exact query, and a grazing path needs many)
+FIELD_TRACE_ITERATIONS = 64
 
 SQRT3 = math.sqrt(3.0)
 #: half the diagonal of a brick, in cells (a little more, for rounding)
@@ -170,7 +182,7 @@ def sdf_sample(g: SdfGrid, brick_map: wp.array(dtype=wp.int32), values: wp.array
 @functools.cache
 def collide_sdf_func(scalar):
     """``collide_sdf(x, x_old, leader, rest, ccd, radius, pose, inv_pose, inv_pose_prev, grid,
-    brick_map, values, cells, depth_band, mu) -> (x, touched, why)``: the collision of one
+    brick_map, values, cells, depth_band, mu) -> (x, touched, why, taken)``: the collision of one
     particle with one mesh collider through its field, which ended as ``WHY_EXACT[why]``: below
     :data:`EXACT_FROM` the field answered; from it on it could not (the caller runs the exact mesh
     query instead, and ``x``, ``touched`` mean nothing).
@@ -185,7 +197,7 @@ def collide_sdf_func(scalar):
     lay behind it). The whole particle goes to the exact query (its ray decides) when the trace
     meets an EXACT cell, finds itself below the contact distance by more than twice the tolerance
     without touching (reached from behind the surface), or reaches neither a contact nor the path's
-    end within ``TRACE_ITERATIONS`` steps (a grazing path); and when a path that could have reached
+    end within ``FIELD_TRACE_ITERATIONS`` steps (a grazing path); and when a path that could have reached
     the surface ends beyond the band untraced (from contact, or in a round without the continuous
     test): a far sample's side is unknown, and the exact query reaches the whole path below the
     surface.
@@ -202,11 +214,11 @@ def collide_sdf_func(scalar):
              values: wp.array(dtype=wp.float32), cells: wp.array(dtype=wp.uint8), depth_band: scalar,
              mu: scalar):
         if radius + depth_band >= scalar(grid.reach):
-            return x, False, 3
+            return x, False, 4, 0
         q = wp.transform_point(inv_pose, x)
         state, d32, n32 = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q))
         if state == EXACT:
-            return x, False, 4
+            return x, False, 5, 1
         dist = scalar(d32)
         n = vec3(n32)
         q_old = wp.transform_point(inv_pose_prev, x_old)
@@ -214,36 +226,58 @@ def collide_sdf_func(scalar):
         length = wp.length(path)
         lead = wp.transform_point(inv_pose, leader)
         samples = int(0)  # WHY_EXACT's index of the field's answer: samples taken beyond the first
+        taken = int(1)    # samples of the field taken (a diagnostic, COUNT_FIELD_TESTS)
         # the path could have reached the surface (a far end's distance is a lower bound)
         if length > tiny and dist - radius < length:
             s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old))
             samples = 1
+            taken = int(2)
             if s == EXACT:
-                return x, False, 5
+                return x, False, 6, taken
             if state == FAR and (not ccd or (s != FAR and scalar(ds) <= radius)):
                 # beyond the band at the end, not traced (a round without the continuous test, or
                 # a path from contact): which side it ended on is unknown, and the exact query
                 # reaches its whole path below the surface
-                return x, False, 6
+                return x, False, 7, taken
             if ccd:
                 stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
                 if scalar(ds) <= radius + stop and (state != ANSWERS or wp.dot(n, vec3(ns)) <= scalar(0.0)):
                     # from contact to where the field cannot say it stayed on the same side: the
                     # exact query decides
-                    return x, False, 7
+                    return x, False, 8, taken
                 # traced only from outside the contact distance: a particle that starts in contact
                 # and ends nearest a surface that looks the same way is left to the projection
                 # (resting hair dips below the surface every substep, gravity alone g h^2, more than
                 # a hair radius; stopping it where it crossed carried it along with a moving surface
                 # whatever the friction)
+                # the end's clearance: no point within it of the end is in contact (the distance is
+                # 1-Lipschitz, the trace's own premise)
+                end_clear = dist - radius - stop
+                if wp.static(PATH_BOUNDS >= 1) and scalar(ds) > radius + stop and (scalar(ds) - radius - stop) + end_clear > length:
+                    # every point of the path lies within one of its ends' clearances: no contact
+                    return x, False, 3, taken
                 if scalar(ds) > radius + stop:
                     direction = path / length
                     behind = -(scalar(2.0) * scalar(grid.tolerance) + stop)
                     t = scalar(0.0)
                     concluded = bool(False)
                     samples = 2
-                    for _ in range(TRACE_ITERATIONS):
+                    step = scalar(0.0)
+                    last_gap = scalar(0.0)
+                    relax = scalar(RELAXATION)
+                    for _ in range(FIELD_TRACE_ITERATIONS):
                         gap = scalar(ds) - radius
+                        if step > last_gap + gap:
+                            # the relaxed step left the last sample's clearance and this one's apart:
+                            # back to the plain step from the last sample, unrelaxed from now on
+                            t = t - step + last_gap
+                            step = last_gap
+                            relax = scalar(1.0)
+                            s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old + t * direction))
+                            taken += 1
+                            if s == EXACT or scalar(ds) - radius < behind:
+                                break
+                            gap = scalar(ds) - radius
                         if gap <= stop:
                             # first contact: the particle stops on the contact plane there and goes
                             # back to the rest length on it (as the exact query's stop); friction: the
@@ -252,21 +286,37 @@ def collide_sdf_func(scalar):
                             stop_at = q_old + t * direction + (radius - scalar(ds)) * nc
                             blocked = wp.max(wp.dot(stop_at - q, nc), scalar(0.0))
                             y = slide(stop_at, q_old, lead, rest, nc, mu * blocked)
-                            return wp.transform_point(pose, y), True, 2
-                        t = t + gap
-                        if t >= length:
+                            return wp.transform_point(pose, y), True, 2, taken
+                        # the rest of the path within this sample's clearance and the end's: clear
+                        if wp.static(PATH_BOUNDS >= 2) and (gap - stop) + end_clear > length - t:
                             concluded = True
                             break
-                        s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old + t * direction))
-                        if s == EXACT or scalar(ds) - radius < behind:
+                        if t + gap >= length:
+                            concluded = True
                             break
+                        step = wp.min(relax * gap, length - t)
+                        last_gap = gap
+                        t = t + step
+                        s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old + t * direction))
+                        taken += 1
+                        if s == EXACT or scalar(ds) - radius < behind:
+                            if relax == scalar(1.0):
+                                break
+                            # perhaps the relaxed step's doing: back to the plain step
+                            t = t - step + last_gap
+                            step = last_gap
+                            relax = scalar(1.0)
+                            s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old + t * direction))
+                            taken += 1
+                            if s == EXACT or scalar(ds) - radius < behind:
+                                break
                     if not concluded:
                         # a grazing path the trace could not follow to its end, or one found behind
                         # the surface without touching it: the exact ray decides
-                        return x, False, 8
+                        return x, False, 9, taken
         if dist >= radius:
-            return x, False, samples
-        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True, samples
+            return x, False, samples, taken
+        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True, samples, taken
 
     body.__name__ = body.__qualname__ = "collide_sdf_" + ("f64" if scalar == wp.float64 else "f32")
     return wp.func(body)

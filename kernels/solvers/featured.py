@@ -39,6 +39,11 @@ from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct  # noqa: F401  (re-exported)
 from .ftl import STEP_MODULE_OPTIONS, follow_func
 
+#: CUDA register cap of the featured sweep (None: the compiler's choice; ``scripts/profile_features.py
+#: --sweep-caps`` measures others)
+CUDA_MAX_REGISTERS = None
+
+
 @functools.cache
 def featured_step_kernel(scalar, correction: str, flags: frozenset):
     """The DFTL step for ``scalar`` precision, ``correction`` form and the non-empty ``flags``."""
@@ -59,7 +64,8 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     HAIR_HAIR = "hair_hair" in flags
     one = scalar(1.0)
 
-    @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
+    @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS,
+               cuda_max_registers=CUDA_MAX_REGISTERS)
     def dftl_step_featured(
         strand_base: wp.array(dtype=wp.int32),
         strand_stride: wp.array(dtype=wp.int32),

@@ -174,7 +174,8 @@ class MeshFields:
         self.gradients = wp.zeros(max(pool, 1) * BRICK_NODES, dtype=wp.vec3h, device=device)
         self.cells = wp.zeros(max(pool, 1) * BRICK_CELLS, dtype=wp.uint8, device=device)
         self.grids = wp.array(self._grids_host, dtype=SdfGrid, device=device)
-        self.test_counts = wp.zeros(len(WHY_EXACT) * TEST_SLOTS, dtype=wp.int32, device=device)
+        # the tests' outcomes, then the samples they took (a diagnostic: COUNT_FIELD_TESTS)
+        self.test_counts = wp.zeros((len(WHY_EXACT) + 1) * TEST_SLOTS, dtype=wp.int32, device=device)
         self._meshes = {}
         for field, shape, mesh in plans:
             self.fields[field.c] = field
@@ -229,10 +230,15 @@ class MeshFields:
         (the first ``EXACT_FROM`` entries: answered by the field, after one sample, two, or a
         trace; the others went to the exact mesh query). Counted only by kernels built with
         ``kernels.features.mesh.COUNT_FIELD_TESTS`` on (a diagnostic; zeros otherwise)."""
-        counts = self.test_counts.numpy().reshape(len(WHY_EXACT), TEST_SLOTS).sum(1)
+        counts = self.test_counts.numpy().reshape(len(WHY_EXACT) + 1, TEST_SLOTS).sum(1, dtype=np.int64)
         if reset:
             self.test_counts.zero_()
         return {why: int(n) for why, n in zip(WHY_EXACT, counts)}
+
+    def samples(self) -> int:
+        """The field's samples the counted tests took since the last reset (read it before
+        :meth:`tests` resets; counted as the tests are)."""
+        return int(self.test_counts.numpy().reshape(len(WHY_EXACT) + 1, TEST_SLOTS)[-1].sum(dtype=np.int64))
 
     def sample(self, c: int, points):
         """Probe the field of device collider ``c`` at local ``points`` (N, 3), m: ``(state,
