@@ -265,11 +265,13 @@ def collide_sdf_func(scalar):
                     step = scalar(0.0)
                     last_gap = scalar(0.0)
                     relax = scalar(RELAXATION)
+                    retreat = bool(False)
                     for _ in range(FIELD_TRACE_ITERATIONS):
                         gap = scalar(ds) - radius
-                        if step > last_gap + gap:
-                            # the relaxed step left the last sample's clearance and this one's apart:
-                            # back to the plain step from the last sample, unrelaxed from now on
+                        if retreat or step > last_gap + gap:
+                            # the relaxed step left the last sample's clearance and this one's apart, or
+                            # landed behind the surface or in a cell the field cannot answer: back to
+                            # the plain step from the last sample, unrelaxed from now on
                             t = t - step + last_gap
                             step = last_gap
                             relax = scalar(1.0)
@@ -299,17 +301,9 @@ def collide_sdf_func(scalar):
                         t = t + step
                         s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old + t * direction))
                         taken += 1
-                        if s == EXACT or scalar(ds) - radius < behind:
-                            if relax == scalar(1.0):
-                                break
-                            # perhaps the relaxed step's doing: back to the plain step
-                            t = t - step + last_gap
-                            step = last_gap
-                            relax = scalar(1.0)
-                            s, ds, ns = sdf_sample(grid, brick_map, values, cells, wp.vec3f(q_old + t * direction))
-                            taken += 1
-                            if s == EXACT or scalar(ds) - radius < behind:
-                                break
+                        retreat = s == EXACT or scalar(ds) - radius < behind
+                        if retreat and relax == scalar(1.0):
+                            break
                     if not concluded:
                         # a grazing path the trace could not follow to its end, or one found behind
                         # the surface without touching it: the exact ray decides
