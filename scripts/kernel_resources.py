@@ -121,7 +121,8 @@ def main(argv=None) -> int:
             else:
                 solver = dw.make_solver(model, extra["solver"], gravity=G, **extra.get("solver_options", {}))
             for kernel in solver.kernels():
-                if not kernel.key.startswith(("featured_step", "bare_step", "elastic_kernel")):
+                if not kernel.key.startswith(("featured_step", "bare_step", "elastic_kernel", "velocity_features",
+                                               "grid_splat", "grid_bounds")):
                     continue
                 paths = wp.compile_aot_module(kernel.module, arch=args.arch, module_dir=tmp, use_ptx=False)
                 for function, r in cubin_resources(paths[0]).items():

@@ -36,7 +36,11 @@ from bench_features import (ELASTIC, FPS, SETTLE_FRAMES, SUBSTEPS, body_frames, 
 from dftl_warp import features as F  # noqa: E402
 from dftl_warp.kernels.solvers import elastic as elastic_kernels  # noqa: E402
 from dftl_warp.kernels.solvers import featured as featured_kernels  # noqa: E402
+from dftl_warp.kernels.features import air_grid as pass_kernels  # noqa: E402
+from dftl_warp.kernels.features import grid_strands as splat_kernels  # noqa: E402
 import dftl_warp.features.step as feature_step  # noqa: E402
+from dftl_warp.features import hair_hair  # noqa: E402
+from dftl_warp.solvers import elastic as elastic_solver  # noqa: E402
 
 #: the rows profiled by default (name prefixes of ``bench_features.scenarios``)
 DEFAULT_ROWS = ("bare DFTL step", "deforming body mesh", "hair-hair", "wind with curl noise", "production scene",
@@ -136,8 +140,13 @@ def main(argv=None) -> int:
                     help="profile the DFTL rows with features under each of these CUDA register caps of the "
                          "featured sweep (0: none; kernels/solvers/featured.py: CUDA_MAX_REGISTERS)")
     ap.add_argument("--block-dims", type=int, nargs="*", default=None,
-                    help="profile the rows with features at each of these CUDA block sizes of the sweep and the "
-                         "elastic step (dftl_warp/features/step.py: SWEEP_BLOCK_DIM)")
+                    help="profile the rows with features at each of these CUDA block sizes of the sweep, the "
+                         "elastic step and the splat (SWEEP_BLOCK_DIM of dftl_warp/features/step.py, "
+                         "SPLAT_BLOCK_DIM of dftl_warp/features/hair_hair.py)")
+    ap.add_argument("--aux-caps", type=int, nargs="*", default=None,
+                    help="profile the rows with features under each of these CUDA register caps of the hair-hair "
+                         "splat and the velocity pass (0: none; CUDA_MAX_REGISTERS of kernels/features/"
+                         "grid_strands.py and air_grid.py)")
     ap.add_argument("--velocity-pass", choices=("on", "off", "both"), default="on",
                     help="hair-hair, drag and wind in their own pass before the sweep (on, the default), in the "
                          "sweep (off; dftl_warp/features/step.py: VELOCITY_PASS), or each row both ways")
@@ -172,17 +181,26 @@ def main(argv=None) -> int:
             label = name if len(ways) == 1 else f"{name}, velocity pass {'on' if on else 'off'}"
             for cap in caps:
                 for block in blocks:
-                    tag = label if cap is None else f"{label}, register cap {cap or 'none'}"
-                    tag = tag if block is None else f"{tag}, {block} threads per block"
-                    todo.append((tag, feats, extra, cap, on, block))
+                    for aux in (args.aux_caps if feats and args.aux_caps else [None]):
+                        tag = label if cap is None else f"{label}, register cap {cap or 'none'}"
+                        tag = tag if block is None else f"{tag}, {block} threads per block"
+                        tag = tag if aux is None else f"{tag}, splat and pass capped at {aux or 'none'}"
+                        todo.append((tag, feats, extra, cap, on, block, aux))
     default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
     default_sweep_cap = featured_kernels.CUDA_MAX_REGISTERS
     default_block = feature_step.SWEEP_BLOCK_DIM
+    default_splat_block = hair_hair.SPLAT_BLOCK_DIM
+    default_elastic_block = elastic_solver.ELASTIC_BLOCK_DIM
     bare = None
-    for name, feats, extra, cap, on, block in todo:
+    for name, feats, extra, cap, on, block, aux in todo:
         started = time.perf_counter()
+        splat_kernels.CUDA_MAX_REGISTERS = pass_kernels.CUDA_MAX_REGISTERS = aux or None
+        splat_kernels.grid_splat_strands_kernel.cache_clear()
+        pass_kernels.velocity_features_kernel.cache_clear()
         feature_step.VELOCITY_PASS = on
         feature_step.SWEEP_BLOCK_DIM = default_block if block is None else block
+        hair_hair.SPLAT_BLOCK_DIM = default_splat_block if block is None else block
+        elastic_solver.ELASTIC_BLOCK_DIM = default_elastic_block if block is None else block
         elastic = extra.get("solver") == "elastic"
         elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None or not elastic else (cap or None)
         featured_kernels.CUDA_MAX_REGISTERS = default_sweep_cap if cap is None or elastic else (cap or None)

@@ -27,6 +27,11 @@ ATTRIBUTES = {
     "dftl:hairHairSplatInterval": (int, "scene", "substeps between rebuilds of the grid (1: every substep)"),
 }
 
+#: CUDA threads per block of the per-strand splat: 160 registers a thread, so one block of 256 per
+#: multiprocessor (8 warps) or three of 128 (12 warps); H200, 1M production scene: 8.47 -> 7.59 ms
+#: (docs/benchmarks.md; ``scripts/profile_features.py --block-dims`` measures others)
+SPLAT_BLOCK_DIM = 128
+
 #: how the grid is splatted: "particles" (one thread per particle, one atomic per node and particle)
 #: or "strands" (one thread per strand, a strand's runs through one cell summed first)
 SPLATS = ("particles", "strands")
@@ -185,7 +190,7 @@ class Grid:
         kernel = self._splat_kernel(lead != 0.0)
         tail = [g["lower"], 1.0 / self.cell, float(lead), *self.shape]
         if self.by_strands:
-            wp.launch(kernel, dim=m.num_strands, device=m.device,
+            wp.launch(kernel, dim=m.num_strands, device=m.device, block_dim=SPLAT_BLOCK_DIM,
                       inputs=[m.strand_base, m.strand_stride, m.strand_count, positions, velocities, *tail],
                       outputs=[g["density"], g["momentum"]])
         else:

@@ -35,9 +35,10 @@ FEATURE_TYPES = (Colliders, RootBinding, Drag, Wind, HairHair)
 #: the sweep (the same arithmetic: ``scripts/profile_features.py --no-velocity-pass`` compares)
 VELOCITY_PASS = True
 
-#: CUDA threads per block of the featured sweep and the elastic step (``scripts/profile_features.py
-#: --block-dims`` measures others)
-SWEEP_BLOCK_DIM = 256
+#: CUDA threads per block of the featured sweep: at its 150-160 registers a multiprocessor holds one
+#: block of 256 (8 warps) but three of 128 (12 warps); H200, 1M production scene: 9.71 -> 9.15 ms
+#: (docs/benchmarks.md; ``scripts/profile_features.py --block-dims`` measures others)
+SWEEP_BLOCK_DIM = 128
 
 #: where ``root_alpha`` and ``dt`` sit in the DFTL sweep's leading inputs (``DFTLSolver.feature_head``)
 HEAD_ROOT_ALPHA, HEAD_DT = 7, 10

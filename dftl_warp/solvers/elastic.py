@@ -82,6 +82,11 @@ TWIST_G = 10 * HAIR_G
 DEFAULT_RADIUS = 40e-6
 
 
+#: CUDA threads per block of the elastic step (H200, the 1M production scene: blocks of 128 measured
+#: 37.1 ms a step against 34.4 with 256, docs/benchmarks.md; ``scripts/profile_features.py
+#: --block-dims`` measures others)
+ELASTIC_BLOCK_DIM = 256
+
 def check_features(model) -> None:
     """ValueError naming the model's features the elastic solver does not support (it supports
     colliders, drag, wind, hair-hair and root binding)."""
@@ -479,12 +484,10 @@ class ElasticSolver(Solver):
         else:
             features = self._no_features
             accelerations = self._no_accelerations
-        from ..features import step as feature_step
-
         wp.launch(
             self._kernel,
             dim=m.num_strands,
-            block_dim=feature_step.SWEEP_BLOCK_DIM,
+            block_dim=ELASTIC_BLOCK_DIM,
             inputs=[
                 m.strand_base, m.strand_stride, m.strand_count,
                 f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],

@@ -36,6 +36,10 @@ from .step import NOISE_STRIDE, check_flags, feature_struct
 #: the feature flags this pass applies (the others, the colliders', stay in the sweep)
 VELOCITY_FLAGS = frozenset({"drag", "wind", "wind_noise", "hair_hair"})
 
+#: CUDA register cap of the pass (None: the compiler's choice, 107 registers on sm_90;
+#: ``scripts/profile_features.py --aux-caps`` measures others)
+CUDA_MAX_REGISTERS = None
+
 #: the two output forms (see the module docstring)
 FORMS = ("velocity", "acceleration")
 
@@ -83,7 +87,8 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
     def ld(v: vec3s):
         return vec3(real(v[0]), real(v[1]), real(v[2]))
 
-    @wp.kernel(enable_backward=False, module="unique", module_options={"fuse_fp": False})
+    @wp.kernel(enable_backward=False, module="unique", module_options={"fuse_fp": False},
+               cuda_max_registers=CUDA_MAX_REGISTERS)
     def velocity_features(
         # Model:
         strand_base: wp.array(dtype=wp.int32),

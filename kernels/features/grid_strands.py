@@ -64,6 +64,11 @@ def grid_bounds_strands_kernel(scalar):
     return grid_bounds_strands
 
 
+#: CUDA register cap of the per-strand splat (None: the compiler's choice, 160 registers on sm_90;
+#: ``scripts/profile_features.py --aux-caps`` measures others)
+CUDA_MAX_REGISTERS = None
+
+
 @functools.cache
 def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = True):
     """Kernel (one thread per strand) splatting density (particles per node) and momentum (m/s per
@@ -96,7 +101,7 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
             return vec8(v[4], v[5], v[6], v[7], zero, zero, zero, zero)
         return vec8(zero, zero, zero, zero, v[0], v[1], v[2], v[3])
 
-    @wp.kernel(enable_backward=False, module="unique")
+    @wp.kernel(enable_backward=False, module="unique", cuda_max_registers=CUDA_MAX_REGISTERS)
     def grid_splat_strands(
         # Model: the particle layout
         strand_base: wp.array(dtype=wp.int32),
