@@ -14,7 +14,7 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
+from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel, grid_splat_positions_kernel
 from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
 from .base import authored, find, nonnegative, vector
 
@@ -143,6 +143,10 @@ class Grid:
             "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
             "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
             "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),
+            # where each particle was splatted, for the substeps that sample an older grid (each
+            # leaves out its own contribution there: tests/test_hair_hair_self.py); empty at interval 1
+            "splat_at": wp.zeros(model.num_slots if self.interval > 1 else 0, dtype=model.vec3,
+                                 device=model.device),
         }
 
     def _splat_kernel(self, ahead: bool):
@@ -152,7 +156,7 @@ class Grid:
     def kernels(self) -> list:
         s = self.model.scalar
         return [grid_reset_kernel(s), grid_bounds_strands_kernel(s), self._splat_kernel(False),
-                self._splat_kernel(self.interval > 1)]
+                self._splat_kernel(self.interval > 1), grid_splat_positions_kernel(s)]
 
     def due(self, root_alpha: float) -> bool:
         """Whether the substep ending at root fraction ``root_alpha`` rebuilds the grid: the first
@@ -196,6 +200,9 @@ class Grid:
         else:
             wp.launch(kernel, dim=m.num_slots, device=m.device, inputs=[positions, velocities, *tail],
                       outputs=[g["density"], g["momentum"]])
+        if g["splat_at"].shape[0]:
+            wp.launch(grid_splat_positions_kernel(m.scalar), dim=m.num_slots, device=m.device,
+                      inputs=[positions, velocities, float(lead)], outputs=[g["splat_at"]])
 
     def fill_struct(self, st, hh: HairHair) -> None:
         g = self.arrays
@@ -205,6 +212,7 @@ class Grid:
         st.grid_nx, st.grid_ny, st.grid_nz = self.shape
         st.grid_density = g["density"]
         st.grid_momentum = g["momentum"]
+        st.grid_splat_at = g["splat_at"]
         st.grid_friction = float(hh.friction)
         st.grid_repulsion = float(hh.repulsion)
 

@@ -113,6 +113,36 @@ def grid_cell_func(scalar):
 
 
 @functools.cache
+def grid_own_func(scalar):
+    """``own(splat_at, k, x) -> x_own``: where particle ``k``, now at ``x``, was splatted:
+    ``splat_at[k]`` when the grid keeps those positions (rebuilt every few substeps), else ``x``."""
+    vec3 = wp.types.vector(3, scalar)
+
+    @wp.func
+    def grid_own(splat_at: wp.array(dtype=vec3), k: int, x: vec3):
+        if splat_at.shape[0] > 0:
+            return splat_at[k]
+        return x
+
+    return grid_own
+
+
+@functools.cache
+def grid_splat_positions_kernel(scalar):
+    """Kernel (one thread per particle): ``splat_at[k]`` <- where the splat put particle ``k``,
+    ``x + lead v`` (m), as :func:`grid_splat_kernel` and the per-strand splat compute it."""
+    vec3 = wp.types.vector(3, scalar)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def grid_splat_positions(positions: wp.array(dtype=vec3), velocities: wp.array(dtype=vec3), lead: scalar,
+                             splat_at: wp.array(dtype=vec3)):
+        k = wp.tid()
+        splat_at[k] = positions[k] + lead * velocities[k]
+
+    return grid_splat_positions
+
+
+@functools.cache
 def grid_splat_kernel(scalar, ahead: bool = False):
     """Kernel splatting density (particles per node) and momentum (m/s per node) trilinearly;
     ``ahead``: each particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused)."""
@@ -161,16 +191,29 @@ def grid_splat_kernel(scalar, ahead: bool = False):
 
 @functools.cache
 def grid_sample_func(scalar):
-    """``sample(x, ...) -> (v_grid, grad_rho)``: grid velocity (m/s) and the gradient (1/m) of the
-    density of the other particles at ``x``; zeros outside the grid or where the grid is empty."""
+    """``sample(x, x_own, ...) -> (v_grid, grad_rho)``: grid velocity (m/s) and the gradient (1/m)
+    of the density of the other particles at ``x``, the particle's own contribution taken where it
+    was splatted, ``x_own`` (:func:`grid_own_func`; ``x`` itself when the grid was splatted this
+    substep); zeros outside the grid or where the grid is empty."""
     vec3 = wp.types.vector(3, scalar)
     cell = grid_cell_func(scalar)
     one = scalar(1.0)
     zero = scalar(0.0)
 
     @wp.func
+    def own_weight(node: int, own: int, f: scalar):
+        """The trilinear weight, along one axis, that a particle in cell ``own`` at fraction ``f``
+        gave grid node ``node``."""
+        if node == own:
+            return one - f
+        if node == own + 1:
+            return f
+        return zero
+
+    @wp.func
     def grid_sample(
         x: vec3,
+        x_own: vec3,
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
         nx: int,
@@ -186,6 +229,8 @@ def grid_sample_func(scalar):
         mom = vec3()
         grad = vec3()
         self_grad = vec3()
+        # the cell the particle's own contribution was splatted from (this one, when x_own is x)
+        own_ok, oi, oj, ok_, ofx, ofy, ofz = cell(x_own, lower, inv_h, nx, ny, nz)
         for c in range(8):
             di = c & 1
             dj = (c >> 1) & 1
@@ -202,7 +247,10 @@ def grid_sample_func(scalar):
             rho += w * node
             mom += w * momentum[i + di, j + dj, k + dk]
             grad += node * dw
-            self_grad += w * dw
+            if own_ok:
+                w_own = (own_weight(i + di, oi, ofx) * own_weight(j + dj, oj, ofy)
+                         * own_weight(k + dk, ok_, ofz))
+                self_grad += w_own * dw
         v_grid = vec3()
         if rho > scalar(1.0e-6):
             v_grid = mom / rho
