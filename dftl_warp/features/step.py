@@ -103,6 +103,9 @@ class ModelFeatures:
             b += f
         if velocity_pass_flags(self.flags)[0]:
             b += 3 * f      # the velocity pass's output (DFTL's; the elastic step's is 4 words)
+        hh = find(self.features, HairHair)
+        if hh is not None and hh.splat_interval > 1:
+            b += 3 * f      # where each particle was splatted (hair_hair.Grid's "splat_at")
         return b
 
     def bytes_per_strand(self, precision: str) -> float:
