@@ -214,3 +214,27 @@ def test_fractional_frames_into_a_video_or_sheet_are_fine(groom, tmp_path):
     assert render(groom, "--start", 1, "--end", 2, "--step", 0.5, "--contact-sheet", "--resolution", "8x8",
                   "--spp", 1, "-o", sheet) == 0
     assert image.read_png(sheet).shape == (2 * 8 + 4, 2 * 8 + 4, 4)  # 3 frames on a 2x2 grid
+
+
+def test_a_frame_that_fails_leaves_no_frames_of_the_sequence(groom, tmp_path, capsys):
+    """Frame 3 has nothing visible: the render stops with one line, and the frames rendered before
+    it are not left behind (nor a frame of an earlier render of the same names overwritten)."""
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(groom))
+    visibility = UsdGeom.Imageable(stage.GetPrimAtPath("/hair")).GetVisibilityAttr()
+    for t, value in ((1, "inherited"), (2, "inherited"), (3, "invisible")):
+        visibility.Set(value, t)
+    stage.Save()
+    out = tmp_path / "frames"
+    out.mkdir()
+    (out / "hair.0001.png").write_bytes(b"an earlier render")
+    assert render(groom, "--start", 1, "--end", 3, "-o", out / "hair.####.png", "--resolution", "32x24") == 2
+    one_error(capsys, "nothing to render at frame 3")
+    assert sorted(p.name for p in out.iterdir()) == ["hair.0001.png"]
+    assert (out / "hair.0001.png").read_bytes() == b"an earlier render"
+    # and the whole sequence, once every frame renders
+    visibility.Set("inherited", 3)
+    stage.Save()
+    assert render(groom, "--start", 1, "--end", 3, "-o", out / "hair.####.png", "--resolution", "32x24") == 0
+    assert sorted(p.name for p in out.iterdir()) == ["hair.0001.png", "hair.0002.png", "hair.0003.png"]

@@ -10,7 +10,10 @@ holding every frame on a grid.
 
 from __future__ import annotations
 
+import os
+import shutil
 import sys
+import tempfile
 import time as _time
 from pathlib import Path
 
@@ -193,25 +196,47 @@ def run(args) -> int:
     frames = []
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     t_all = _time.perf_counter()
-    for k, (label, scene, cam) in enumerate(jobs):
-        if scene is None:
-            scene = read(label)
-            cam = camera_at(label, scene)
-        t0 = _time.perf_counter()
-        rgba = to_rgba8(renderer.render(scene, cam))
-        dt = _time.perf_counter() - t0
-        number = label if label is not None else 0
-        if kind == "pattern":
-            path = image.frame_path(args.output, number)
-            image.write_png(path, rgba)
-            say(f"{path}  {dt:.2f} s")
-        elif kind == "png" and n_images == 1:
-            path = image.frame_path(args.output, number)
-            image.write_png(path, rgba)
-            say(f"{path}  {dt:.2f} s")
-        else:
-            frames.append(rgba)
-            say(f"frame {k + 1}/{n_images}  {dt:.2f} s")
+    # a sequence's frames wait in a hidden folder beside it and move into place once every frame
+    # has rendered: a frame that fails leaves no part of the sequence behind
+    staged = []  # (temporary path, final path)
+    pending = None
+    if kind == "pattern":
+        first = Path(image.frame_path(args.output, jobs[0][0] if jobs[0][0] is not None else 0)).resolve().parent
+        try:
+            first.mkdir(parents=True, exist_ok=True)
+            pending = tempfile.mkdtemp(prefix=".dftl-render-", dir=first)
+        except OSError as exc:
+            raise UserError(f"{first}: cannot write: {exc.strerror or exc}") from None
+    try:
+        for k, (label, scene, cam) in enumerate(jobs):
+            if scene is None:
+                scene = read(label)
+                cam = camera_at(label, scene)
+            t0 = _time.perf_counter()
+            rgba = to_rgba8(renderer.render(scene, cam))
+            dt = _time.perf_counter() - t0
+            number = label if label is not None else 0
+            if kind == "pattern":
+                path = image.frame_path(args.output, number)
+                staged.append((os.path.join(pending, f"{k:08d}.png"), path))
+                image.write_png(staged[-1][0], rgba)
+                say(f"{path}  {dt:.2f} s")
+            elif kind == "png" and n_images == 1:
+                path = image.frame_path(args.output, number)
+                image.write_png(path, rgba)
+                say(f"{path}  {dt:.2f} s")
+            else:
+                frames.append(rgba)
+                say(f"frame {k + 1}/{n_images}  {dt:.2f} s")
+        for tmp, path in staged:
+            try:
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    finally:
+        if pending is not None:
+            shutil.rmtree(pending, ignore_errors=True)
     if kind == "video":
         image.write_video(args.output, frames, fps=fps)
         say(f"{args.output}  {len(frames)} frames")
