@@ -151,6 +151,21 @@ def test_invalid_cubic_vertex_counts_are_refused_as_simulate_refuses_them(tmp_pa
     assert capsys.readouterr().err.strip().splitlines() == [line]
 
 
+@pytest.mark.parametrize("counts, basis, message", [
+    ([6, 7], "bezier", "curveVertexCounts[1] = 7: a periodic cubic bezier curve needs 3n"),
+    ([2, 4], "bspline", "curveVertexCounts[0] = 2: a periodic cubic bspline curve needs at least 3"),
+])
+def test_periodic_cubic_curves_with_unusable_counts_are_refused_not_shortened(tmp_path, capsys, counts, basis,
+                                                                              message):
+    """The renderer draws closed curves (simulate refuses them: a hair needs a free tip); a count
+    its basis cannot close was cut to whole spans without a word."""
+    src = cubic_stage(tmp_path / "cubic.usda", counts, basis, "periodic")
+    out = tmp_path / "out.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 2
+    one_error(capsys, f"{src}: /W/H: {message}")
+    assert not out.exists()
+
+
 def test_valid_cubic_curves_still_render(tmp_path):
     src = cubic_stage(tmp_path / "ok.usda", [4, 7])
     out = tmp_path / "ok.png"

@@ -54,10 +54,15 @@ def primvar_count(interpolation: str, counts, num_points: int, curve_type: str, 
 
 def check_vertex_counts(counts, curve_type: str, basis: str, wrap: str, where: str) -> None:
     """UserError naming the first curve whose control point count its cubic basis cannot use."""
-    if curve_type != "cubic" or wrap == "periodic":
+    if curve_type != "cubic":
         return
     counts = np.asarray(counts, dtype=np.int64)
-    if basis == "bezier":
+    if wrap == "periodic":
+        # a closed curve of n spans: 3n control points (bezier), n of them (bspline, catmullRom)
+        step = 3 if basis == "bezier" else 1
+        bad = (counts < 3) | (counts % step != 0)
+        need = "3n (3, 6, 9, ...) control points" if basis == "bezier" else "at least 3 control points"
+    elif basis == "bezier":
         bad = (counts < 4) | ((counts - 1) % 3 != 0)
         need = "3n + 1 (4, 7, 10, ...) control points"
     else:
