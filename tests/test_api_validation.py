@@ -128,6 +128,9 @@ def test_frame_time_and_wind_refuse_non_finite(featured):
     _, c = featured
     with pytest.raises(ValueError, match="set_frame_time: start"):
         c.features.set_frame_time(NAN, 1.0)
+    with pytest.raises(ValueError, match="set_frame_time: end 0.5 s is before start 1.0 s"):
+        c.features.set_frame_time(1.0, 0.5)
+    c.features.set_frame_time(1.0, 1.0)       # an empty frame is a frame
     with pytest.raises(ValueError, match="set_wind: start"):
         c.features.set_wind((NAN, 0, 0))
 

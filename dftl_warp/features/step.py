@@ -216,10 +216,12 @@ class FeatureControl:
 
     def set_frame_time(self, start: float, end: float) -> None:
         """The frame spans ``start`` -> ``end`` seconds: wind velocity from its keyframes, noise time.
-        ValueError unless both are finite numbers of seconds."""
+        ValueError unless both are finite numbers of seconds and ``end`` is not before ``start``."""
         for name, t in (("start", start), ("end", end)):
             if isinstance(t, (bool, np.bool_)) or not isinstance(t, numbers.Real) or not math.isfinite(t):
                 raise ValueError(f"set_frame_time: {name} must be a finite number of seconds, got {t!r}")
+        if end < start:
+            raise ValueError(f"set_frame_time: end {end!r} s is before start {start!r} s")
         if self.air is not None:
             self.air.set_frame_time(start, end)
 
