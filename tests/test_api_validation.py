@@ -124,6 +124,13 @@ def test_mesh_points_refuse_non_finite(featured):
         c.features.set_mesh_points(1, bad)
 
 
+def test_colliders_without_shapes_warn_that_they_do_nothing():
+    with pytest.warns(UserWarning, match="Colliders has no shapes: the hair collides with nothing"):
+        empty = F.Colliders([])
+    model = dw.Model.from_strands(np.array([[0.0, 0, 0], [0, -0.01, 0]]), [2], features=[empty])
+    assert model.feature_flags == frozenset()
+
+
 def test_frame_time_and_wind_refuse_non_finite(featured):
     _, c = featured
     with pytest.raises(ValueError, match="set_frame_time: start"):

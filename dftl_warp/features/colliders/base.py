@@ -145,6 +145,9 @@ class Colliders:
         object.__setattr__(self, "shapes", shapes)
         if int(self.iterations) < 1:
             raise ValueError(f"collider iterations must be >= 1, got {self.iterations}")
+        if not shapes:
+            warnings.warn("Colliders has no shapes: the hair collides with nothing (give it a shape, or leave "
+                          "the feature out)", UserWarning, stacklevel=3)
 
     @property
     def flags(self):
