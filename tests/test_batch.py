@@ -174,3 +174,21 @@ def test_a_job_writing_a_layer_its_input_uses_fails_alone(tmp_path, inputs):
     assert len(errors) == 1 and f"the output would overwrite {hair}, which the input {top} uses" in errors[0], \
         result.stderr
     assert hair.read_bytes() == before and (tmp_path / "out" / "good.usdc").is_file()
+
+
+def test_a_job_on_a_device_that_is_not_here_names_the_job_files_key(tmp_path, inputs):
+    """The job file says ``device = "cuda:7"``: its one line names ``device``, not a ``--device``
+    flag nobody typed; the API's keyword is named the same way."""
+    import dftl_warp as dw
+    from dftl_warp.errors import UserError
+
+    jobs = write_jobs(tmp_path / "jobs.toml", [
+        {"input": str(inputs["a"]), "output": "out/a.usdc", "end": 2, "device": "cuda:7"},
+    ])
+    result = run_batch(jobs)
+    assert result.returncode == 1
+    errors = [line for line in result.stderr.splitlines() if line.startswith("dftl-warp: error:")]
+    assert len(errors) == 1 and "job 1 (a): device cuda:7: not available here" in errors[0], result.stderr
+    assert "--device" not in result.stderr and "Traceback" not in result.stderr
+    with pytest.raises(UserError, match="^device cuda:7: not available here"):
+        dw.simulate_usd(inputs["a"], tmp_path / "api.usdc", end=2, device="cuda:7")

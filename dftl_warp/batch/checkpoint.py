@@ -352,7 +352,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         result.status = "skipped"
         return
     shown = len(scene.warnings)
-    sim = Simulation(scene, opts, first)
+    sim = Simulation(scene, opts, first, device_option="device")
     for text in scene.warnings[shown:]:   # found while setting up (e.g. an elastic style that cannot stand)
         warn(text)
     for text in sim.start_notes:   # the clean start: a settled preroll is a note, the rest warnings

@@ -69,7 +69,7 @@ class Simulation:
     """
 
     def __init__(self, scene: Scene, options: SimulationOptions, frame: int, tolerance: float | None = None,
-                 guides: dict | None = None):
+                 guides: dict | None = None, device_option: str = "--device"):
         import warp as wp
 
         #: what is written (:meth:`samples` gives one pair per prim of it); ``scene`` is what is simulated
@@ -99,7 +99,8 @@ class Simulation:
                 devices.append(wp.get_device(name))
             except (ValueError, RuntimeError, KeyError) as exc:
                 available = ", ".join(d.alias for d in wp.get_devices())
-                raise UserError(f"--device {name}: not available here ({available}): {exc}") from None
+                # named as the user gave it: --device (command line), device (job file, API)
+                raise UserError(f"{device_option} {name}: not available here ({available}): {exc}") from None
         self.device = devices[0]
         options = replace(options, device=",".join(str(d) for d in devices))
         self.options = options
@@ -495,7 +496,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
     if not out_opts["no_clips"]:  # clips: their writer processes start while the simulation sets up
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
-    sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides)
+    sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
+                     device_option="--device" if command else "device")
     elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
     if quality is not None and elastic:
         sim.start_notes.append(f"quality {quality}: {elastic} prim(s) with widths keep the elastic solver, with the "
