@@ -369,7 +369,8 @@ def test_memory_estimate_counts_the_features():
     assert dw.DFTLSolver(model)._features.pass_output.capacity == 10 * 12
     grid = memory_estimate(dw.Model.from_strands(pts, [10], features=[F.HairHair(cell_size=0.01)]))
     assert grid["fixed_feature_bytes"] > 0 and grid["feature_bytes_per_strand"] == 10 * 12
-    # rebuilt every few substeps, the grid keeps where each particle was splatted
+    # rebuilt every few substeps, the grid keeps the momentum's own density beside the density
     every = dw.Model.from_strands(pts, [10], features=[F.HairHair(cell_size=0.01, splat_interval=4)])
-    assert memory_estimate(every)["feature_bytes_per_strand"] == 10 * 24
-    assert dw.DFTLSolver(every)._features._grid.arrays["splat_at"].capacity == 10 * 12
+    assert memory_estimate(every)["fixed_feature_bytes"] == grid["fixed_feature_bytes"] * 5 // 4
+    arrays = dw.DFTLSolver(every)._features._grid.arrays
+    assert arrays["mass"].capacity == arrays["density"].capacity

@@ -1,10 +1,12 @@
-"""A particle does not push itself through a grid splatted substeps ago (CPU).
+"""The repulsion of a grid rebuilt every few substeps pushes with the particles' present density (CPU).
 
-The grid's density gradient a particle feels leaves out its own contribution. With
-``splat_interval`` > 1 that contribution sits where the particle was splatted (its position then,
-``(interval - 1) dt / 2`` ahead along its velocity), not where it is now; leaving out the one at
-its present position left a gradient toward where it had been, and the repulsion pushed it on
-along its motion: the lone pendulums below strayed 1.5 cm in 1 s at interval 5, 3.5 cm at 10."""
+The grid's density gradient a particle feels leaves out its own contribution. When the whole grid
+was rebuilt only every ``splat_interval`` substeps, that contribution sat where the particle was
+splatted, not where it is: the lone pendulums below strayed 1.5 cm in 1 s at interval 5 and 3.5 cm
+at 10, pushed on along their motion. And a density substeps old acts on the groom as a delayed
+spring, which feeds the motion it opposes (a dense groom moved twice as fast at interval 5). Now
+the density alone is splatted every substep between the full rebuilds; only the momentum (the
+friction's grid velocity) waits for them."""
 
 from __future__ import annotations
 
@@ -37,3 +39,40 @@ def test_an_isolated_particle_feels_no_repulsion_of_its_own(interval):
     grid = swing([F.HairHair(cell_size=0.01, friction=0.0, repulsion=50.0, splat_interval=interval)])
     assert np.abs(free[1::2] - free[0::2]).max() > 0.0      # they swing
     assert np.abs(grid - free).max() < 1e-12, np.abs(grid - free).max()
+
+
+@pytest.mark.parametrize("interval", [1, 5])
+def test_the_repulsion_reads_the_particles_present_density_at_every_substep(interval):
+    """Between full rebuilds the density alone is splatted again every substep, so the repulsion
+    never pushes with a density older than the particles (a density up to 4 substeps old acted as
+    a delayed spring and doubled the speed of a dense groom, docs/features.md); the momentum and
+    its own density ("mass") stay those of the last rebuild."""
+    import warp as wp
+
+    from dftl_warp.kernels.features.grid_strands import grid_splat_strands_kernel
+
+    rng = np.random.default_rng(2)
+    roots = rng.uniform(-0.02, 0.02, (30, 3))
+    pts = np.concatenate([r + np.outer(np.arange(8), [0.0, -0.004, 0.0]) for r in roots])
+    model = dw.Model.from_strands(pts, [8] * 30, features=[F.HairHair(cell_size=0.01, splat_interval=interval)])
+    solver = dw.DFTLSolver(model, fused=False)
+    state, control = solver.state(), model.control()
+    v = np.zeros((240, 3))
+    v[:, 0] = rng.uniform(-1.0, 1.0, 240)
+    state.velocities.assign(model.points_to_device(v, relative=False).astype(np.float32))
+    dt = 1.0 / 240
+    solver.step(state, state, control, dt, 1.0 / 3)   # a rebuild (the frame's first substep) ...
+    solver.step(state, state, control, dt, 2.0 / 3)   # ... then substeps without one (interval 5)
+    before = wp.clone(state.positions)                # what the third substep starts from
+    solver.step(state, state, control, dt, 3.0 / 3)
+    grid = solver._features._grid
+    g = grid.arrays
+    fresh = wp.zeros_like(g["density"])
+    scratch = wp.zeros_like(g["momentum"])
+    wp.launch(grid_splat_strands_kernel(model.scalar), dim=model.num_strands,
+              inputs=[model.strand_base, model.strand_stride, model.strand_count, before, state.velocities,
+                      g["lower"], 1.0 / grid.cell, 0.0, *grid.shape], outputs=[fresh, scratch])
+    assert np.abs(g["density"].numpy() - fresh.numpy()).max() < 1e-5
+    if interval > 1:
+        assert g["mass"].shape == g["density"].shape
+        assert np.abs(g["mass"].numpy() - fresh.numpy()).max() > 1e-3   # the rebuild's, not the present's

@@ -14,7 +14,7 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel, grid_splat_positions_kernel
+from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
 from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
 from .base import authored, find, nonnegative, vector
 
@@ -49,7 +49,8 @@ class HairHair:
 
     ``splat_interval``: the grid is rebuilt on the first substep of each frame and every
     ``splat_interval``-th substep after it (1: every substep; at least the substeps per frame:
-    once per frame); in between the particles sample the last grid, which was splatted with
+    once per frame); in between the density alone is splatted again every substep (the
+    repulsion never lags the particles), while the momentum is the last rebuild's, splatted with
     each particle ``(splat_interval - 1) dt / 2`` ahead along its velocity (centred on the
     substeps that use it). ``splat``: ``"particles"`` (one thread per particle) or ``"strands"``
     (one per strand, fewer atomics; the same sums up to rounding), see :data:`SPLATS`.
@@ -143,20 +144,32 @@ class Grid:
             "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
             "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
             "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),
-            # where each particle was splatted, for the substeps that sample an older grid (each
-            # leaves out its own contribution there: tests/test_hair_hair_self.py); empty at interval 1
-            "splat_at": wp.zeros(model.num_slots if self.interval > 1 else 0, dtype=model.vec3,
-                                 device=model.device),
+            # rebuilt every few substeps: the density splatted with the momentum (the grid velocity's
+            # denominator), while "density" is splatted again every substep for the repulsion;
+            # empty when every substep rebuilds (the momentum's density is "density" itself)
+            "mass": wp.zeros(self.shape if self.interval > 1 else (0, 0, 0), dtype=model.scalar,
+                             device=model.device),
         }
 
-    def _splat_kernel(self, ahead: bool):
+    def _splat_kernel(self, ahead: bool, density_only: bool = False):
         s = self.model.scalar
-        return grid_splat_strands_kernel(s, ahead) if self.by_strands else grid_splat_kernel(s, ahead)
+        if self.by_strands:
+            return grid_splat_strands_kernel(s, ahead, density_only=density_only)
+        return grid_splat_kernel(s, ahead, density_only=density_only)
 
     def kernels(self) -> list:
         s = self.model.scalar
-        return [grid_reset_kernel(s), grid_bounds_strands_kernel(s), self._splat_kernel(False),
-                self._splat_kernel(self.interval > 1), grid_splat_positions_kernel(s)]
+        ks = [grid_reset_kernel(s), grid_bounds_strands_kernel(s), self._splat_kernel(False),
+              self._splat_kernel(self.interval > 1)]
+        if self.interval > 1:
+            ks.append(self._splat_kernel(False, density_only=True))
+        return ks
+
+    def unify(self) -> None:
+        """Every substep a full rebuild, the momentum's density the repulsion's (a groom split across
+        devices exchanges its parts' density and momentum every substep)."""
+        self.interval = 1
+        self.arrays["mass"] = wp.zeros((0, 0, 0), dtype=self.model.scalar, device=self.model.device)
 
     def due(self, root_alpha: float) -> bool:
         """Whether the substep ending at root fraction ``root_alpha`` rebuilds the grid: the first
@@ -171,11 +184,18 @@ class Grid:
 
     def rebuild(self, positions, velocities, dt: float, root_alpha: float) -> bool:
         """Bounds and splat when :meth:`due` (the particles ``(interval - 1) dt / 2`` s ahead);
-        returns whether it did."""
+        returns whether it did. In the substeps between (``splat_interval`` > 1) the density alone
+        is splatted again at the particles' positions: a repulsion from a density substeps old
+        lags the motion it opposes and feeds energy into it (a dense groom moved twice as fast at
+        interval 5, docs/features.md); the friction's grid velocity may lag, it only damps."""
         if not self.due(root_alpha):
+            if self.interval > 1:
+                self.splat_density(positions)
             return False
         self.bounds(positions)
         self.splat(positions, velocities, 0.5 * (self.interval - 1) * float(dt) if self.centred else 0.0)
+        if self.interval > 1:
+            self.splat_density(positions)
         return True
 
     def bounds(self, positions) -> None:
@@ -187,22 +207,31 @@ class Grid:
 
     def splat(self, positions, velocities, lead: float = 0.0) -> None:
         """Density and momentum of this model's particles onto the grid (from ``lower``), each
-        particle ``lead`` seconds ahead along its velocity."""
-        m, g = self.model, self.arrays
-        g["density"].zero_()
+        particle ``lead`` seconds ahead along its velocity (the density into ``mass`` when the grid
+        keeps one: :meth:`splat_density` writes ``density``)."""
+        g = self.arrays
+        mass = g["mass"] if g["mass"].shape[0] else g["density"]
+        mass.zero_()
         g["momentum"].zero_()
-        kernel = self._splat_kernel(lead != 0.0)
+        self._launch(self._splat_kernel(lead != 0.0), positions, velocities, lead, mass)
+
+    def splat_density(self, positions) -> None:
+        """The density alone of this model's particles at ``positions`` onto ``density`` (from the
+        last rebuild's ``lower``)."""
+        g = self.arrays
+        g["density"].zero_()
+        self._launch(self._splat_kernel(False, density_only=True), positions, positions, 0.0, g["density"])
+
+    def _launch(self, kernel, positions, velocities, lead: float, density) -> None:
+        m, g = self.model, self.arrays
         tail = [g["lower"], 1.0 / self.cell, float(lead), *self.shape]
         if self.by_strands:
             wp.launch(kernel, dim=m.num_strands, device=m.device, block_dim=SPLAT_BLOCK_DIM,
                       inputs=[m.strand_base, m.strand_stride, m.strand_count, positions, velocities, *tail],
-                      outputs=[g["density"], g["momentum"]])
+                      outputs=[density, g["momentum"]])
         else:
             wp.launch(kernel, dim=m.num_slots, device=m.device, inputs=[positions, velocities, *tail],
-                      outputs=[g["density"], g["momentum"]])
-        if g["splat_at"].shape[0]:
-            wp.launch(grid_splat_positions_kernel(m.scalar), dim=m.num_slots, device=m.device,
-                      inputs=[positions, velocities, float(lead)], outputs=[g["splat_at"]])
+                      outputs=[density, g["momentum"]])
 
     def fill_struct(self, st, hh: HairHair) -> None:
         g = self.arrays
@@ -212,7 +241,7 @@ class Grid:
         st.grid_nx, st.grid_ny, st.grid_nz = self.shape
         st.grid_density = g["density"]
         st.grid_momentum = g["momentum"]
-        st.grid_splat_at = g["splat_at"]
+        st.grid_mass = g["mass"]
         st.grid_friction = float(hh.friction)
         st.grid_repulsion = float(hh.repulsion)
 

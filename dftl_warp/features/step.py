@@ -103,9 +103,6 @@ class ModelFeatures:
             b += f
         if velocity_pass_flags(self.flags)[0]:
             b += 3 * f      # the velocity pass's output (DFTL's; the elastic step's is 4 words)
-        hh = find(self.features, HairHair)
-        if hh is not None and hh.splat_interval > 1:
-            b += 3 * f      # where each particle was splatted (hair_hair.Grid's "splat_at")
         return b
 
     def bytes_per_strand(self, precision: str) -> float:
@@ -120,7 +117,9 @@ class ModelFeatures:
     def grid_bytes(self, precision: str) -> int:
         if self.grid_shape is None:
             return 0
-        return int(np.prod(self.grid_shape)) * 4 * np.dtype(precision).itemsize
+        hh = find(self.features, HairHair)
+        words = 5 if hh is not None and hh.splat_interval > 1 else 4   # + the momentum's own density
+        return int(np.prod(self.grid_shape)) * words * np.dtype(precision).itemsize
 
 
 def build(model_args, features, *, widths=None) -> ModelFeatures:

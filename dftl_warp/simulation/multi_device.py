@@ -223,12 +223,14 @@ class SplitSolver:
         steps = [getattr(s, "_features", None) for s in self.parts]
         self.exchange = None
         if all(step is not None and step.grid is not None for step in steps):
-            self.exchange = GridExchange(steps)
             if any(step._grid.interval > 1 for step in steps):
                 import warnings
 
                 warnings.warn("hair-hair: a groom split across devices rebuilds its grid every substep "
                               "(dftl:hairHairSplatInterval > 1 applies on one device only)", stacklevel=2)
+                for step in steps:
+                    step._grid.unify()
+            self.exchange = GridExchange(steps)
 
     @property
     def carries_corrections(self) -> bool:

@@ -30,7 +30,7 @@ import functools
 import warp as wp
 
 from ..core.layout import particle
-from .grid import grid_own_func, grid_sample_func
+from .grid import grid_sample_func
 from .step import NOISE_STRIDE, check_flags, feature_struct
 
 #: the feature flags this pass applies (the others, the colliders', stay in the sweep)
@@ -76,7 +76,6 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
     vec3 = wp.types.vector(3, real)
     vec4 = wp.types.vector(4, real)
     grid_sample = grid_sample_func(scalar)
-    grid_own = grid_own_func(scalar)
     VELOCITY = form == "velocity"
     DRAG = "drag" in flags
     WIND = "wind" in flags
@@ -142,10 +141,10 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
             if wp.static(VELOCITY):
                 v = ld(velocities_in[k])
                 if wp.static(HAIR_HAIR):
-                    x = positions_in[k]
-                    v_grid, grad = grid_sample(x, grid_own(features.grid_splat_at, k, x), features.grid_lower,
-                                               features.grid_inv_h, features.grid_nx, features.grid_ny,
-                                               features.grid_nz, features.grid_density, features.grid_momentum)
+                    v_grid, grad = grid_sample(positions_in[k], features.grid_lower, features.grid_inv_h,
+                                               features.grid_nx, features.grid_ny, features.grid_nz,
+                                               features.grid_density, features.grid_mass,
+                                           features.grid_momentum)
                     v = v + blend_grid * (ld(v_grid) - v) - (push * dt) * ld(grad)
                 if wp.static(DRAG):
                     v = air + (v - air) * decay
@@ -156,10 +155,10 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
                 if wp.static(DRAG):
                     a = rate * air
                 if wp.static(HAIR_HAIR):
-                    x = positions_in[k]
-                    v_grid, grad = grid_sample(x, grid_own(features.grid_splat_at, k, x), features.grid_lower,
-                                               features.grid_inv_h, features.grid_nx, features.grid_ny,
-                                               features.grid_nz, features.grid_density, features.grid_momentum)
+                    v_grid, grad = grid_sample(positions_in[k], features.grid_lower, features.grid_inv_h,
+                                               features.grid_nx, features.grid_ny, features.grid_nz,
+                                               features.grid_density, features.grid_mass,
+                                           features.grid_momentum)
                     a = a + friction * ld(v_grid) - push * ld(grad)
                     c = c + friction
                 accelerations_out[k] = vec4(a[0], a[1], a[2], c)

@@ -1,7 +1,8 @@
 """Hair-hair interaction on a grid (DFTL paper sec. 5, after Petrovic, Henne and Anderson 2005).
 
 Before the sweep, every ``splat_interval``-th substep of a frame (every substep by default;
-:class:`~dftl_warp.features.hair_hair.Grid`):
+:class:`~dftl_warp.features.hair_hair.Grid`; in the substeps between, the density alone is splatted
+again, into its own array, so the repulsion never lags the particles):
 
 1. the lower corner of the hair's bounding box (atomic min), so the grid follows the hair wherever
    the roots take it: :func:`grid_bounds_kernel` (one thread per particle), or
@@ -113,43 +114,15 @@ def grid_cell_func(scalar):
 
 
 @functools.cache
-def grid_own_func(scalar):
-    """``own(splat_at, k, x) -> x_own``: where particle ``k``, now at ``x``, was splatted:
-    ``splat_at[k]`` when the grid keeps those positions (rebuilt every few substeps), else ``x``."""
-    vec3 = wp.types.vector(3, scalar)
-
-    @wp.func
-    def grid_own(splat_at: wp.array(dtype=vec3), k: int, x: vec3):
-        if splat_at.shape[0] > 0:
-            return splat_at[k]
-        return x
-
-    return grid_own
-
-
-@functools.cache
-def grid_splat_positions_kernel(scalar):
-    """Kernel (one thread per particle): ``splat_at[k]`` <- where the splat put particle ``k``,
-    ``x + lead v`` (m), as :func:`grid_splat_kernel` and the per-strand splat compute it."""
-    vec3 = wp.types.vector(3, scalar)
-
-    @wp.kernel(enable_backward=False, module="unique")
-    def grid_splat_positions(positions: wp.array(dtype=vec3), velocities: wp.array(dtype=vec3), lead: scalar,
-                             splat_at: wp.array(dtype=vec3)):
-        k = wp.tid()
-        splat_at[k] = positions[k] + lead * velocities[k]
-
-    return grid_splat_positions
-
-
-@functools.cache
-def grid_splat_kernel(scalar, ahead: bool = False):
+def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
     """Kernel splatting density (particles per node) and momentum (m/s per node) trilinearly;
-    ``ahead``: each particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused)."""
+    ``ahead``: each particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused);
+    ``density_only``: the density alone (``momentum`` untouched)."""
     vec3 = wp.types.vector(3, scalar)
     cell = grid_cell_func(scalar)
     one = scalar(1.0)
     AHEAD = bool(ahead)
+    MOMENTUM = not density_only
 
     @wp.kernel(enable_backward=False, module="unique")
     def grid_splat(
@@ -184,53 +157,43 @@ def grid_splat_kernel(scalar, ahead: bool = False):
             wz = fz if dk == 1 else one - fz
             w = wx * wy * wz
             wp.atomic_add(density, i + di, j + dj, k + dk, w)
-            wp.atomic_add(momentum, i + di, j + dj, k + dk, w * v)
+            if wp.static(MOMENTUM):
+                wp.atomic_add(momentum, i + di, j + dj, k + dk, w * v)
 
     return grid_splat
 
 
 @functools.cache
 def grid_sample_func(scalar):
-    """``sample(x, x_own, ...) -> (v_grid, grad_rho)``: grid velocity (m/s) and the gradient (1/m)
-    of the density of the other particles at ``x``, the particle's own contribution taken where it
-    was splatted, ``x_own`` (:func:`grid_own_func`; ``x`` itself when the grid was splatted this
-    substep); zeros outside the grid or where the grid is empty."""
+    """``sample(x, ..., density, mass, momentum) -> (v_grid, grad_rho)``: grid velocity (m/s,
+    ``momentum`` over ``mass``, the density splatted with it) and the gradient (1/m) of the
+    ``density`` of the other particles at ``x``; zeros outside the grid or where the grid is empty.
+    ``mass`` empty: the momentum was splatted with ``density`` (every substep a full rebuild)."""
     vec3 = wp.types.vector(3, scalar)
     cell = grid_cell_func(scalar)
     one = scalar(1.0)
     zero = scalar(0.0)
 
     @wp.func
-    def own_weight(node: int, own: int, f: scalar):
-        """The trilinear weight, along one axis, that a particle in cell ``own`` at fraction ``f``
-        gave grid node ``node``."""
-        if node == own:
-            return one - f
-        if node == own + 1:
-            return f
-        return zero
-
-    @wp.func
     def grid_sample(
         x: vec3,
-        x_own: vec3,
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
         nx: int,
         ny: int,
         nz: int,
         density: wp.array3d(dtype=scalar),
+        mass: wp.array3d(dtype=scalar),
         momentum: wp.array3d(dtype=vec3),
     ):
         ok, i, j, k, fx, fy, fz = cell(x, lower, inv_h, nx, ny, nz)
+        separate = mass.shape[0] > 0
         if not ok:
             return vec3(), vec3()
         rho = zero
         mom = vec3()
         grad = vec3()
         self_grad = vec3()
-        # the cell the particle's own contribution was splatted from (this one, when x_own is x)
-        own_ok, oi, oj, ok_, ofx, ofy, ofz = cell(x_own, lower, inv_h, nx, ny, nz)
         for c in range(8):
             di = c & 1
             dj = (c >> 1) & 1
@@ -244,13 +207,13 @@ def grid_sample_func(scalar):
             w = wx * wy * wz
             dw = vec3(sx * wy * wz, wx * sy * wz, wx * wy * sz) * inv_h
             node = density[i + di, j + dj, k + dk]
-            rho += w * node
+            if separate:
+                rho += w * mass[i + di, j + dj, k + dk]
+            else:
+                rho += w * node
             mom += w * momentum[i + di, j + dj, k + dk]
             grad += node * dw
-            if own_ok:
-                w_own = (own_weight(i + di, oi, ofx) * own_weight(j + dj, oj, ofy)
-                         * own_weight(k + dk, ok_, ofz))
-                self_grad += w_own * dw
+            self_grad += w * dw
         v_grid = vec3()
         if rho > scalar(1.0e-6):
             v_grid = mom / rho

@@ -61,6 +61,56 @@ _SNIPPET = """
 """
 
 
+_DENSITY_SNIPPET = """
+#if defined(__CUDA_ARCH__)
+    unsigned int active = __activemask();
+    int key = (i * ny + j) * nz + k;
+    unsigned int peers;
+    asm volatile("match.any.sync.b32 %0, %1, %2;" : "=r"(peers) : "r"(key), "r"(active));
+    unsigned int lane;
+    asm volatile("mov.u32 %0, %%laneid;" : "=r"(lane));
+    float r = rho;
+    if (peers == 0xffffffffu) {
+        for (int d = 16; d > 0; d >>= 1) {
+            r += __shfl_xor_sync(peers, r, d);
+        }
+    } else if (peers != (1u << lane)) {
+        float sr = 0.0f;
+        unsigned int rest = peers;
+        while (rest) {
+            int src = __ffs((int)rest) - 1;
+            rest &= rest - 1u;
+            sr += __shfl_sync(peers, r, src);
+        }
+        r = sr;
+    }
+    if ((int)lane == __ffs((int)peers) - 1) {
+        wp::atomic_add(density, i, j, k, r);
+    }
+#else
+    wp::atomic_add(density, i, j, k, rho);
+#endif
+"""
+
+
+@wp.func_native(_DENSITY_SNIPPET)
+def _density_add_f32(density: wp.array3d(dtype=wp.float32), i: int, j: int, k: int, ny: int, nz: int,
+                     rho: wp.float32): ...
+
+
+@wp.func
+def _density_add_plain(density: wp.array3d(dtype=Any), i: int, j: int, k: int, ny: int, nz: int, rho: Any):
+    """Each thread's own atomic (float32 and float64; ``ny``, ``nz`` unused)."""
+    wp.atomic_add(density, i, j, k, rho)
+
+
+@functools.cache
+def density_add_func(scalar, aggregate: bool = True):
+    """``density_add(density, i, j, k, ny, nz, rho)``: :func:`node_add_func` for the density alone
+    (the grid's every-substep splat between full rebuilds, ``hair_hair.Grid``)."""
+    return _density_add_f32 if scalar == wp.float32 and aggregate else _density_add_plain
+
+
 @wp.func_native(_SNIPPET)
 def _node_add_f32(density: wp.array3d(dtype=wp.float32), momentum: wp.array3d(dtype=wp.vec3f), i: int, j: int,
                   k: int, ny: int, nz: int, rho: wp.float32, momentum_value: wp.vec3f): ...

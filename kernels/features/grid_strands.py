@@ -28,7 +28,7 @@ import warp as wp
 
 from ..core.layout import particle
 from .grid import grid_cell_func
-from .grid_aggregate import node_add_func
+from .grid_aggregate import density_add_func, node_add_func
 
 
 @functools.cache
@@ -70,17 +70,20 @@ CUDA_MAX_REGISTERS = None
 
 
 @functools.cache
-def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = True):
+def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = True, density_only: bool = False):
     """Kernel (one thread per strand) splatting density (particles per node) and momentum (m/s per
     node) trilinearly, a strand's runs through one cell summed in registers first; ``ahead``: each
     particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused); ``aggregate``:
     node writes aggregated over a warp's lanes on CUDA (``grid_aggregate.py``; False: one write per
-    thread, for measurements)."""
+    thread, for measurements); ``density_only``: the density alone (``momentum`` untouched: one
+    atomic per node write instead of four)."""
     AHEAD = bool(ahead)
+    MOMENTUM = not density_only
     vec3 = wp.types.vector(3, scalar)
     vec8 = wp.types.vector(8, scalar)
     cell = grid_cell_func(scalar)
     node_add = node_add_func(scalar, aggregate)
+    density_add = density_add_func(scalar, aggregate)
     one = scalar(1.0)
     zero = scalar(0.0)
 
@@ -167,18 +170,23 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
                             node_i = ci + (c & 1)
                             node_j = cj + ((c >> 1) & 1)
                             node_k = ck + ((c >> 2) & 1)
-                            node_add(density, momentum, node_i, node_j, node_k, ny, nz, rho[c],
-                                     vec3(mx[c], my[c], mz[c]))
+                            if wp.static(MOMENTUM):
+                                node_add(density, momentum, node_i, node_j, node_k, ny, nz, rho[c],
+                                         vec3(mx[c], my[c], mz[c]))
+                            else:
+                                density_add(density, node_i, node_j, node_k, ny, nz, rho[c])
                     if axis >= 0:
                         rho = shifted(rho, axis, up)
-                        mx = shifted(mx, axis, up)
-                        my = shifted(my, axis, up)
-                        mz = shifted(mz, axis, up)
+                        if wp.static(MOMENTUM):
+                            mx = shifted(mx, axis, up)
+                            my = shifted(my, axis, up)
+                            mz = shifted(mz, axis, up)
                     else:
                         rho = vec8(zero)
-                        mx = vec8(zero)
-                        my = vec8(zero)
-                        mz = vec8(zero)
+                        if wp.static(MOMENTUM):
+                            mx = vec8(zero)
+                            my = vec8(zero)
+                            mz = vec8(zero)
                 ci = i0
                 cj = j0
                 ck = k0
@@ -189,14 +197,18 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
                     wz = fz if ((c >> 2) & 1) == 1 else one - fz
                     w = wx * wy * wz
                     rho[c] = rho[c] + w
-                    mx[c] = mx[c] + w * v[0]
-                    my[c] = my[c] + w * v[1]
-                    mz[c] = mz[c] + w * v[2]
+                    if wp.static(MOMENTUM):
+                        mx[c] = mx[c] + w * v[0]
+                        my[c] = my[c] + w * v[1]
+                        mz[c] = mz[c] + w * v[2]
         if held:
             for c in range(8):
                 node_i = ci + (c & 1)
                 node_j = cj + ((c >> 1) & 1)
                 node_k = ck + ((c >> 2) & 1)
-                node_add(density, momentum, node_i, node_j, node_k, ny, nz, rho[c], vec3(mx[c], my[c], mz[c]))
+                if wp.static(MOMENTUM):
+                    node_add(density, momentum, node_i, node_j, node_k, ny, nz, rho[c], vec3(mx[c], my[c], mz[c]))
+                else:
+                    density_add(density, node_i, node_j, node_k, ny, nz, rho[c])
 
     return grid_splat_strands

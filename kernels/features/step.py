@@ -65,8 +65,8 @@ def feature_struct(scalar, flags: frozenset):
             grid_ny=int,
             grid_nz=int,
             grid_density=wp.array3d(dtype=scalar),
+            grid_mass=wp.array3d(dtype=scalar),
             grid_momentum=wp.array3d(dtype=vec3),
-            grid_splat_at=wp.array(dtype=vec3),
             grid_friction=scalar,
             grid_repulsion=scalar,
         )

@@ -51,7 +51,7 @@ import warp as wp
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
-from ..features.grid import grid_own_func, grid_sample_func
+from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct
 
 #: as the DFTL step kernels: no floating-point contraction
@@ -115,7 +115,6 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     WIND_NOISE = "wind_noise" in flags
     HAIR_HAIR = "hair_hair" in flags
     grid_sample = grid_sample_func(scalar) if HAIR_HAIR else None
-    grid_own = grid_own_func(scalar) if HAIR_HAIR else None
     vec3s = wp.types.vector(3, scalar)
     quats = wp.types.quaternion(scalar)
     mat33s = wp.types.matrix((3, 3), scalar)
@@ -476,10 +475,10 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 rv = rv + (h * mk) * vec3(ac[0], ac[1], ac[2])
                 a_drag = ac[3]
             if wp.static(HAIR_HAIR):
-                xg = positions_in[kk]
-                v_grid, grad = grid_sample(xg, grid_own(features.grid_splat_at, kk, xg), features.grid_lower,
-                                           features.grid_inv_h, features.grid_nx, features.grid_ny,
-                                           features.grid_nz, features.grid_density, features.grid_momentum)
+                v_grid, grad = grid_sample(positions_in[kk], features.grid_lower, features.grid_inv_h,
+                                           features.grid_nx, features.grid_ny, features.grid_nz,
+                                           features.grid_density, features.grid_mass,
+                                           features.grid_momentum)
                 rv = rv + (h * mk) * (hh_friction * ld(v_grid) - hh_push * ld(grad))
                 a_drag = a_drag + hh_friction
             rk = vec4(rv[0], rv[1], rv[2], real(0.0))

@@ -35,7 +35,7 @@ from ..core.arith import madd
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
-from ..features.grid import grid_own_func, grid_sample_func
+from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct  # noqa: F401  (re-exported)
 from .ftl import STEP_MODULE_OPTIONS, follow_func
 
@@ -54,7 +54,6 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     Features = feature_struct(scalar, flags)
     follow = follow_func(scalar)
     grid_sample = grid_sample_func(scalar)
-    grid_own = grid_own_func(scalar)
 
     PRIOR = correction == "prior"
     COLLIDE = bool(flags & set(collider_flags()))
@@ -125,9 +124,9 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
             x_old = positions_in[k]
             v = velocities_in[k]
             if wp.static(HAIR_HAIR):
-                v_grid, grad = grid_sample(x_old, grid_own(features.grid_splat_at, k, x_old), features.grid_lower,
-                                           features.grid_inv_h, features.grid_nx, features.grid_ny, features.grid_nz,
-                                           features.grid_density, features.grid_momentum)
+                v_grid, grad = grid_sample(x_old, features.grid_lower, features.grid_inv_h, features.grid_nx,
+                                           features.grid_ny, features.grid_nz, features.grid_density, features.grid_mass,
+                                           features.grid_momentum)
                 v = v + blend_grid * (v_grid - v) - push * grad
             if wp.static(DRAG):
                 w = air
