@@ -18,7 +18,8 @@ from typing import Any
 
 import warp as wp
 
-_SNIPPET = """
+#: the lanes of the warp that write node (i, j, k) (``peers``) and this lane's index (``lane``)
+_PEERS = """
 #if defined(__CUDA_ARCH__)
     unsigned int active = __activemask();
     int key = (i * ny + j) * nz + k;
@@ -26,7 +27,9 @@ _SNIPPET = """
     asm volatile("match.any.sync.b32 %0, %1, %2;" : "=r"(peers) : "r"(key), "r"(active));
     unsigned int lane;
     asm volatile("mov.u32 %0, %%laneid;" : "=r"(lane));
-    float r = rho;
+"""
+
+_SNIPPET = _PEERS + """    float r = rho;
     float x = momentum_value[0];
     float y = momentum_value[1];
     float z = momentum_value[2];
@@ -61,15 +64,7 @@ _SNIPPET = """
 """
 
 
-_DENSITY_SNIPPET = """
-#if defined(__CUDA_ARCH__)
-    unsigned int active = __activemask();
-    int key = (i * ny + j) * nz + k;
-    unsigned int peers;
-    asm volatile("match.any.sync.b32 %0, %1, %2;" : "=r"(peers) : "r"(key), "r"(active));
-    unsigned int lane;
-    asm volatile("mov.u32 %0, %%laneid;" : "=r"(lane));
-    float r = rho;
+_DENSITY_SNIPPET = _PEERS + """    float r = rho;
     if (peers == 0xffffffffu) {
         for (int d = 16; d > 0; d >>= 1) {
             r += __shfl_xor_sync(peers, r, d);
