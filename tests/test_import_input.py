@@ -393,3 +393,30 @@ def test_cli_bad_counts_one_line(tmp_path, capsys):
                            (["--every", "0"], r"--every = 0: expected an integer >= 1")):
         refused(["import", str(src), "-o", str(out), *extra], capsys, str(out), pattern)
 
+
+
+def test_an_output_that_cannot_be_written_is_one_line(tmp_path, capsys):
+    """A folder the process cannot write into (read-only /proc, even for root) and a 'folder' that
+    is a file: one line each, exit 2, no traceback."""
+    src = ascii_ply(tmp_path, "ok.ply")
+    refused(["import", str(src), "-o", "/proc/x.usda"], capsys, "/proc/x.usda", r"/proc/x\.usda: cannot write: ")
+    (tmp_path / "afile").write_text("not a folder")
+    out = tmp_path / "afile" / "x.usda"
+    code, _, err = ti.run_cli(["import", str(src), "-o", str(out)], capsys)
+    assert code == 2 and err.strip().splitlines() == [f"dftl-warp: error: {out}: folder {tmp_path / 'afile'} "
+                                                      "is a file, not a folder"], err
+
+
+def test_ply_strand_ids_that_resume_after_other_strands_are_refused(tmp_path, capsys):
+    """Strands delimited by a vertex strand_id are runs of one id; an id that comes back after
+    another strand's vertices would have been split into two strands without a word."""
+    head = ["ply", "format ascii 1.0", "element vertex 6", "property float x", "property float y",
+            "property float z", "property int strand_id", "end_header"]
+    src = tmp_path / "split.ply"
+    src.write_text("\n".join(head + ["0 0 0 0", "0 -1 0 0", "1 0 0 1", "1 -1 0 1", "0 -2 0 0", "0 -3 0 0"]) + "\n")
+    out = tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out)], capsys, str(out),
+            r"split\.ply: strand_id 0 is not contiguous: its vertices resume at vertex 4")
+    ok = tmp_path / "runs.ply"
+    ok.write_text("\n".join(head + ["0 0 0 0", "0 -1 0 0", "1 0 0 1", "1 -1 0 1", "0 -2 0 2", "0 -3 0 2"]) + "\n")
+    assert list(read_groom(ok).counts) == [2, 2, 2]

@@ -12,7 +12,8 @@ strands, written with hapPLY) hold a ``vertex`` element (``x y z``, optional ``t
 1. an element ``strand`` (or ``curve``) with a ``nsegs`` property (segments per strand) or a
    ``vertex_count`` / ``nverts`` / ``num_vertices`` property (vertices per strand);
 2. a vertex property ``strand_id`` / ``strand_index`` / ``strand`` / ``curve_id``: runs of
-   consecutive vertices with the same value are strands;
+   consecutive vertices with the same value are strands (an id that resumes after another
+   strand's vertices is refused);
 3. an element ``edge`` with ``vertex1 vertex2``: edges (i, i + 1) join consecutive vertices,
    strands break where there is no such edge.
 """
@@ -346,6 +347,14 @@ def read(data: bytes, path: str) -> Groom:
                 else:
                     breaks = np.flatnonzero(col[1:] != col[:-1]) + 1
                     counts = np.diff(np.concatenate([[0], breaks, [n]])).astype(np.int64)
+                    # a strand's vertices are one run: an id seen again after others would split it
+                    starts = np.concatenate([[0], breaks])
+                    ids, first = np.unique(col[starts], return_index=True)
+                    if len(ids) < len(starts):
+                        again = np.setdiff1d(np.arange(len(starts)), first)[0]
+                        raise UserError(f"{path}: {prop} {col[starts[again]]:g} is not contiguous: its "
+                                        f"vertices resume at vertex {int(starts[again])} after other strands' "
+                                        "(a strand's vertices must follow one another)")
                 how = f"vertex property {prop!r}"
                 break
     if counts is None and "edge" in elements:

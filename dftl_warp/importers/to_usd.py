@@ -30,7 +30,8 @@ def check_output(path) -> str:
         raise UserError(f"{path}: output must be a {', '.join(OUTPUT_EXTENSIONS)} file")
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
-        raise UserError(f"{path}: folder {folder} does not exist")
+        what = "is a file, not a folder" if os.path.exists(folder) else "does not exist"
+        raise UserError(f"{path}: folder {folder} {what}")
     if os.path.isdir(path):
         raise UserError(f"{path}: is a directory")
     return path
@@ -85,8 +86,11 @@ def write_stage(stage, path) -> None:
     path = check_output(path)
     folder = os.path.dirname(os.path.abspath(path))
     ext = os.path.splitext(path)[1]
-    fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=ext, dir=folder)
-    os.close(fd)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=ext, dir=folder)
+        os.close(fd)
+    except OSError as exc:
+        raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
     try:
         if ext.lower() == ".usd":
             ok = stage.GetRootLayer().Export(tmp, args={"format": "usdc"})
@@ -98,6 +102,10 @@ def write_stage(stage, path) -> None:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; give the output ordinary permissions
         os.replace(tmp, path)
+    except OSError as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
