@@ -196,3 +196,19 @@ def test_from_strands_refuses_non_integer_counts():
     with pytest.raises(ValueError, match=r"counts\[0\] = 4.5 is not a whole number"):
         dw.Model.from_strands(_chain(5), [4.5, 0.5], device="cpu")
     assert dw.Model.from_strands(_chain(6), [3.0, 3.0], device="cpu").num_strands == 2
+
+
+def test_root_targets_are_one_finite_row_per_strand():
+    pts = np.stack([np.zeros(6), -np.arange(6) * 0.01, np.zeros(6)], 1)
+    model = dw.Model.from_strands(np.concatenate([pts, pts + [0.1, 0, 0]]), [6, 6])
+    control = model.control()
+    roots = model.points[[0, 6]] if hasattr(model, "points") else np.array([[0.0, 0, 0], [0.1, 0, 0]])
+    control.set_root_targets(roots)
+    with pytest.raises(ValueError, match=r"root targets: row 1 is not finite"):
+        control.set_root_targets(np.array([[0.0, 0, 0], [NAN, 0, 0]]))
+    with pytest.raises(ValueError, match=r"must have shape \(2, 3\), one row per strand, got \(3, 3\)"):
+        control.set_root_targets(roots, np.zeros((3, 3)))
+    with pytest.raises(ValueError, match=r"got \(12, 3\)"):
+        control.set_root_targets(np.zeros((12, 3)))          # a row per point, not per strand
+    with pytest.raises(ValueError, match=r"got \(2, 2\)"):
+        control.set_root_targets(np.zeros((2, 2)))

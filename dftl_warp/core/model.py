@@ -194,8 +194,18 @@ class Model:
         return out + self.origin if relative else out
 
     def roots_to_device(self, roots) -> np.ndarray:
-        """(S, 3) world root targets in input strand order -> device strand order, model precision."""
-        roots = np.asarray(roots, dtype=np.float64).reshape(-1, 3)
+        """(S, 3) world root targets in input strand order -> device strand order, model precision.
+        ValueError unless they are S finite rows of 3 (one per strand)."""
+        try:
+            roots = np.asarray(roots, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError("root targets must be numbers: an (S, 3) array, one row per strand") from None
+        if roots.shape != (self.num_strands, 3):
+            raise ValueError(f"root targets must have shape ({self.num_strands}, 3), one row per strand, "
+                             f"got {roots.shape}")
+        bad = ~np.isfinite(roots).all(axis=1)
+        if bad.any():
+            raise ValueError(f"root targets: row {int(np.argmax(bad))} is not finite")
         return (roots[self.layout.strand_order] - self.origin).astype(numpy_type(self.precision))
 
     # -- factories ---------------------------------------------------------------------------------
