@@ -192,3 +192,31 @@ def test_a_job_on_a_device_that_is_not_here_names_the_job_files_key(tmp_path, in
     assert "--device" not in result.stderr and "Traceback" not in result.stderr
     with pytest.raises(UserError, match="^device cuda:7: not available here"):
         dw.simulate_usd(inputs["a"], tmp_path / "api.usdc", end=2, device="cuda:7")
+
+
+def test_a_job_whose_output_is_another_jobs_input_fails_and_the_groom_survives(tmp_path, inputs):
+    """Job 1 writes the file job 2 reads (directly, or a sublayer of it): run in either order it
+    would destroy job 2's groom. Job 1 fails with one line; the groom is untouched; job 2 runs."""
+    import shutil
+
+    victim = tmp_path / "victim.usda"
+    shutil.copy(inputs["a"], victim)
+    before = victim.read_bytes()
+    top = tmp_path / "top.usda"
+    top.write_text('#usda 1.0\n(\n    subLayers = [@./under.usda@]\n)\n')
+    shutil.copy(inputs["b"], tmp_path / "under.usda")
+    under = (tmp_path / "under.usda").read_bytes()
+    jobs = write_jobs(tmp_path / "jobs.toml", [
+        {"input": str(inputs["c"]), "output": "victim.usda", "end": 2},
+        {"input": "victim.usda", "output": "out/v.usdc", "end": 2},
+        {"input": str(inputs["c"]), "output": "under.usda", "end": 2, "name": "sub"},
+        {"input": "top.usda", "output": "out/t.usdc", "start": 1, "end": 2},
+    ])
+    result = run_batch(jobs)
+    assert result.returncode == 1
+    errors = [line for line in result.stderr.splitlines() if line.startswith("dftl-warp: error:")]
+    assert len(errors) == 2, result.stderr
+    assert "job 1 (victim)" in errors[0] and "would overwrite the input of job 2 (v)" in errors[0]
+    assert "job 3 (sub)" in errors[1] and "would overwrite a layer the input of job 4 (t) uses" in errors[1]
+    assert victim.read_bytes() == before and (tmp_path / "under.usda").read_bytes() == under
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["t.usdc", "v.usdc"]

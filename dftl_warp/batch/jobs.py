@@ -146,10 +146,36 @@ def load_jobs(path) -> list[Job]:
                 job.error = f"output {table['output']} is also the output of job {outputs[key]}"
             else:
                 outputs[key] = k
+        jobs.append(job)
+    _check_inputs_survive(jobs, tables)
+    for job in jobs:
         if job.error is not None:
             job.error = f"{path}: {job.error}"
-        jobs.append(job)
     return jobs
+
+
+def _check_inputs_survive(jobs: list, tables: list) -> None:
+    """A job whose output is another job's input, or a layer or asset that input uses, fails: run
+    in either order, it would overwrite the groom the other job reads (simulate checks a job's
+    own input when it runs)."""
+    from ..output.paths import input_files
+
+    valid = [j for j in jobs if j.error is None]
+    if len(valid) < 2:
+        return
+    used = {j.index: input_files(j.input) for j in valid}
+    for job in valid:
+        target = os.path.realpath(job.output)
+        for other in valid:
+            if other is job or target not in used[other.index]:
+                continue
+            what = "the input" if target == os.path.realpath(other.input) else "a layer the input"
+            job.error = (f"output {tables[job.index - 1]['output']} would overwrite {what} of job "
+                         f"{other.index} ({other.name}) uses"
+                         if what != "the input" else
+                         f"output {tables[job.index - 1]['output']} would overwrite the input of job "
+                         f"{other.index} ({other.name})")
+            break
 
 
 def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:

@@ -61,6 +61,25 @@ def check_output(output, input_path) -> Path:
     return output
 
 
+def input_files(input_path) -> set[str]:
+    """Real paths of the stage ``input_path`` and of every layer and asset it uses (as
+    :func:`check_not_a_dependency` finds them, missing ones included); just the stage's own when
+    USD cannot read it."""
+    from pxr import UsdUtils
+
+    found = {os.path.realpath(input_path)}
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()  # USD's warnings stay off the terminal
+    try:
+        layers, assets, unresolved = UsdUtils.ComputeAllDependencies(os.fspath(input_path))
+    except Exception:  # noqa: BLE001 - a broken input: its own job refuses it in its own words
+        return found
+    finally:
+        del delegate
+    found.update(os.path.realpath(layer.realPath) for layer in layers if layer.realPath)
+    found.update(os.path.realpath(str(p)) for p in list(assets) + list(unresolved))
+    return found
+
+
 def check_not_a_dependency(output, input_path) -> None:
     """A UserError when ``output`` is (by real path) a layer or asset the stage ``input_path``
     uses: a sublayer, reference, payload, value clip or other asset, found with
