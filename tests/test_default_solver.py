@@ -46,7 +46,10 @@ def test_widths_mean_elastic_hair_unless_bending_is_off(tmp_path):
     (tmp_path / "c").mkdir()
     assert _solver(_scene(tmp_path / "c", bending=False))[0] == "dftl"
     (tmp_path / "d").mkdir()
-    assert _solver(_scene(tmp_path / "d", widths=0.0))[0] == "dftl"      # zero widths: no hair radius
+    solver, warnings = _solver(_scene(tmp_path / "d", widths=0.0))      # zero widths: no hair radius,
+    assert solver == "dftl"                                                # and a warning that says so
+    assert any("/World/Hair: every width is 0: it runs as a plain DFTL chain" in w for w in warnings), warnings
+    assert not _solver(tmp_path / "b" / "in.usda")[1]                      # no widths: nothing to say
     # the command line and dftl:solver still choose
     assert _solver(tmp_path / "a" / "in.usda", solver="pbd")[0] == "pbd"
 

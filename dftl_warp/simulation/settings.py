@@ -118,7 +118,14 @@ def automatic_solver(scene: Scene, options: SimulationOptions, index: int, toler
     authors ``dftl:bending = false``, else ``dftl``. Where the elastic solver cannot run the scene yet
     (several devices, ``--tolerance``) the prim stays on DFTL and the scene's warnings say so."""
     c = scene.curves[index]
-    if c.settings.bending is False or c.widths is None or not np.any(np.asarray(c.widths) > 0):
+    if c.settings.bending is False or c.widths is None:
+        return DEFAULT_SOLVER
+    if not np.any(np.asarray(c.widths) > 0):
+        # widths authored, every one zero: no thickness to bend with (said, not silently)
+        line = (f"{scene.source}: {c.path}: every width is 0: it runs as a plain DFTL chain, without hair's "
+                f"bending stiffness (author its widths, or dftl:bending = false to say this is meant)")
+        if line not in scene.warnings:
+            scene.warnings.append(line)
         return DEFAULT_SOLVER
     missing = []
     if options.device is not None and "," in str(options.device):
