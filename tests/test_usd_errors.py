@@ -213,3 +213,38 @@ def test_a_cache_whose_input_moved_says_which_layer_did_not_load(tmp_path, capsy
     line = assert_refused(capsys, tmp_path, [f], f"{f}: the stage has no BasisCurves prims (no hair to simulate) "
                                                  "(USD: Could not load sublayer")
     assert "moved_away.usda" in line
+
+
+def _indexed_widths_stage(path, indices):
+    path.write_text(f"""#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 3
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+def BasisCurves "Hair"
+{{
+    uniform token type = "linear"
+    int[] curveVertexCounts = [3, 3]
+    point3f[] points = [(0, 0, 0), (0, -0.1, 0), (0, -0.2, 0), (0.1, 0, 0), (0.1, -0.1, 0), (0.1, -0.2, 0)]
+    float[] primvars:widths = [0.0001, 0.0002] (interpolation = "vertex")
+    int[] primvars:widths:indices = {list(indices)}
+}}
+""")
+    return path
+
+
+def test_indexed_widths_out_of_range_are_one_line_for_simulate_and_render(tmp_path, capsys):
+    """An index past the widths' values was USD's two-line warning on the terminal, and the prim
+    then ran with no widths (the DFTL chain instead of elastic hair) without a word."""
+    bad = _indexed_widths_stage(tmp_path / "bad.usda", [0, 1, 0, 1, 0, 5])
+    assert_refused(capsys, tmp_path, [bad, "--end", 2],
+                   f"{bad}: /Hair", "primvars:widths:indices[5] = 5 is out of range (2 values)")
+    code = cli.main(["render", str(bad), "--resolution", "16x12", "--spp", "1", "-q", "-o", str(tmp_path / "b.png")])
+    err = capsys.readouterr().err
+    assert code == 2 and "primvars:widths:indices[5] = 5 is out of range" in err and len(err.strip().splitlines()) == 1
+    good = _indexed_widths_stage(tmp_path / "good.usda", [0, 1, 0, 1, 0, 1])
+    assert cli.main(["info", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "elastic" in out, out

@@ -227,14 +227,14 @@ def _read_render_scene(stage, time, source) -> RenderScene:
     return scene
 
 
-def _primvar(prim, name, time):
+def _primvar(prim, name, time, where: str = ""):
     """(values, interpolation) of primvar ``name`` (flattened), or (None, None)."""
     from pxr import UsdGeom
 
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
     if not pv or not pv.HasAuthoredValue():
         return None, None
-    v = pv.ComputeFlattened(time)
+    v = curve_checks.flattened(pv, time, where or str(prim.GetPath()))
     if v is None:
         return None, None
     return np.asarray(v, dtype=np.float64), str(pv.GetInterpolation())
@@ -293,7 +293,7 @@ def _read_curves(prim, time, source):
         return values, None
 
     # widths: primvars:widths wins over the widths attribute
-    widths, w_interp = _primvar(prim, "widths", time)
+    widths, w_interp = _primvar(prim, "widths", time, f"{source}: {path}")
     if widths is None:
         w = curves.GetWidthsAttr().Get(time)
         if w is not None and len(w):
@@ -305,7 +305,7 @@ def _read_curves(prim, time, source):
         if (widths < 0).any():
             raise UserError(f"{source}: {path}: widths[{int(np.argmax(widths < 0))}] is negative")
 
-    colors, c_interp = _primvar(prim, "displayColor", time)
+    colors, c_interp = _primvar(prim, "displayColor", time, f"{source}: {path}")
     c_v = c_var = None
     ramp = colors is None or c_interp in ("constant", "uniform")
     if colors is not None:

@@ -90,3 +90,20 @@ def check_primvar(values, interpolation: str, counts, num_points: int, curve_typ
     if nonnegative and (values < 0).any():
         raise UserError(f"{where}: {name}[{int(np.argmax((values < 0).any(axis=1)))}] is negative")
     return values
+
+
+def flattened(primvar, time, where: str):
+    """The values of ``primvar`` at ``time``, expanded through its indices when it has them (USD's
+    ``ComputeFlattened`` without its terminal warning): a UserError naming the first index out of
+    range. None when it has no value."""
+    values = primvar.Get(time)
+    if values is None or not primvar.IsIndexed():
+        return values
+    indices = np.asarray(primvar.GetIndices(time), dtype=np.int64)
+    n = len(values)
+    bad = (indices < 0) | (indices >= n)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise UserError(f"{where}: {primvar.GetAttr().GetName()}:indices[{i}] = {int(indices[i])} is out of range "
+                        f"({n} values)")
+    return [values[int(k)] for k in indices]

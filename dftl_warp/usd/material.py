@@ -133,7 +133,7 @@ def read_bend_scale(prim, code, counts, n_points: int, ctype, basis, wrap, where
     if not pv or not pv.HasAuthoredValue():
         return None
     interp = str(pv.GetInterpolation())
-    raw = pv.ComputeFlattened(code)
+    raw = curve_checks.flattened(pv, code, where)
     if raw is None or isinstance(raw, (str, bool)):
         raise UserError(f"{where}: primvars:{BEND_SCALE_PRIMVAR} = {raw!r}: expected numbers")
     try:

@@ -136,7 +136,7 @@ def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where
 
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("widths")
     if pv and pv.HasAuthoredValue():
-        values, interp, name = pv.ComputeFlattened(code), str(pv.GetInterpolation()), "primvars:widths"
+        values, interp, name = curve_checks.flattened(pv, code, where), str(pv.GetInterpolation()), "primvars:widths"
     else:
         attr = curves.GetWidthsAttr()
         values = attr.Get(code) if attr.HasAuthoredValue() else None
