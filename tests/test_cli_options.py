@@ -102,3 +102,23 @@ def test_study_warns_front_flags_and_reports_elapsed_time(tmp_path, capsys, monk
     assert out.err.count("--strands does nothing without --front") == 1
     line = [x for x in out.out.splitlines() if x.startswith("study: ")][-1]
     assert float(line.split()[1]) >= 1.3, line
+
+
+def test_solver_options_no_prim_uses_are_warned_about(tmp_path, capsys):
+    """--iterations sets the pbd solver's iterations and --arithmetic the elastic solver's: on a
+    scene where no prim runs that solver they did nothing, without a word."""
+    import shutil
+    from pathlib import Path
+
+    from dftl_warp import cli
+
+    src = tmp_path / "chain.usda"
+    shutil.copy(Path(__file__).resolve().parents[1] / "scenes" / "chain.usda", src)
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "a.usdc"), "--end", "2",
+                     "--iterations", "5", "--arithmetic", "float32"]) == 0
+    err = capsys.readouterr().err
+    assert "--iterations 5 does nothing here: no prim runs the pbd solver" in err, err
+    assert "--arithmetic float32 does nothing here: no prim runs the elastic solver" in err, err
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "b.usdc"), "--end", "2",
+                     "--solver", "pbd", "--iterations", "5"]) == 0
+    assert "does nothing" not in capsys.readouterr().err

@@ -499,6 +499,15 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
                      device_option="--device" if command else "device")
     elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
+    # options no prim uses: said, not silently ignored
+    flag = (lambda name: f"--{name}") if command else (lambda name: name)
+    solvers = {g.settings.solver for g in sim.groups}
+    if options.get("iterations") is not None and "pbd" not in solvers:
+        scene.warnings.append(f"{flag('iterations')} {options['iterations']} does nothing here: no prim runs the pbd "
+                              f"solver, whose Gauss-Seidel iterations it sets ({', '.join(sorted(solvers))})")
+    if options.get("arithmetic") is not None and not elastic:
+        scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the elastic "
+                              f"solver, whose arithmetic it sets (the others compute in the precision)")
     if quality is not None and elastic:
         sim.start_notes.append(f"quality {quality}: {elastic} prim(s) with widths keep the elastic solver, with the "
                                f"preset's substeps and precision (its error under a preset is not measured yet: "
