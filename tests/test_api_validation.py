@@ -212,3 +212,8 @@ def test_root_targets_are_one_finite_row_per_strand():
         control.set_root_targets(np.zeros((12, 3)))          # a row per point, not per strand
     with pytest.raises(ValueError, match=r"got \(2, 2\)"):
         control.set_root_targets(np.zeros((2, 2)))
+
+
+def test_make_solver_without_a_model_is_a_type_error():
+    with pytest.raises(TypeError, match="make_solver: model must be a dftl_warp.Model .* got NoneType"):
+        dw.make_solver(None, "elastic")

@@ -253,3 +253,20 @@ def test_a_frame_that_fails_leaves_no_frames_of_the_sequence(groom, tmp_path, ca
     stage.Save()
     assert render(groom, "--start", 1, "--end", 3, "-o", out / "hair.####.png", "--resolution", "32x24") == 0
     assert sorted(p.name for p in out.iterdir()) == ["hair.0001.png", "hair.0002.png", "hair.0003.png"]
+
+
+def test_a_camera_scaled_to_nothing_is_one_line_not_a_blank_image(tmp_path, capsys):
+    """A zero scale leaves the camera no view direction: the image came out blank, exit 0, with
+    numpy's divide warning on the terminal."""
+    from pxr import Gf
+
+    path = tmp_path / "flat_cam.usda"
+    stage = new_stage(path)
+    cam = add_camera(stage, translate=(0, 0.5, 3))
+    cam.AddScaleOp().Set(Gf.Vec3f(0.0, 0.0, 0.0))
+    add_curves(stage, "/hair", [np.array([[0.0, 0, 0], [0.0, 0.5, 0.1], [0.1, 1.0, 0]])], widths=[0.03])
+    stage.Save()
+    out = tmp_path / "c.png"
+    assert render(path, "--resolution", "16x12", "--spp", 1, "-o", out) == 2
+    one_error(capsys, f"{path}: /cam: the camera's transform is degenerate")
+    assert not out.exists()

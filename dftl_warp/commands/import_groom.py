@@ -32,7 +32,7 @@ def add_parser(sub):
     p.add_argument("--segments", type=int, metavar="N", help="resample every strand to N segments by arc length")
     p.add_argument("--drop-nonfinite", action="store_true",
                    help="drop strands with NaN/inf points (with a warning) instead of failing")
-    p.add_argument("--quiet", action="store_true", help="no summary line or warnings")
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary line or warnings")
     p.set_defaults(run=run)
 
 

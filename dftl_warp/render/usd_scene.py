@@ -480,4 +480,9 @@ def _read_camera(stage, path, time, source) -> Camera:
         raise UserError(f"{source}: {path}: focal length and apertures must be positive")
     if not (0 <= near < far) or not np.isfinite(result.world_from_camera).all():
         raise UserError(f"{source}: {path}: clippingRange {clip} or transform is invalid")
+    axes = np.asarray(result.world_from_camera, dtype=np.float64)[:3, :3]
+    if abs(np.linalg.det(axes)) <= 1e-12 * float(np.abs(axes).max()) ** 3:
+        # a zero scale: the camera has no view direction (the image came out blank, with numpy's warning)
+        raise UserError(f"{source}: {path}: the camera's transform is degenerate (a zero scale?): it has no view "
+                        "direction")
     return result

@@ -239,6 +239,11 @@ def make_solver(model, solver: str = "dftl", **options):
     (``gravity`` always); options that do not apply to it (``damping`` and ``correction`` for pbd
     and reference, ``iterations`` for all but pbd) are dropped. A name that no registered solver
     knows (a typo such as ``dampnig``) raises TypeError with the closest known name."""
+    from ..core.model import Model
+
+    if not isinstance(model, Model):
+        raise TypeError(f"make_solver: model must be a dftl_warp.Model (Model.from_strands, simulate's scene), "
+                        f"got {type(model).__name__}")
     cls = solver_class(solver)
     known = {"gravity"}.union(*(c.options for c in SOLVERS.values()))
     for k in options:
