@@ -169,12 +169,10 @@ def _check_inputs_survive(jobs: list, tables: list) -> None:
         for other in valid:
             if other is job or target not in used[other.index]:
                 continue
-            what = "the input" if target == os.path.realpath(other.input) else "a layer the input"
-            job.error = (f"output {tables[job.index - 1]['output']} would overwrite {what} of job "
-                         f"{other.index} ({other.name}) uses"
-                         if what != "the input" else
-                         f"output {tables[job.index - 1]['output']} would overwrite the input of job "
-                         f"{other.index} ({other.name})")
+            whose = f"job {other.index} ({other.name})"
+            what = (f"the input of {whose}" if target == os.path.realpath(other.input)
+                    else f"a layer the input of {whose} uses")
+            job.error = f"output {tables[job.index - 1]['output']} would overwrite {what}"
             break
 
 

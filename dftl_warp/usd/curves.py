@@ -106,4 +106,4 @@ def flattened(primvar, time, where: str):
         i = int(np.flatnonzero(bad)[0])
         raise UserError(f"{where}: {primvar.GetAttr().GetName()}:indices[{i}] = {int(indices[i])} is out of range "
                         f"({n} values)")
-    return [values[int(k)] for k in indices]
+    return np.asarray(values)[indices]

@@ -147,7 +147,9 @@ def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
         ok, i, j, k, fx, fy, fz = cell(x, lower, inv_h, nx, ny, nz)
         if not ok:
             return
-        v = velocities[p]
+        v = vec3()
+        if wp.static(MOMENTUM):
+            v = velocities[p]
         for c in range(8):
             di = c & 1
             dj = (c >> 1) & 1

@@ -139,8 +139,10 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
         held = bool(False)
         for p in range(n):
             k = particle(base, stride, p)
-            v = velocities[k]
             x = positions[k]
+            v = vec3()
+            if wp.static(MOMENTUM or AHEAD):   # the density alone at the positions reads no velocity
+                v = velocities[k]
             if wp.static(AHEAD):
                 x = x + lead * v
             ok, i0, j0, k0, fx, fy, fz = cell(x, lower, inv_h, nx, ny, nz)
