@@ -120,6 +120,15 @@ def groom(num_strands, count=32, seed=0):
     return pts.reshape(-1, 3), np.full(num_strands, count), roots
 
 
+def patch(pts, counts, roots, size: int):
+    """The ``size`` strands of a :func:`groom` rooted nearest one point on the crown's side: a patch
+    as dense as the whole groom, small enough for the CPU. Returns ``(pts, counts, roots)``."""
+    centre = np.array([0.6, 0.6, 0.53]) * np.linalg.norm(roots[0])
+    keep = np.sort(np.argsort(np.linalg.norm(roots - centre, axis=1))[:size])
+    n = int(counts[0])
+    return pts.reshape(len(counts), n, 3)[keep].reshape(-1, 3), counts[keep], roots[keep]
+
+
 def scenarios(pts, counts, roots):
     mesh_pts, mesh_tris = uv_sphere(HEAD)
     n = len(counts)

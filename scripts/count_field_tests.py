@@ -22,11 +22,10 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_features import FPS, SETTLE_FRAMES, SUBSTEPS, build_scene, groom, scenarios  # noqa: E402
+from bench_features import FPS, SETTLE_FRAMES, SUBSTEPS, build_scene, groom, patch, scenarios  # noqa: E402
 
 from dftl_warp.kernels.features import mesh as mesh_kernels  # noqa: E402
 
@@ -64,11 +63,7 @@ def main(argv=None) -> int:
     device = wp.get_device(args.device)
     pts, counts, roots = groom(args.strands)
     if args.patch:
-        centre = np.array([0.6, 0.6, 0.53]) * np.linalg.norm(roots[0])
-        keep = np.sort(np.argsort(np.linalg.norm(roots - centre, axis=1))[:args.patch])
-        n = int(counts[0])
-        pts = pts.reshape(len(counts), n, 3)[keep].reshape(-1, 3)
-        counts, roots = counts[keep], roots[keep]
+        pts, counts, roots = patch(pts, counts, roots, args.patch)
     rows = [r for r in scenarios(pts, counts, roots) if r[0].startswith(tuple(args.only or DEFAULT_ROWS))]
     rows = [r for r in rows if "body_frames" in r[2]]  # the deforming body's rows
     for name, feats, extra in rows:
