@@ -168,19 +168,50 @@ def rest_where_moved(group, frame: int) -> list[str]:
 def note_unstable(scene, group) -> None:
     """A note when strands of the group rest in an unstable equilibrium for their stiffness
     (:func:`~dftl_warp.solvers.elastic_stability.unstable_strands`: standing beyond their buckling
-    length); inverse statics holds them only until round-off tips them over."""
+    length); inverse statics holds them only until round-off tips them over. And one when the
+    authored shape needs a bend where ``primvars:dftl:bendStiffnessScale`` is 0 (:func:`note_unheld`)."""
     if not group.solver.inverse_statics:
         return
+    note_unheld(scene, group)
     flagged, scales, tested, total = group.solver.unstable_strands()
     if flagged.size == 0:
         return
-    owner = np.repeat(np.arange(len(group.curves)), [c.num_strands for c in group.curves])
-    prims = [group.curves[i].path for i in np.unique(owner[flagged])]
-    where = ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
     of = (f"of the {tested} strands" if tested == total else
           f"of a random sample of {tested} of the {total} strands")
     them = "of them" if scales.size == flagged.size else f"of a random sample of {scales.size} of them"
-    _note(scene, f"{where}: {flagged.size} {of} rest in an unstable equilibrium for hair this stiff "
-                 "(standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
-                 f"fall at the first disturbance; primvars:dftl:bendStiffnessScale of {np.median(scales):.3g} "
-                 f"holds half {them}, {scales.max():.3g} all")
+    _note(scene, f"{_prims(group, flagged)}: {flagged.size} {of} rest in an unstable equilibrium for hair this "
+                 "stiff (standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
+                 f"fall at the first disturbance; {_holding(scales, them)}")
+
+
+def _prims(group, strands) -> str:
+    """The prims (up to 3, then a count) of the group's input ``strands``."""
+    owner = np.repeat(np.arange(len(group.curves)), [c.num_strands for c in group.curves])
+    prims = [group.curves[i].path for i in np.unique(owner[strands])]
+    return ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
+
+
+def _holding(scales, them: str) -> str:
+    """What stiffness holds the unstable strands of the sample ``scales`` (inf: a strand standing
+    on a vertex of scale 0, which no factor stiffens)."""
+    hinged = int(np.isinf(scales).sum())
+    if not hinged:
+        return (f"primvars:dftl:bendStiffnessScale of {np.median(scales):.3g} holds half {them}, "
+                f"{scales.max():.3g} all")
+    text = f"no primvars:dftl:bendStiffnessScale holds {hinged} {them}: they stand on a vertex of scale 0"
+    if hinged < scales.size:
+        held = scales[np.isfinite(scales)]
+        text += f"; {np.median(held):.3g} holds half the others, {held.max():.3g} all"
+    return text
+
+
+def note_unheld(scene, group) -> None:
+    """A note when the authored shape needs a bending moment at vertices whose
+    ``primvars:dftl:bendStiffnessScale`` is 0 (no bending stiffness: a hinge), which inverse
+    statics cannot give: the hair bends there under gravity from the first frame."""
+    strands, vertices = group.solver.unheld_vertices()
+    if strands.size == 0:
+        return
+    _note(scene, f"{_prims(group, strands)}: {vertices} vertices of {strands.size} strands have "
+                 "primvars:dftl:bendStiffnessScale 0 (no bending stiffness) where the authored shape is bent "
+                 "under its weight: inverse statics cannot hold it, so the hair bends there from the first frame")

@@ -164,6 +164,9 @@ class ElasticSolver(Solver):
             model's precision); default float64 (see :attr:`compute_precision`'s note in ``__init__``).
         stiffness_scale: a factor on the bending stiffness E*I, one value or one per point (input
             order), >= 0 (a stiffness ramp; ``primvars:dftl:bendStiffnessScale`` in USD); default 1.
+            0 is a hinge: no bending at that vertex (all 0: a chain that only keeps its lengths);
+            inverse statics cannot hold a bend the authored shape needs there
+            (:meth:`unheld_vertices`).
         rest_shape: the rest shape (world positions, (P, 3), input order; ``physics:restShapePoints``
             in USD); default the model's points. Each strand's rest shape is moved so that its root
             sits on the model's root; its segment lengths become the strand's lengths.
@@ -218,8 +221,10 @@ class ElasticSolver(Solver):
             raise ValueError("radius must be finite and > 0")
         self.radius = radius
         scale = np.ones(npts) if stiffness_scale is None else _per_point("stiffness_scale", stiffness_scale, npts)
-        if not np.all(np.isfinite(scale) & (scale >= 0)):
-            raise ValueError("stiffness_scale must be finite and >= 0")
+        bad = ~(np.isfinite(scale) & (scale >= 0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"stiffness_scale[{i}] = {float(scale[i])!r}: must be finite and >= 0 (0: no bending there)")
         self.stiffness_scale = scale
         points = model.rest_positions[lay.slot_of_point].astype(np.float64)   # device coordinates
         if rest_shape is not None:
@@ -310,6 +315,15 @@ class ElasticSolver(Solver):
         elsewhere."""
         m = self.model
         return self._strands_away(state, m.rest_positions[m.layout.slot_of_point])
+
+    def unheld_vertices(self) -> tuple[np.ndarray, int]:
+        """(input indices of the strands, number of vertices) where ``stiffness_scale`` is 0 but
+        the authored shape needs a bending moment to stand still (inverse statics): those hinges
+        bend under gravity from the first step (:meth:`RodGroup.rest_curvature
+        <dftl_warp.solvers.elastic_rest.RodGroup.rest_curvature>`)."""
+        strands = [idx[grp.unheld.any(axis=1)] for _, idx, grp in self._groups]
+        vertices = sum(int(grp.unheld.sum()) for _, _, grp in self._groups)
+        return np.sort(np.concatenate(strands + [np.zeros(0, np.int64)])), vertices
 
     def unstable_strands(self, **options):
         """Strands whose rest shape is an unstable equilibrium

@@ -134,11 +134,7 @@ class RodGroup:
         self.ghost = rest[:, 0] - l[:, 0:1] * e1                 # authored ghost points
         Dx = self.apply_D(rest, self.ghost)
         T, rho_ = self.statics(rest, self.ghost, g)
-        if inverse_statics:
-            self.b = Dx - rho_ / self.W[..., None]
-        else:
-            self.b = Dx.copy()
-            rho_ = np.zeros_like(rho_)
+        self.b, rho_ = self.rest_curvature(Dx, rho_, inverse_statics)
         self.T_rest = T
         #: unit segment directions of the rest shape (S, N+1, 3; index 0 the ghost segment)
         self.rest_directions = self.directions(rest, self.ghost)
@@ -154,6 +150,25 @@ class RodGroup:
         self.Qb = expm_so3(ax * th[..., None])                   # (S, N, 3, 3)
         self.curved = np.any(np.abs(self.b) > 0, axis=(1, 2))     # per strand
         self.k0, self.k1, self.k2 = self.bands()
+
+    def rest_curvature(self, Dx, rho_, inverse_statics: bool):
+        """Rest curvatures ``b`` (S, N, 3) and the bending moments ``W (Dx - b)`` they leave in the
+        rest shape: with ``inverse_statics``, ``b = Dx - rho / W`` and the moments are the statics'
+        ``rho``, which hold the authored shape; without, ``b = Dx`` and no moment.
+
+        A vertex of zero bending stiffness (``bend_scale`` 0) is a hinge: it carries no moment
+        whatever its ``b``, so its ``b`` is the authored curvature and its moment 0. Where the shape
+        needs a moment there (more than 1e-9 of the strand's weight, N), it is not held: the hair
+        bends at that vertex (:attr:`unheld`, (S, N))."""
+        hinge = self.W <= 0.0
+        need = np.linalg.norm(rho_, axis=-1)
+        weight = np.sum(self.m, axis=1, keepdims=True) * np.linalg.norm(self._material["gravity"])
+        #: vertices of zero stiffness whose moment the authored shape needs (inverse statics)
+        self.unheld = hinge & (need > 1e-9 * weight) if inverse_statics else np.zeros_like(hinge)
+        if not inverse_statics:
+            return Dx.copy(), np.zeros_like(rho_)
+        b = Dx - rho_ / np.where(hinge, 1.0, self.W)[..., None]
+        return np.where(hinge[..., None], Dx, b), np.where(hinge[..., None], 0.0, rho_)
 
     def scaled(self, rows, factors) -> "RodGroup":
         """The group of strands ``rows`` with their bending stiffness multiplied by ``factors`` (one

@@ -70,7 +70,15 @@ def _constrained(grp, rows):
         H = basis.transpose(0, 2, 1) @ K.transpose(0, 1, 3, 2, 4).reshape(S, 3 * N, 3 * N) @ basis
         return 0.5 * (H + H.transpose(0, 2, 1))
 
-    return project(Kb), project(Kg), basis, np.abs(k0[:, 1:]).max(axis=1)
+    Hb, Hg = project(Kb), project(Kg)
+    return Hb, Hg, basis, _scale(np.abs(k0[:, 1:]).max(axis=1), Hg)
+
+
+def _scale(bending, Hg):
+    """The margins' unit: the largest diagonal entry of the bending matrix, or of the geometric
+    stiffness on strands with no bending at all (every ``bendStiffnessScale`` 0), or 1 (no load)."""
+    geometric = np.abs(np.diagonal(Hg, axis1=1, axis2=2)).max(axis=1)
+    return np.where(bending > 0, bending, np.where(geometric > 0, geometric, 1.0))
 
 
 def frame_blocks(grp, rows):
@@ -132,7 +140,8 @@ def holding_scales(grp, rows=None, *, tolerance: float = 0.002, smallest: float 
                    largest: float = 1.0e6) -> np.ndarray:
     """Per strand: the smallest factor on its bending stiffness (``bendStiffnessScale``) that makes
     its rest shape a stable equilibrium, within ``tolerance`` (relative); 0 where the strand holds at
-    ``smallest`` (tension holds it); ``largest`` where nothing up to it does. Each trial rebuilds
+    ``smallest`` (tension holds it); ``largest`` where nothing up to it does, ``inf`` if the strand
+    has a vertex of scale 0 (a hinge, which no factor stiffens). Each trial rebuilds
     the strands (:meth:`~dftl_warp.solvers.elastic_rest.RodGroup.scaled`: inverse statics and the
     twist couplings change with the stiffness); the search starts from the bending-only answer, the
     largest ``s`` with ``det(s Hb + Hg) = 0`` on the constrained motions, which is exact on straight
@@ -141,11 +150,14 @@ def holding_scales(grp, rows=None, *, tolerance: float = 0.002, smallest: float 
     if grp.N < 2 or rows.size == 0:
         return np.zeros(rows.size)
     Hb, Hg, _, _ = _constrained(grp, rows)
-    Li = np.linalg.inv(np.linalg.cholesky(Hb))
-    bending = np.maximum(np.linalg.eigvalsh(Li @ (-Hg) @ Li.transpose(0, 2, 1))[:, -1], 0.0)
+    hinged = (grp.W[rows] <= 0.0).any(axis=1)                 # a vertex of scale 0, which no factor stiffens
+    bending = np.zeros(rows.size)                              # for those the search starts from ``smallest``
+    bending[~hinged] = _bending_estimate(Hb[~hinged], Hg[~hinged])
 
     def holds(idx, factors):
-        return stiffness_margins(grp.scaled(rows[idx], factors)) >= -1.0e-12
+        # the margin in units of the unscaled bending (a margin over the scaled one tends to 0 as
+        # the factor grows even where the factor does not help: at a hinge)
+        return stiffness_margins(grp.scaled(rows[idx], factors)) * np.maximum(factors, 1.0) >= -1.0e-12
 
     step = 1.0 + tolerance
     hi = np.maximum(bending * (1.0 + 1e-6), smallest)          # a factor that holds, once found
@@ -171,7 +183,17 @@ def holding_scales(grp, rows=None, *, tolerance: float = 0.002, smallest: float 
         hi[todo[good]] = mid[good]
         lo[todo[~good]] = mid[~good]
         todo = todo[hi[todo] > lo[todo] * step]
-    return np.where(lo > 0.0, hi, 0.0)
+    out = np.where(lo > 0.0, hi, 0.0)
+    return np.where(hinged & (out >= largest), np.inf, out)
+
+
+def _bending_estimate(Hb, Hg) -> np.ndarray:
+    """Per strand, the largest ``s`` >= 0 with ``det(s Hb + Hg) = 0``, ``Hb`` positive definite (no
+    vertex of zero stiffness): the factor from which the bending alone holds it."""
+    if Hb.shape[0] == 0:
+        return np.zeros(0)
+    Li = np.linalg.inv(np.linalg.cholesky(Hb))
+    return np.maximum(np.linalg.eigvalsh(Li @ (-Hg) @ Li.transpose(0, 2, 1))[:, -1], 0.0)
 
 
 def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed: int = 0):
@@ -182,8 +204,10 @@ def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed
     on the 2-core VM), else a random sample within that budget. Returns (unstable input
     strand indices among those tested, the :func:`holding_scales` of up to ``scale_sample`` of them
     drawn at random (each a search over rebuilt strands: about 20 ms a strand), strands tested,
-    strands that could be)."""
-    candidates = [(k, row) for k, (_, _, grp) in enumerate(groups) if grp.N >= 2 for row in range(grp.S)]
+    strands that could be). Strands whose authored shape needs a moment at a vertex of zero
+    stiffness (``RodGroup.unheld``) are no equilibrium at all and are not tested."""
+    candidates = [(k, row) for k, (_, _, grp) in enumerate(groups) if grp.N >= 2 for row in range(grp.S)
+                  if not grp.unheld[row].any()]   # no equilibrium to test: it bends at a hinge
     total = len(candidates)
     rng = np.random.default_rng(seed)
     order = rng.permutation(total) if total else np.zeros(0, np.int64)
