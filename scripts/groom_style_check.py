@@ -167,6 +167,8 @@ def write_wrapper(groom_path, folder, args):
     elif args.head != "none":
         from dftl_warp.importers.meshes import read_mesh
         md = read_mesh(args.head)
+        for note in md.warnings:   # what the OBJ reader skipped, as `dftl-warp import --head` says it
+            print(f"warning: {note}", file=sys.stderr)
         hp = np.asarray(md.points, dtype=np.float64)
         if args.head_x_up:  # as `dftl-warp import --up-axis X`: (x, y, z) -> (-y, x, z)
             hp = np.c_[-hp[:, 1], hp[:, 0], hp[:, 2]]

@@ -420,3 +420,58 @@ def test_ply_strand_ids_that_resume_after_other_strands_are_refused(tmp_path, ca
     ok = tmp_path / "runs.ply"
     ok.write_text("\n".join(head + ["0 0 0 0", "0 -1 0 0", "1 0 0 1", "1 -1 0 1", "0 -2 0 2", "0 -3 0 2"]) + "\n")
     assert list(read_groom(ok).counts) == [2, 2, 2]
+
+
+# -- 6. OBJ head meshes: what is skipped is one warning with counts; anything else names its line --
+
+SQUARE = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+
+
+def test_obj_head_skips_texture_normals_materials_groups_with_one_warning(tmp_path, capsys):
+    src, obj = head_files(tmp_path)
+    obj.write_text("# exported\nmtllib head.mtl\no Head\ng scalp skin\n"
+                   "v 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 1 1 0 1 0 0\nv 0 1 0 0.5 0.5 0.5\n"
+                   "vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\nusemtl skin\ns 1\n"
+                   "f 1/1/1 2/2/1 3/3/1   # v/vt/vn\nf -4//1 -2//-1 \\\n  -1//1\nf 1/1 3/3 2/-1\ns off\nl 1 2\n")
+    out = tmp_path / "o.usda"
+    code, _, err = ti.run_cli(["import", str(src), "-o", str(out), "--head", str(obj)], capsys)
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if str(obj) in ln]
+    assert lines == [f"dftl-warp: warning: {obj}: ignored what a collider does not use: 1 mtllib, 1 o, 1 g, "
+                     "4 v extras (w or r g b), 3 vt, 1 vn, 1 usemtl, 2 s, 1 l"], err
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(out))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Groom/Head"))
+    assert list(mesh.GetFaceVertexCountsAttr().Get()) == [3, 3, 3]
+    assert list(mesh.GetFaceVertexIndicesAttr().Get()) == [0, 1, 2, 0, 2, 3, 0, 2, 1]
+    np.testing.assert_array_equal(np.array(mesh.GetPointsAttr().Get()), [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    # a plain v/f file says nothing
+    obj.write_text(SQUARE + "f 1 2 3 4\n")
+    _, notes = warned(src, tmp_path / "p.usda", head=obj)
+    assert not [n for n in notes if str(obj) in n]
+
+
+@pytest.mark.parametrize("body, line, pattern", [
+    (SQUARE + "f 1 2 3\nhair 1 2 3\n", 6, r"unknown OBJ statement 'hair 1 2 3'"),
+    (SQUARE + "vertex 1 2 3\nf 1 2 3\n", 5, r"unknown OBJ statement 'vertex 1 2 3'"),
+    ("v 0 0\n" + SQUARE + "f 1 2 3\n", 1, r"bad vertex 'v 0 0': expected x y z"),
+    (SQUARE + "v 1 2 z\nf 1 2 3\n", 5, r"bad vertex 'v 1 2 z'"),
+    (SQUARE + "f 1 2 x\n", 5, r"bad face index 'x'"),
+    (SQUARE + "f 1 2\n", 5, r"a face needs at least 3 vertices"),
+    (SQUARE + "f 1 2 5\n", 5, r"face vertex index 5 in '5' is out of range \(1\.\.4 or -4\.\.-1\)"),
+    (SQUARE + "f 0 1 2\n", 5, r"face vertex index 0 in '0' is out of range"),
+    (SQUARE + "f -5 1 2\n", 5, r"face vertex index -5 in '-5' is out of range"),
+    (SQUARE + "vt 0 0\nf 1/2 2/1 3/1\n", 6, r"face vt index 2 in '1/2' is out of range \(1\.\.1 or -1\.\.-1\)"),
+    (SQUARE + "f 1//1 2//1 3//1\n", 5, r"face vn index 1 in '1//1' is out of range \(none defined before this line\)"),
+    (SQUARE + "f 1/ 2 3\n", 5, r"bad face vertex '1/': expected v, v/vt, v//vn or v/vt/vn"),
+    (SQUARE + "f 1/1/1/1 2 3\n", 5, r"bad face vertex '1/1/1/1'"),
+    (SQUARE + "f 1 2 3\ncstype bspline\n", 6, r"free-form geometry \('cstype'\) is not read: export the head as "
+                                              r"polygons \(f\)"),
+])
+def test_obj_head_unknown_or_malformed_line_is_refused_naming_it(tmp_path, capsys, body, line, pattern):
+    src, obj = head_files(tmp_path)
+    obj.write_text(body)
+    out = tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out), "--head", str(obj)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(obj))}: line {line}: {pattern}")

@@ -249,6 +249,7 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
         notes.append(f"{source}: no hair widths in the file; all {groom.num_strands} strands get {w:g} "
                      f"stage units (80 um; --width sets another)")
     mesh = read_mesh(head) if head is not None else None
+    notes.extend(mesh.warnings if mesh is not None else [])
     if axis == "X":
         groom.points = groom.points @ X_UP_TO_Y_UP.T
         if mesh is not None:

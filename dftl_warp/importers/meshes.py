@@ -1,12 +1,14 @@
 """Head meshes for ``dftl-warp import --head``: Wavefront OBJ (``v`` and ``f`` lines; ``v/vt/vn``
-and negative indices; every object and group merged) and PLY (``vertex`` x y z and ``face`` with a
+and negative indices; every object and group merged; texture, normal, material and group
+statements skipped with one warning counting them; unknown statements and free-form geometry are
+errors naming the line) and PLY (``vertex`` x y z and ``face`` with a
 ``vertex_indices`` or ``vertex_index`` list). Returns points (N, 3), faceVertexCounts and
 faceVertexIndices as USD wants them."""
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,38 +21,109 @@ class MeshData:
     points: np.ndarray
     face_counts: np.ndarray
     face_indices: np.ndarray
+    #: one-line notes about what the reader skipped
+    warnings: list[str] = field(default_factory=list)
+
+
+#: OBJ statements a collider does not use, skipped with one warning that counts them: texture,
+#: normal and parameter-space vertices, materials, smoothing, object and group names, display and
+#: render attributes, and the elements that are no surface (points ``p``, polylines ``l``)
+IGNORED = ("vt", "vn", "vp", "mtllib", "usemtl", "s", "o", "g", "mg", "usemap", "maplib", "lod", "bevel",
+           "c_interp", "d_interp", "shadow_obj", "trace_obj", "p", "l")
+#: free-form curves and surfaces (not tessellated here): an error, since the head would lose them
+FREE_FORM = ("cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp",
+             "end", "con", "ctech", "stech")
+
+
+def obj_statements(text: str):
+    """(line number, words) of each statement of an OBJ text: comments (``#`` to the end of the
+    line) and blank lines left out, a line ending in ``\\`` joined to the next (numbered as its first)."""
+    pending, first = [], None
+    for no, line in enumerate(text.splitlines(), start=1):
+        line = line.split("#", 1)[0].rstrip()
+        more = line.endswith("\\")
+        pending.append(line[:-1] if more else line)
+        first = no if first is None else first
+        if more:
+            continue
+        words = " ".join(pending).split()
+        if words:
+            yield first, words
+        pending, first = [], None
+    if pending and " ".join(pending).split():
+        yield first, " ".join(pending).split()
 
 
 def read_obj(data: bytes, path: str) -> MeshData:
+    """An OBJ head mesh: ``v`` (x y z, then a weight or a colour, which are ignored) and ``f`` (``v``,
+    ``v/vt``, ``v//vn`` or ``v/vt/vn``; 1-based, negative from the last vertex so far). What
+    :data:`IGNORED` lists is counted in one warning; anything else is an error naming the line."""
     text = data.decode("utf-8", errors="replace")
     points, counts, indices = [], [], []
-    for no, line in enumerate(text.splitlines(), start=1):
-        words = line.split()
-        if not words:
-            continue
-        if words[0] == "v":
-            try:
-                points.append([float(w) for w in words[1:4]])
-            except ValueError:
-                points = None
-            if points is None or len(points[-1]) != 3:
-                raise UserError(f"{path}: line {no}: bad vertex {line.strip()[:60]!r}")
-        elif words[0] == "f":
-            face = []
-            for w in words[1:]:
-                try:
-                    i = int(w.split("/")[0])
-                except ValueError:
-                    raise UserError(f"{path}: line {no}: bad face index {w!r}") from None
-                i = i - 1 if i > 0 else len(points) + i  # OBJ indices are 1-based; negative ones are relative
-                if i < 0 or i >= len(points) or w.split("/")[0] == "0":
-                    raise UserError(f"{path}: line {no}: face index {w!r} is out of range (1..{len(points)})")
-                face.append(i)
+    seen = {"vt": 0, "vn": 0}
+    skipped: dict[str, int] = {}
+    for no, words in obj_statements(text):
+        key = words[0]
+        where = f"{path}: line {no}"
+        if key == "v":
+            points.append(_obj_vertex(words, where, skipped))
+        elif key == "f":
+            face = [_obj_corner(w, len(points), seen, where) for w in words[1:]]
             if len(face) < 3:
-                raise UserError(f"{path}: line {no}: a face needs at least 3 vertices")
+                raise UserError(f"{where}: a face needs at least 3 vertices")
             counts.append(len(face))
             indices.extend(face)
-    return _mesh(path, np.array(points, dtype=np.float64).reshape(-1, 3), counts, indices)
+        elif key in IGNORED:
+            seen[key] = seen.get(key, 0) + 1       # vt, vn: the range of the faces' texture, normal indices
+            skipped[key] = skipped.get(key, 0) + 1
+        elif key in FREE_FORM:
+            raise UserError(f"{where}: free-form geometry ({key!r}) is not read: export the head as polygons (f)")
+        else:
+            raise UserError(f"{where}: unknown OBJ statement {' '.join(words)[:60]!r}")
+    mesh = _mesh(path, np.array(points, dtype=np.float64).reshape(-1, 3), counts, indices)
+    if skipped:
+        listed = ", ".join(f"{n} {k}" for k, n in skipped.items())
+        mesh.warnings.append(f"{path}: ignored what a collider does not use: {listed}")
+    return mesh
+
+
+def _obj_vertex(words, where: str, skipped: dict) -> list[float]:
+    """x, y, z of a ``v`` statement; a weight or colour after them is counted in ``skipped``."""
+    try:
+        values = [float(w) for w in words[1:]]
+    except ValueError:
+        values = None
+    if values is None or len(values) not in (3, 4, 6, 7):
+        raise UserError(f"{where}: bad vertex {' '.join(words)[:60]!r}: expected x y z (then w, or r g b)")
+    if len(values) > 3:
+        skipped["v extras (w or r g b)"] = skipped.get("v extras (w or r g b)", 0) + 1
+    return values[:3]
+
+
+def _obj_corner(word: str, num_points: int, seen: dict, where: str) -> int:
+    """The 0-based vertex index of a face corner ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``; its
+    texture and normal indices are checked against the ``vt``/``vn`` statements so far."""
+    parts = word.split("/")
+    if len(parts) > 3 or (len(parts) == 2 and not parts[1]):
+        raise UserError(f"{where}: bad face vertex {word!r}: expected v, v/vt, v//vn or v/vt/vn")
+    i = _obj_index(parts[0], num_points, "vertex", word, where)
+    for text, kind in zip(parts[1:], ("vt", "vn")):
+        if text:
+            _obj_index(text, seen[kind], kind, word, where)
+    return i
+
+
+def _obj_index(text: str, count: int, what: str, word: str, where: str) -> int:
+    """A 1-based OBJ index (negative: from the last of ``count`` so far) as a 0-based one."""
+    try:
+        i = int(text)
+    except ValueError:
+        raise UserError(f"{where}: bad face index {word!r}") from None
+    k = i - 1 if i > 0 else count + i
+    if i == 0 or not 0 <= k < count:
+        have = f"1..{count} or -{count}..-1" if count else "none defined before this line"
+        raise UserError(f"{where}: face {what} index {i} in {word!r} is out of range ({have})")
+    return k
 
 
 def read_ply_mesh(data: bytes, path: str) -> MeshData:
