@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import struct
 import warnings
 
 import numpy as np
@@ -475,3 +476,41 @@ def test_obj_head_unknown_or_malformed_line_is_refused_naming_it(tmp_path, capsy
     out = tmp_path / "o.usda"
     refused(["import", str(src), "-o", str(out), "--head", str(obj)], capsys, str(out),
             rf"^dftl-warp: error: {re.escape(str(obj))}: line {line}: {pattern}")
+
+
+# -- 7. TressFX: the header declares the whole file; bytes after its last array are an error -------
+
+
+def tfx_bytes(strands_in_header, strands_written, per_strand=4, tail=b"", strand_uv=False):
+    pts, _ = strands([per_strand] * strands_written)
+    xyzw = np.concatenate([pts, np.ones((len(pts), 1), np.float32)], axis=1).astype("<f4").tobytes()
+    uv_at = 160 + 16 * strands_in_header * per_strand if strand_uv else 0
+    head = struct.pack("<f7I", 4.0, strands_in_header, per_strand, 160, uv_at, 0, 0, 0) + bytes(128)
+    return head + xyzw + (bytes(8 * strands_in_header) if strand_uv else b"") + tail
+
+
+def test_tfx_trailing_bytes_are_refused_naming_the_offset(tmp_path, capsys):
+    # more strands in the file than numHairStrands says: the 3rd would have been dropped silently
+    src = tmp_path / "more.tfx"
+    src.write_bytes(tfx_bytes(2, 3))
+    out = tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(src))}: offset 288: 64 bytes after the last array the header "
+            r"declares \(at offsetVertexPosition, which ends here\): the size of 1 more strand\(s\) of 4 vertices; "
+            r"numHairStrands \(offset 4\) says 2$")
+    # bytes that are no whole strand
+    src.write_bytes(tfx_bytes(2, 2, tail=b"junk!"))
+    with pytest.raises(UserError, match=r"offset 288: 5 bytes after the last array the header declares .*: the "
+                                        r"header's counts and offsets do not add up"):
+        read_groom(src)
+    # declared strand UVs (as AMD's exporters write them, and the Ratboy sample ends) are part of the file
+    src.write_bytes(tfx_bytes(2, 2, strand_uv=True))
+    assert list(read_groom(src).counts) == [4, 4]
+    src.write_bytes(tfx_bytes(2, 2, strand_uv=True, tail=bytes(16)))
+    with pytest.raises(UserError, match=r"offset 304: 16 bytes after .* \(at offsetStrandUV, which ends here\)"):
+        read_groom(src)
+    # a declared array cut short
+    src.write_bytes(tfx_bytes(2, 2, strand_uv=True)[:-4])
+    with pytest.raises(UserError, match=r"offset 288: truncated: offsetStrandUV \(header offset 16\) declares "
+                                        r"float2 strand UVs of 16 bytes, the file has 12 left"):
+        read_groom(src)

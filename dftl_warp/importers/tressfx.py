@@ -17,6 +17,13 @@ thickness is a multiplier of the renderer's fibre radius, not a width, so it is 
 (``--width`` applies). The format has no unit: AMD's own sample (Ratboy) is in metres, Y up,
 which are the defaults; other exports (e.g. the Sintel sample, in Blender units ~ cm) need
 ``--units``. The older ASCII ``.tfx`` of TressFX 1/2 is not supported.
+
+The header describes the whole file: AMD's loader reads each array at its offset, and the exporters
+(AMD's Maya and Blender ones) write the header then exactly the arrays it gives offsets for (the
+Ratboy sample ends where its strand UVs do). Bytes after the last declared array are therefore an
+error naming the offset where they start, as in ``.data``, ``.bin`` and PLY: the header's counts
+are wrong (whole strands more than ``numHairStrands`` says, usually), and importing only the
+declared strands would drop hair without a word. A declared array cut short is an error too.
 """
 
 from __future__ import annotations
@@ -30,6 +37,16 @@ from ._binary import Buffer
 
 HEADER_SIZE = 160
 
+#: the arrays the header may declare: (offset of the field in the header, its name, what the array
+#: holds, bytes per strand, bytes per vertex); the positions are always there, the others when not 0
+ARRAYS = (
+    (12, "offsetVertexPosition", "float4 positions", 0, 16),
+    (16, "offsetStrandUV", "float2 strand UVs", 8, 0),
+    (20, "offsetVertexUV", "float2 vertex UVs", 0, 8),
+    (24, "offsetStrandThickness", "float strand thicknesses", 4, 0),
+    (28, "offsetVertexColor", "float4 vertex colours", 0, 16),
+)
+
 
 def read(data: bytes, path: str) -> Groom:
     buf = Buffer(data, path)
@@ -37,7 +54,8 @@ def read(data: bytes, path: str) -> Groom:
         raise buf.error(0, "an ASCII TressFX 1/2 file; only the binary .tfx of TressFX 3/4 is supported")
     buf.need(0, HEADER_SIZE, "the 160-byte TressFX header")
     version, = buf.unpack("<f", 0, "header")
-    strands, per_strand, off_pos, _suv, _vuv, off_thick, _col = buf.unpack("<7I", 4, "header")
+    strands, per_strand, *offsets = buf.unpack("<7I", 4, "header")
+    off_pos, off_thick = offsets[0], offsets[3]
     if not (math.isfinite(version) and 1.0 <= version < 100.0):
         raise buf.error(0, f"version {version:g} is not a TressFX version number: not a binary .tfx file")
     if per_strand < 2:
@@ -50,6 +68,7 @@ def read(data: bytes, path: str) -> Groom:
         raise buf.error(off_pos, f"truncated: {strands} strands x {per_strand} vertices need {16 * total} bytes "
                                  f"of float4 positions, the file has {max(buf.size - off_pos, 0)} left "
                                  f"(file size {buf.size})")
+    check_extent(buf, offsets, strands, per_strand)
     xyzw = buf.array("<f4", 4 * total, off_pos, "positions").reshape(-1, 4)
     points = xyzw[:, :3].astype(np.float64)
     counts = np.full(strands, per_strand, dtype=np.int64)
@@ -57,6 +76,29 @@ def read(data: bytes, path: str) -> Groom:
     if off_thick:
         warnings.append(f"{path}: per-strand thickness is a renderer scale, not a width; not imported")
     return Groom(points, counts, warnings=warnings)
+
+
+def check_extent(buf, offsets, strands: int, per_strand: int) -> None:
+    """Every array the header declares (``offsets``: the five offset fields) lies in the file, and
+    the file ends where the last of them does; otherwise an error naming the offset."""
+    last, end = None, HEADER_SIZE
+    for (field, name, what, per_s, per_v), offset in zip(ARRAYS, offsets):
+        if offset == 0 and field != 12:
+            continue
+        size = strands * per_s + strands * per_strand * per_v
+        if offset + size > buf.size:
+            raise buf.error(offset, f"truncated: {name} (header offset {field}) declares {what} of {size} bytes, "
+                                    f"the file has {max(buf.size - offset, 0)} left (file size {buf.size})")
+        if offset + size >= end:
+            last, end = name, offset + size
+    if end < buf.size:
+        extra = buf.size - end
+        why = "the header's counts and offsets do not add up"
+        if last == "offsetVertexPosition" and extra % (16 * per_strand) == 0:
+            why = (f"the size of {extra // (16 * per_strand)} more strand(s) of {per_strand} vertices; "
+                   f"numHairStrands (offset 4) says {strands}")
+        raise buf.error(end, f"{extra} bytes after the last array the header declares (at {last}, which ends "
+                             f"here): {why}")
 
 
 READER = Reader("tfx", (".tfx",), read, meters_per_unit=1.0, up_axis="Y",
