@@ -142,6 +142,56 @@ def test_frame_time_and_wind_refuse_non_finite(featured):
         c.features.set_wind((NAN, 0, 0))
 
 
+def _missing_feature_calls(features):
+    """Run the docs' frame loop calls on ``features`` (a Control's) and check each answer."""
+    with pytest.raises(ValueError, match=r"set_collider_poses: the model has no colliders \(no Colliders feature "
+                                         r"with shapes was given to Model.from_strands\), so it takes no poses; "
+                                         r"got \(1, 7\)"):
+        features.set_collider_poses([[0, 0, 0, 0, 0, 0, 1.0]], [[0, 0, 0, 0, 0, 0, 1.0]])
+    features.set_collider_poses(np.zeros((0, 7)))             # no colliders, no poses: nothing to do
+    with pytest.raises(ValueError, match=r"set_mesh_points: collider 0 is not a mesh: the model has no colliders"):
+        features.set_mesh_points(0, _MESH)
+    features.set_frame_time(0.0, 1 / 24)                     # only the wind reads it: nothing to do
+    with pytest.raises(ValueError, match="set_frame_time: end 0.5 s is before start 1.0 s"):
+        features.set_frame_time(1.0, 0.5)                    # but its times are still checked
+    with pytest.raises(ValueError, match=r"set_wind: the model has no Wind feature"):
+        features.set_wind((1.0, 0, 0))
+    with pytest.raises(ValueError, match="the model has no RootBinding feature"):
+        features.bound_roots(_SCALP)
+    assert features.colliders is None and features.wind is None and features.pose is None
+    features.resync()
+
+
+@pytest.mark.parametrize("features", [None, [], [F.Drag(1.0)]], ids=["none", "empty", "drag only"])
+def test_frame_calls_on_a_model_without_that_feature_name_it(features):
+    """A model without features used to have control.features = None: the docs' frame loop
+    (set_collider_poses, set_frame_time, ...) raised AttributeError on NoneType. Every model now
+    answers the same, whatever features it has, and the solver still steps."""
+    model = dw.Model.from_strands(_chain(), [6], device="cpu", features=features)
+    control = model.control()
+    assert control.features is not None
+    _missing_feature_calls(control.features)
+    with pytest.raises(ValueError, match="the model has no RootBinding feature"):
+        control.bind_roots(_SCALP)
+    solver = dw.make_solver(model, "dftl")
+    state = solver.state()
+    solver.advance(state, control, 1 / 24, 4)
+    assert np.isfinite(model.points_from_device(state.positions)).all()
+
+
+@pytest.mark.parametrize("device", ["cpu", "cpu,cpu"])
+def test_frame_calls_on_a_simulation_without_features_name_them(tmp_path, device):
+    from batch_stages import groom_stage
+
+    from dftl_warp.simulation.settings import SimulationOptions
+    from dftl_warp.simulation.simulate import Simulation
+
+    sim = Simulation(dw.read_scene(str(groom_stage(tmp_path / "g.usda", strands=4, vertices=5, end=3))),
+                     SimulationOptions(device=device), 1)
+    _missing_feature_calls(sim.groups[0].control.features)
+    sim.advance()
+
+
 # -- 4. feature arguments ----------------------------------------------------------------------------
 
 

@@ -7,6 +7,8 @@ in place with ``state_in is state_out``.
 from __future__ import annotations
 
 import functools
+import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -207,6 +209,52 @@ def frame_velocity(points_at, frame: int, first: int, last: float, frame_duratio
     return total / float(frame_duration)
 
 
+class AbsentFeatures:
+    """``control.features`` of a model built without features, and the base of the features' own
+    (:class:`~dftl_warp.features.step.FeatureControl`): what a frame loop calls on it, answered for
+    the features the model lacks, so that one loop runs any model.
+
+    Without colliders no collider poses are right (there is nothing to move; any pose is a
+    ValueError naming what is missing, as are mesh points); without wind the frame time is checked
+    and does nothing: it drives only the wind's keyframes and noise, and a model without a Wind
+    feature has no wind data it could leave unused (a loop may set it whatever the model);
+    :meth:`set_wind` and :meth:`bound_roots` are ValueErrors naming the feature they need."""
+
+    colliders = air = wind = binding = None
+    pose_start = pose_end = pose = pose_prev = inv_pose = inv_pose_prev = None
+    wind_velocity = wind_time = None
+
+    def set_collider_poses(self, start, end=None, **rates) -> None:
+        """Poses of the model's colliders: none here (an empty array, or ``[]``)."""
+        given = max(np.size(start), 0 if end is None else np.size(end))
+        if given:
+            raise ValueError(f"set_collider_poses: the model has no colliders (no Colliders feature with shapes "
+                             f"was given to Model.from_strands), so it takes no poses; got {np.shape(start)}")
+
+    def resync(self) -> None:
+        """Nothing to forget without colliders."""
+
+    def set_mesh_points(self, index: int, points) -> None:
+        raise ValueError(f"set_mesh_points: collider {index} is not a mesh: the model has no colliders (no Colliders "
+                         "feature with shapes was given to Model.from_strands)")
+
+    def set_frame_time(self, start: float, end: float) -> None:
+        """The frame spans ``start`` -> ``end`` seconds. ValueError unless both are finite numbers of
+        seconds and ``end`` is not before ``start``."""
+        for name, t in (("start", start), ("end", end)):
+            if isinstance(t, (bool, np.bool_)) or not isinstance(t, numbers.Real) or not math.isfinite(t):
+                raise ValueError(f"set_frame_time: {name} must be a finite number of seconds, got {t!r}")
+        if end < start:
+            raise ValueError(f"set_frame_time: end {end!r} s is before start {start!r} s")
+
+    def set_wind(self, start, end=None) -> None:
+        raise ValueError("set_wind: the model has no Wind feature (give features=[Drag(...), Wind(...)] to "
+                         "Model.from_strands)")
+
+    def bound_roots(self, start, end=None) -> tuple:
+        raise ValueError("the model has no RootBinding feature")
+
+
 @dataclass(eq=False)
 class Control:
     """Kinematic root targets per device strand, relative to ``model.origin`` (m), and the root's
@@ -230,7 +278,8 @@ class Control:
     root_start: wp.array
     root_end: wp.array
     #: per-frame data of the model's features (:class:`~dftl_warp.features.step.FeatureControl`:
-    #: collider poses, mesh points, wind, bound-root mesh points); None without features
+    #: collider poses, mesh points, wind, bound-root mesh points); an :class:`AbsentFeatures` without
+    #: features (whose calls say which feature they need)
     features: object = None
     #: per device strand, ``T v0 - (root_end - root_start)`` (m): the Hermite tangent's deviation
     #: from the chord at the frame's start; zeros (the default) for the linear path
@@ -245,6 +294,8 @@ class Control:
     _bent: bool = field(default=False, init=False, repr=False)
 
     def __post_init__(self):
+        if self.features is None:
+            self.features = AbsentFeatures()
         for name in ("root_deviation_start", "root_deviation_end"):
             if getattr(self, name) is None:
                 setattr(self, name, wp.zeros_like(self.root_start))
@@ -287,8 +338,6 @@ class Control:
         (units/s) at the frame's start and end, with ``frame_duration`` (s), give the roots the C1
         path (the bound roots' velocities are the same barycentric sums); without them the roots
         move linearly."""
-        if self.features is None:
-            raise ValueError("the model has no RootBinding feature")
         root_start, root_end = self.features.bound_roots(start, end)
         wp.copy(self.root_start, root_start)
         wp.copy(self.root_end, root_end)

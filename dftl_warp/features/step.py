@@ -11,13 +11,11 @@ Each feature's own parameters, device data, per-frame control and USD mapping li
 
 from __future__ import annotations
 
-import math
-import numbers
-
 import numpy as np
 import warp as wp
 
 from ..core.precision import numpy_type
+from ..core.state import AbsentFeatures
 from ..kernels.features.air_grid import blocks_per_strand, split_flags, velocity_features_kernel
 from ..kernels.features.collide import collider_flags, collider_pose_kernel
 from ..kernels.features.step import feature_struct
@@ -146,11 +144,13 @@ def build(model_args, features, *, widths=None) -> ModelFeatures:
     return ModelFeatures(features, flags, arrays, collider_data, bound, grid_shape, grid_cell)
 
 
-class FeatureControl:
+class FeatureControl(AbsentFeatures):
     """Per-frame animated data of the features (``control.features``), device coordinates:
     collider poses (``colliders``: :class:`~dftl_warp.features.colliders.ColliderControl`), the
     wind (``air``: :class:`~dftl_warp.features.air.WindControl`), the root-binding mesh
-    (``binding``: :class:`~dftl_warp.features.binding.BindingControl`); each None when absent.
+    (``binding``: :class:`~dftl_warp.features.binding.BindingControl`); each None when absent,
+    and then answered as a model without features answers
+    (:class:`~dftl_warp.core.state.AbsentFeatures`).
 
     Collider poses move from ``start`` to ``end`` across a frame like the roots; the current and
     previous substep's poses (``pose``, ``pose_prev``, and their inverses) are updated by each step.
@@ -186,9 +186,7 @@ class FeatureControl:
         C1 path inside the frame
         (:meth:`ColliderControl.set_poses <dftl_warp.features.colliders.ColliderControl.set_poses>`)."""
         if self.colliders is None:
-            if len(np.asarray(start).reshape(-1, 7)):
-                raise ValueError(f"expected 0 collider poses, got {len(np.asarray(start).reshape(-1, 7))}")
-            return
+            return super().set_collider_poses(start, end, **rates)
         self.colliders.set_poses(start, end, **rates)
 
     def resync(self) -> None:
@@ -200,7 +198,7 @@ class FeatureControl:
     def set_mesh_points(self, index: int, points) -> None:
         """New local points (P, 3), m, of mesh collider ``index`` (Colliders order), from now on."""
         if self.colliders is None:
-            raise ValueError(f"collider {index} is not a mesh")
+            return super().set_mesh_points(index, points)
         self.colliders.set_mesh_points(index, points)
 
     # -- wind ----------------------------------------------------------------------------------
@@ -215,19 +213,16 @@ class FeatureControl:
 
     def set_frame_time(self, start: float, end: float) -> None:
         """The frame spans ``start`` -> ``end`` seconds: wind velocity from its keyframes, noise time.
-        ValueError unless both are finite numbers of seconds and ``end`` is not before ``start``."""
-        for name, t in (("start", start), ("end", end)):
-            if isinstance(t, (bool, np.bool_)) or not isinstance(t, numbers.Real) or not math.isfinite(t):
-                raise ValueError(f"set_frame_time: {name} must be a finite number of seconds, got {t!r}")
-        if end < start:
-            raise ValueError(f"set_frame_time: end {end!r} s is before start {start!r} s")
+        ValueError unless both are finite numbers of seconds and ``end`` is not before ``start``;
+        without a Wind feature nothing else (:class:`~dftl_warp.core.state.AbsentFeatures`)."""
+        super().set_frame_time(start, end)
         if self.air is not None:
             self.air.set_frame_time(start, end)
 
     def set_wind(self, start, end=None) -> None:
         """Wind velocity (3,) m/s at frame start and end (overrides the keyframes for this frame)."""
         if self.air is None:
-            raise ValueError("the model has no Wind feature")
+            return super().set_wind(start, end)
         self.air.set_wind(start, end)
 
     # -- roots on a deforming mesh -------------------------------------------------------------
@@ -237,7 +232,7 @@ class FeatureControl:
         end from the root-binding mesh's world points (P, 3) then; the caller sets them as root
         targets (:meth:`~dftl_warp.core.state.Control.bind_roots` does both)."""
         if self.binding is None:
-            raise ValueError("the model has no RootBinding feature")
+            return super().bound_roots(start, end)
         return self.binding.bound_roots(start, end)
 
 
