@@ -224,7 +224,8 @@ class ElasticSolver(Solver):
         bad = ~(np.isfinite(scale) & (scale >= 0))
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"stiffness_scale[{i}] = {float(scale[i])!r}: must be finite and >= 0 (0: no bending there)")
+            raise ValueError(f"stiffness_scale[{i}] = {float(scale[i])!r}: must be finite and >= 0 "
+                             "(0: no bending there)")
         self.stiffness_scale = scale
         points = model.rest_positions[lay.slot_of_point].astype(np.float64)   # device coordinates
         if rest_shape is not None:
