@@ -122,3 +122,27 @@ def test_solver_options_no_prim_uses_are_warned_about(tmp_path, capsys):
     assert cli.main(["simulate", str(src), "-o", str(tmp_path / "b.usdc"), "--end", "2",
                      "--solver", "pbd", "--iterations", "5"]) == 0
     assert "does nothing" not in capsys.readouterr().err
+
+
+def one_line(capsys, *fragments):
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for f in fragments:
+        assert f in lines[0], err
+    return lines[0]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--substeps", "1000000000"], "argument --substeps: must be at most 16384, got 1000000000"),
+    (["--substeps", "99999999999999999999"], "argument --substeps: must be at most 16384"),
+    (["--preroll", "1e9"], "argument --preroll: must be at most 60, got 1e9"),
+    (["--iterations", "100000"], "argument --iterations: must be at most 1024, got 100000"),
+])
+def test_absurd_substeps_and_preroll_are_refused_with_the_limit(tmp_path, capsys, argv, message):
+    """--substeps 10**9 or --preroll 1e9 ran for days (the big integer was "not an integer")."""
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usdc"
+    with pytest.raises(SystemExit) as e:
+        simulate(capsys, src, "-o", out, *argv)
+    assert e.value.code == 2 and not out.exists()
+    one_line(capsys, message)
