@@ -134,6 +134,50 @@ def one_line(capsys, *fragments):
 
 
 @pytest.mark.parametrize("argv, message", [
+    (["-o", ""], "argument -o/--output: empty path: give the layer to write, such as out/groom.usdc"),
+    (["-o", " "], "argument -o/--output: empty path"),
+    (["-o", "o.usdc", "--check", ""], "--check '': no gates: give METRIC<LIMIT gates such as "
+                                      "'stretch<1e-3,penetration<0.05' (metrics: stretch, penetration"),
+    (["-o", "o.usdc", "--check", "  "], "--check '  ': no gates"),
+])
+def test_empty_output_and_empty_gates_are_one_clear_line(tmp_path, capsys, argv, message):
+    """-o '' said ".: output must end in .usdc"; --check '' said "check must be a string"."""
+    src = hair(tmp_path / "h.usda")
+    with pytest.raises(SystemExit) as e:
+        cli.main(["simulate", str(src), *argv])
+    assert e.value.code == 2
+    one_line(capsys, message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["h.usda"]
+    with pytest.raises(SystemExit):
+        cli.main(["simulate", "", "-o", str(tmp_path / "o.usdc")])
+    one_line(capsys, "argument INPUT: empty path: give the USD stage to simulate")
+    with pytest.raises(SystemExit):
+        cli.main(["import", str(tmp_path / "h.hair"), "-o", ""])
+    one_line(capsys, "argument -o/--output: empty path: give the stage to write, such as groom.usda")
+
+
+def test_empty_output_and_empty_gates_through_the_api(tmp_path):
+    from dftl_warp.errors import UserError
+    from dftl_warp.importers.convert import import_groom
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    src = hair(tmp_path / "h.usda")
+    with pytest.raises(UserError, match=r"^output '': empty path: give the file to write \(\.usdc"):
+        simulate_usd(src, "")
+    with pytest.raises(UserError, match=r"^check '': no gates: give METRIC<LIMIT gates"):
+        simulate_usd(src, tmp_path / "o.usdc", check="")
+    with pytest.raises(UserError, match=r"^check 3: expected a string of METRIC<LIMIT gates"):
+        simulate_usd(src, tmp_path / "o.usdc", check=3)
+    with pytest.raises(UserError, match=r"^output '': empty path: give the stage to write"):
+        import_groom(tmp_path / "h.hair", "")
+    from dftl_warp.batch.jobs import _simulate_options
+
+    with pytest.raises(ValueError, match=r"check '': no gates"):
+        _simulate_options()["check"]("", "check")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["h.usda"]
+
+
+@pytest.mark.parametrize("argv, message", [
     (["--substeps", "1000000000"], "argument --substeps: must be at most 16384, got 1000000000"),
     (["--substeps", "99999999999999999999"], "argument --substeps: must be at most 16384"),
     (["--preroll", "1e9"], "argument --preroll: must be at most 60, got 1e9"),
