@@ -1,7 +1,8 @@
 """Command-line options that were ignored or misreported: --guides in the guides' own words, flags
 that do nothing here warn once, --quality with --tolerance says what the tolerance overrode (and the
 provenance does not claim the preset), the preroll line with --guides and --tolerance, a bad
-$DFTL_WARP_DEVICE named as the variable, and study's elapsed time."""
+$DFTL_WARP_DEVICE named as the variable, study's elapsed time, empty paths and gates, --guides-output
+with no guides, and --substeps / --preroll past their limits."""
 
 import json
 
@@ -175,6 +176,29 @@ def test_empty_output_and_empty_gates_through_the_api(tmp_path):
     with pytest.raises(ValueError, match=r"check '': no gates"):
         _simulate_options()["check"]("", "check")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["h.usda"]
+
+
+def test_guides_output_without_guides_is_refused_or_warned(tmp_path, capsys):
+    """--guides-output was dropped without a word where no prim is guide-driven: binding (an output
+    without the binding asked for) is refused before anything runs, curves (what is written anyway)
+    says it does nothing. A stage with rel dftl:guides takes it (tests/test_guides_cli.py)."""
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usdc"
+    code, err = simulate(capsys, src, "-o", out, "--guides-output", "binding")
+    assert code == 2 and not out.exists()
+    assert err.strip().splitlines() == [
+        f"dftl-warp: error: {src}: --guides-output binding: no prim here is driven by guides (give --guides "
+        "N|FRACTION to pick them from each prim, or author rel dftl:guides on the render prims)"]
+    code, err = simulate(capsys, src, "-o", out, "--guides-output", "curves", quiet=False)
+    assert code == 0 and out.exists()
+    assert err.count("dftl-warp: warning: --guides-output curves does nothing: no prim here is driven by guides") == 1
+    code, err = simulate(capsys, src, "-o", tmp_path / "g.usdc", "--guides", "3", "--guides-output", "binding",
+                         quiet=False)
+    assert code == 0 and "does nothing" not in err
+    from dftl_warp.errors import UserError
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    with pytest.raises(UserError, match="guides_output binding: no prim here is driven by guides \\(give guides N"):
+        simulate_usd(src, tmp_path / "api.usdc", end=2, guides_output="binding")
 
 
 @pytest.mark.parametrize("argv, message", [
