@@ -270,3 +270,61 @@ def test_a_camera_scaled_to_nothing_is_one_line_not_a_blank_image(tmp_path, caps
     assert render(path, "--resolution", "16x12", "--spp", 1, "-o", out) == 2
     one_error(capsys, f"{path}: /cam: the camera's transform is degenerate")
     assert not out.exists()
+
+
+# -- what the command and the Renderer refuse or warn about -----------------------------------------
+
+
+def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_path, capsys):
+    """The camera turns away from the hair at frame 3: the images are written, and one line names the
+    camera and the frame (a blank image came out without a word)."""
+    from pxr import Gf, UsdGeom
+
+    path = tmp_path / "away.usda"
+    stage = new_stage(path)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(3)
+    cam = UsdGeom.Camera.Define(stage, "/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0.5, 3))
+    turn = cam.AddRotateYOp()   # about the camera's own position
+    for t, angle in ((1, 0.0), (2, 0.0), (3, 180.0)):
+        turn.Set(angle, t)
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.01, 100))
+    add_curves(stage, "/hair", [np.array([[x, 0, 0], [x, 0.5, 0.1], [x, 1.0, 0]]) for x in (-0.2, 0.0, 0.2)],
+               widths=[0.05])
+    stage.Save()
+    sheet = tmp_path / "sheet.png"
+    assert render(path, "--start", 1, "--end", 3, "--contact-sheet", "--resolution", "24x16", "--spp", 2, "-o", sheet) == 0
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "dftl-warp: warning: camera /cam sees no strand at frame 3 (1 of 3 images): no strand sample lands in the "
+        "image (it looks away from the hair, or the hair is outside its clipping range, hidden behind geometry or "
+        "too thin for --spp 2)"]
+    alpha = image.read_png(sheet)[..., 3]   # 3 frames on a 2 x 2 grid of 24 x 16 tiles, 4 pixels apart
+    assert alpha[:16, :24].sum() > 0 and alpha[:16, 28:].sum() > 0 and alpha[20:, :24].sum() == 0
+    out = tmp_path / "one.png"
+    assert render(path, "--frame", 3, "--resolution", "24x16", "--spp", 2, "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "camera /cam sees no strand at frame 3: no strand sample" in err, err
+    assert image.read_png(out)[..., 3].sum() == 0
+    assert render(path, "--frame", 1, "--resolution", "24x16", "--spp", 2, "-o", out) == 0
+    assert capsys.readouterr().err == ""   # the camera sees the hair: nothing to say
+
+
+def test_renderer_says_whether_the_image_shows_a_strand():
+    from dftl_warp.render.camera import look_at
+
+    scene = RenderScene.from_strands(PTS, [3], 0.1)
+    r = Renderer(16, 12, spp=1)
+    assert r.hair_visible is None
+    r.render(scene)
+    assert r.hair_visible is True
+    away = Camera(world_from_camera=look_at([0, -1, 5], [0, -1, 10], [0, 1, 0]))
+    assert r.render(scene, away)[..., 3].sum() == 0 and r.hair_visible is False
+    # hidden behind a sphere: the image is not blank, but no strand is seen
+    from dftl_warp.render.scene import Shape
+
+    hidden = RenderScene.from_strands(PTS, [3], 0.1)
+    hidden.shapes.append(Shape(kind=0, world_from_local=np.diag([5.0, 5.0, 5.0, 1.0]), params=(1.0, 0.0, 0.0)))
+    front = Camera(world_from_camera=look_at([0, -1, 20], [0, -1, 0], [0, 1, 0]))
+    assert r.render(hidden, front)[..., 3].sum() > 0 and r.hair_visible is False
+

@@ -127,6 +127,26 @@ def _check_fps(args) -> float:
     return args.fps
 
 
+def _blind_warning(cam_path: str, labels: list, n_images: int, args) -> str:
+    """The line for a camera that saw no strand in the images ``labels`` (time codes, None for the
+    default time, or turntable indices)."""
+    who = "the automatic camera (--camera auto)" if cam_path == "auto" else f"camera {cam_path}"
+    if args.turntable:
+        shown = ", ".join(str(k + 1) for k in labels[:5])
+        where = f"in turntable image{'s' if len(labels) > 1 else ''} {shown}"
+    elif labels == [None]:
+        where = "at the stage's default time"
+    else:
+        shown = ", ".join(f"{t:g}" for t in labels[:5])
+        where = f"at frame{'s' if len(labels) > 1 else ''} {shown}"
+    if len(labels) > 5:
+        where += ", ..."
+    if n_images > 1:
+        where += f" ({len(labels)} of {n_images} images)"
+    return (f"{who} sees no strand {where}: no strand sample lands in the image (it looks away from the hair, or the "
+            f"hair is outside its clipping range, hidden behind geometry or too thin for --spp {args.spp})")
+
+
 def run(args) -> int:
     from ..core.devices import device_line, resolve_device
     from ..output.paths import check_writable
@@ -199,6 +219,7 @@ def run(args) -> int:
     # a sequence's frames wait in a hidden folder beside it and move into place once every frame
     # has rendered: a frame that fails leaves no part of the sequence behind
     staged = []  # (temporary path, final path)
+    blind = []  # the labels of images in which the camera saw no strand
     pending = None
     if kind == "pattern":
         first = Path(image.frame_path(args.output, jobs[0][0] if jobs[0][0] is not None else 0)).resolve().parent
@@ -215,6 +236,8 @@ def run(args) -> int:
             t0 = _time.perf_counter()
             rgba = to_rgba8(renderer.render(scene, cam))
             dt = _time.perf_counter() - t0
+            if not renderer.hair_visible and scene.segment_count:
+                blind.append(label)
             number = label if label is not None else 0
             if kind == "pattern":
                 path = image.frame_path(args.output, number)
@@ -243,6 +266,8 @@ def run(args) -> int:
     elif frames:
         image.write_png(args.output, image.contact_sheet(frames))
         say(f"{args.output}  contact sheet of {len(frames)} frames")
+    if blind:   # once every image is written: a render that fails later says only why
+        warn(_blind_warning(cam_path, blind, n_images, args))
     if n_images > 1:
         say(f"{n_images} frames in {_time.perf_counter() - t_all:.1f} s")
     return 0

@@ -2,7 +2,8 @@
 
 The strand BVH (``wp.Bvh`` over segment boxes) is kept between frames: when a new frame has
 the same strand topology, the segment boxes are rewritten on the device and the tree is refit
-(``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both.
+(``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both;
+``Renderer.hair_visible`` says whether the last image shows any strand.
 """
 
 from __future__ import annotations
@@ -71,9 +72,13 @@ class Renderer:
         self.threads = 1 if wp.get_device(self.device).is_cuda else int(threads or os.cpu_count() or 1)
         self.bvh_builds = 0
         self.bvh_refits = 0
+        #: whether a sample of the last :meth:`render` saw a strand first (None before any);
+        #: False: the camera sees no strand (it looks away, or they are clipped, hidden or too thin)
+        self.hair_visible = None
         self._hair_counts = None
         self._hair = None
         self._image = wp.zeros((self.height, self.width), dtype=wp.vec4, device=self.device)
+        self._hair_seen = wp.zeros(1, dtype=wp.int32, device=self.device)
 
     # -- scene upload --------------------------------------------------------------------
     def _upload_hair(self, scene: RenderScene, origin: np.ndarray):
@@ -197,9 +202,11 @@ class Renderer:
         self._upload_hair(scene, origin)
         self._upload_shapes(scene, origin)
         inputs = [self._camera(camera, origin), self._hair, self._shapes, self._lights(camera), self.spp, int(self.seed)]
+        outputs = [self._image, self._hair_seen]
+        self._hair_seen.zero_()
         if self.threads <= 1 or self.height < 2:
             wp.launch(rk.render_kernel, dim=(self.height, self.width), inputs=[*inputs, 0],
-                      outputs=[self._image], device=self.device)
+                      outputs=outputs, device=self.device)
         else:
             # Warp runs a CPU launch on one thread (and lets go of the GIL): render bands of
             # rows concurrently, small bands handed out in turn to even out the work
@@ -208,10 +215,11 @@ class Renderer:
             def launch(row):
                 rows = min(band, self.height - row)
                 wp.launch(rk.render_kernel, dim=(rows, self.width), inputs=[*inputs, row],
-                          outputs=[self._image], device=self.device)
+                          outputs=outputs, device=self.device)
 
             with ThreadPoolExecutor(self.threads) as pool:
                 list(pool.map(launch, range(0, self.height, band)))
+        self.hair_visible = bool(self._hair_seen.numpy()[0])
         return self._image.numpy().copy()
 
 
