@@ -328,3 +328,81 @@ def test_renderer_says_whether_the_image_shows_a_strand():
     front = Camera(world_from_camera=look_at([0, -1, 20], [0, -1, 0], [0, 1, 0]))
     assert r.render(hidden, front)[..., 3].sum() > 0 and r.hair_visible is False
 
+
+@pytest.mark.parametrize("args, kwargs, error, message", [
+    ((8.5,), {}, ValueError, "width 8.5: expected a whole number"),
+    ((8, 6.7), {}, ValueError, "height 6.7: expected a whole number"),
+    (("8",), {}, ValueError, "width '8': expected a whole number"),
+    ((True, 8), {}, ValueError, "width True: expected a whole number"),
+    ((0, 8), {}, ValueError, "width 0: must be at least 1"),
+    ((20000, 8), {}, ValueError, "width 20000: must be at most 16384"),
+    ((8, 8), {"spp": 2.5}, ValueError, "spp 2.5: expected a whole number"),
+    ((8, 8), {"spp": float("nan")}, ValueError, "spp nan: expected a whole number"),
+    ((8, 8), {"spp": 5000}, ValueError, "spp 5000: must be at most 4096"),
+    ((8, 8), {"seed": 1.5}, ValueError, "seed 1.5: expected a whole number"),
+    ((8, 8), {"threads": 0}, ValueError, "threads 0: must be at least 1"),
+    ((8, 8), {"threads": 2.5}, ValueError, "threads 2.5: expected a whole number"),
+    ((8, 8), {"shading": "phong"}, ValueError, "shading 'phong': choose one of marschner, kajiya-kay"),
+    ((8, 8), {"conform": "stretch"}, ValueError, "conform 'stretch': choose one of expandAperture"),
+    ((8, 8), {"device": "cuda:99"}, ValueError, "device 'cuda:99' is not available here"),
+    ((8, 8), {"lighting": 3}, TypeError, "lighting must be a Lighting or None, got int"),
+])
+def test_renderer_refuses_bad_arguments_instead_of_truncating_them(args, kwargs, error, message):
+    with pytest.raises(error) as e:
+        Renderer(*args, **kwargs)
+    assert message in str(e.value)
+
+
+def test_renderer_takes_whole_numbers_of_any_type_and_refuses_a_wrong_scene_or_camera():
+    r = Renderer(np.int64(8), 6.0, spp=np.int32(2), threads=1)
+    assert (r.width, r.height, r.spp, r.threads) == (8, 6, 2, 1) and type(r.height) is int
+    with pytest.raises(TypeError, match="scene must be a RenderScene, got ndarray"):
+        r.render(PTS)
+    with pytest.raises(TypeError, match="camera must be a Camera or None, got str"):
+        r.render(RenderScene.from_strands(PTS, [3], 0.1), "/cam")
+
+
+@pytest.fixture
+def static_groom(tmp_path):
+    """A stage without a time range or time samples."""
+    path = tmp_path / "static.usda"
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0.5, 3))
+    add_curves(stage, "/hair", [np.array([[0.0, 0, 0], [0.0, 0.5, 0.1], [0.1, 1.0, 0]])], widths=[0.03])
+    stage.Save()
+    return path
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--frame", "nan"], "--frame nan: expected a finite time code"),
+    (["--frame", "inf"], "--frame inf: expected a finite time code"),
+    (["--frame=-inf"], "--frame -inf: expected a finite time code"),
+    (["--start", "nan", "--end", "3"], "--start nan: expected a finite time code"),
+    (["--start", "1", "--end", "inf"], "--end inf: expected a finite time code"),
+    (["--start", "1", "--end", "3", "--step", "nan"], "--step nan: expected a finite time code"),
+    (["--start", "1", "--end", "3", "--step", "inf"], "--step inf: expected a finite time code"),
+    (["--start", "1", "--end", "1e12"], "--start 1 --end 1e+12 --step 1: 1e+12 frames; one render makes at most 100000"),
+    (["--start", "1", "--end", "2", "--step", "1e-320"], ": inf frames; one render makes at most 100000"),
+    (["--turntable", "1000000"], "--turntable 1000000: must be at most 100000"),
+    (["--spp", "5000"], "--spp 5000: must be at most 4096"),
+    (["--resolution", "20000x10"], "--resolution '20000x10': width and height must be between 1 and 16384"),
+])
+def test_non_finite_frames_and_absurd_counts_are_one_line(static_groom, tmp_path, capsys, args, message):
+    """``--frame nan`` on a static stage rendered the default time, exit 0; ``--start nan`` was a
+    traceback; ``--end 1e12`` or ``--turntable 1000000`` made a list of a trillion cameras."""
+    out = tmp_path / "out.png"
+    assert render(static_groom, *args, "-o", out) == 2
+    one_error(capsys, message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["static.usda"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-o", ""], "argument -o/--output: empty path: give the image to write, such as out/hair.png"),
+    (["-o", "  "], "argument -o/--output: empty path"),
+])
+def test_an_empty_output_is_one_line(static_groom, capsys, args, message):
+    with pytest.raises(SystemExit) as e:
+        render(static_groom, *args)
+    assert e.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines

@@ -19,14 +19,21 @@ from pathlib import Path
 
 from ..errors import UserError
 
+#: the most images one render makes (a --start/--end/--step range, or --turntable N)
+MAX_IMAGES = 100_000
+
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+    from ..render.renderer import MAX_SIDE, MAX_SPP
+
     p = sub.add_parser(
         "render", help="render hair previews of a USD stage (PNG, image sequence, contact sheet, video)",
         description="Ray-trace the BasisCurves of a USD stage as tubes (with Sphere/Capsule/Cube/Mesh "
                     "gprims in a neutral material) through a UsdGeom.Camera or an automatic framing. "
                     "Writes RGBA PNGs with straight colour and alpha = coverage.")
-    p.add_argument("input", metavar="INPUT", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    p.add_argument("input", metavar="INPUT", type=path_argument("the USD stage to render"),
+                   help="USD stage (.usd, .usda, .usdc, .usdz)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--frame", type=float, help="time code to render (default: the stage's start time, or its default time)")
     g.add_argument("--start", type=float, help="first time code of a range (with --end)")
@@ -34,31 +41,52 @@ def add_parser(sub):
     p.add_argument("--step", type=float, default=1.0, help="time-code step of a range (default 1)")
     p.add_argument("--camera", metavar="PRIM", help="UsdGeom.Camera prim path, or 'auto' to frame the hair "
                    "(default: the stage's first camera, else auto)")
-    p.add_argument("--resolution", default="960x540", metavar="WxH", help="image size in pixels (default 960x540)")
-    p.add_argument("--spp", type=int, default=8, help="samples per pixel (default 8)")
+    p.add_argument("--resolution", default="960x540", metavar="WxH",
+                   help=f"image size in pixels, each side 1 to {MAX_SIDE} (default 960x540)")
+    p.add_argument("--spp", type=int, default=8, help=f"samples per pixel, 1 to {MAX_SPP} (default 8)")
     p.add_argument("--device", default=None,
                    help="Warp device: cpu or cuda:N (default cuda:0 when there is a CUDA device, else cpu)")
     p.add_argument("--shading", default="marschner", choices=("marschner", "kajiya-kay"), help="hair shading model")
     p.add_argument("--conform", default="expandAperture",
                    choices=("expandAperture", "cropAperture", "adjustApertureWidth", "adjustApertureHeight"),
                    help="how the camera aperture meets a different image aspect (UsdRender policy; default expandAperture)")
-    p.add_argument("--turntable", type=int, metavar="N", help="N frames orbiting the hair once around the up axis")
+    p.add_argument("--turntable", type=int, metavar="N",
+                   help=f"N frames orbiting the hair once around the up axis (at most {MAX_IMAGES})")
     p.add_argument("--contact-sheet", action="store_true", help="write all frames as one grid image to OUT")
     p.add_argument("--fps", type=float, default=None,
                    help="frames per second of a video OUT (.mp4, .gif, ...; default 24)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", type=path_argument("the image to write, such as out/hair.png"),
+                   help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run)
 
 
 def parse_resolution(text: str):
+    from ..render.renderer import MAX_SIDE
+
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"--resolution {text!r}: expected WIDTHxHEIGHT, e.g. 1920x1080") from None
-    if w < 1 or h < 1 or w * h > 16384 * 16384:
-        raise UserError(f"--resolution {text!r}: width and height must be between 1 and 16384")
+    if not (1 <= w <= MAX_SIDE and 1 <= h <= MAX_SIDE):
+        raise UserError(f"--resolution {text!r}: width and height must be between 1 and {MAX_SIDE}")
     return w, h
+
+
+def _check_numbers(args) -> None:
+    """Time codes finite (``--frame nan`` rendered the default time without a word), and --spp
+    and --turntable within the renderer's limits, before the stage is read."""
+    import math
+
+    from ..render.renderer import MAX_SPP, whole_number
+
+    for flag in ("frame", "start", "end", "step"):
+        value = getattr(args, flag)
+        if value is not None and not math.isfinite(value):
+            raise UserError(f"--{flag} {value:g}: expected a finite time code")
+    whole_number("--spp", args.spp, 1, MAX_SPP)
+    if args.turntable is not None:
+        whole_number("--turntable", args.turntable, 1, MAX_IMAGES)
 
 
 def _frames(args, stage):
@@ -74,7 +102,11 @@ def _frames(args, stage):
             raise UserError(f"--end {args.end:g} is before --start {args.start:g}")
         if args.step <= 0:
             raise UserError(f"--step {args.step:g}: must be positive")
-        n = int((args.end - args.start) / args.step + 1e-9) + 1
+        span = (args.end - args.start) / args.step   # frames after the first (inf for a tiny --step)
+        if span + 1 > MAX_IMAGES:
+            raise UserError(f"--start {args.start:g} --end {args.end:g} --step {args.step:g}: {span + 1:.6g} frames; "
+                            f"one render makes at most {MAX_IMAGES}")
+        n = int(span + 1e-9) + 1
         return [args.start + k * args.step for k in range(n)]
     if args.frame is not None:
         return [args.frame]
@@ -155,8 +187,7 @@ def run(args) -> int:
 
     width, height = parse_resolution(args.resolution)
     fps = _check_fps(args)
-    if args.turntable is not None and args.turntable < 1:
-        raise UserError(f"--turntable {args.turntable}: must be at least 1")
+    _check_numbers(args)
     if args.turntable and args.start is not None:
         raise UserError("--turntable orbits one frame: give --frame, not --start/--end")
 
