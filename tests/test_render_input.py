@@ -308,6 +308,12 @@ def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_pa
     assert image.read_png(out)[..., 3].sum() == 0
     assert render(path, "--frame", 1, "--resolution", "24x16", "--spp", 2, "-o", out) == 0
     assert capsys.readouterr().err == ""   # the camera sees the hair: nothing to say
+    # a turntable names its views as its pattern numbers them, from 0
+    assert render(path, "--turntable", 2, "--frame", 3, "--resolution", "24x16", "--spp", 2,
+                  "-o", tmp_path / "t" / "view.#.png") == 0
+    err = capsys.readouterr().err
+    assert "camera /cam sees no strand in turntable views 0, 1 (2 of 2 images): no strand sample" in err, err
+    assert sorted(p.name for p in (tmp_path / "t").iterdir()) == ["view.0.png", "view.1.png"]
 
 
 def test_renderer_says_whether_the_image_shows_a_strand():
@@ -399,10 +405,19 @@ def test_non_finite_frames_and_absurd_counts_are_one_line(static_groom, tmp_path
 @pytest.mark.parametrize("args, message", [
     (["-o", ""], "argument -o/--output: empty path: give the image to write, such as out/hair.png"),
     (["-o", "  "], "argument -o/--output: empty path"),
+    (["--camera", "", "-o", "x.png"], "argument --camera: empty path: give a UsdGeom.Camera prim path, or auto"),
 ])
-def test_an_empty_output_is_one_line(static_groom, capsys, args, message):
+def test_an_empty_output_or_camera_is_one_line(static_groom, capsys, args, message):
     with pytest.raises(SystemExit) as e:
         render(static_groom, *args)
     assert e.value.code == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], lines
+
+
+def test_a_turntable_of_a_fractional_frame_into_a_pattern_renders(groom, tmp_path):
+    """The views are numbered 0, 1, ...: the pattern was checked with the frame (1.5) instead, a
+    ValueError traceback."""
+    out = tmp_path / "tt" / "view.##.png"
+    assert render(groom, "--turntable", 2, "--frame", 1.5, "--resolution", "8x8", "--spp", 1, "-o", out) == 0
+    assert sorted(p.name for p in out.parent.iterdir()) == ["view.00.png", "view.01.png"]

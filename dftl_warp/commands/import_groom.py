@@ -17,7 +17,8 @@ def add_parser(sub):
     )
     p.add_argument("input", metavar="FILE", type=path_argument("the hair file to import"),
                    help="hair file; its format comes from the extension unless --format")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", type=path_argument("the stage to write, such as groom.usda"),
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   type=path_argument("the stage to write, such as groom.usda"),
                    help="output stage (.usda, .usdc or .usd)")
     p.add_argument("--format", dest="fmt", choices=("hair", "data", "tfx", "ply", "ct2hair"),
                    help="read FILE as this format whatever its extension")

@@ -39,8 +39,9 @@ def add_parser(sub):
     g.add_argument("--start", type=float, help="first time code of a range (with --end)")
     p.add_argument("--end", type=float, help="last time code of a range, inclusive")
     p.add_argument("--step", type=float, default=1.0, help="time-code step of a range (default 1)")
-    p.add_argument("--camera", metavar="PRIM", help="UsdGeom.Camera prim path, or 'auto' to frame the hair "
-                   "(default: the stage's first camera, else auto)")
+    p.add_argument("--camera", metavar="PRIM", type=path_argument("a UsdGeom.Camera prim path, or auto"),
+                   help="UsdGeom.Camera prim path, or 'auto' to frame the hair (default: the stage's first camera, "
+                        "else auto)")
     p.add_argument("--resolution", default="960x540", metavar="WxH",
                    help=f"image size in pixels, each side 1 to {MAX_SIDE} (default 960x540)")
     p.add_argument("--spp", type=int, default=8, help=f"samples per pixel, 1 to {MAX_SPP} (default 8)")
@@ -55,7 +56,8 @@ def add_parser(sub):
     p.add_argument("--contact-sheet", action="store_true", help="write all frames as one grid image to OUT")
     p.add_argument("--fps", type=float, default=None,
                    help="frames per second of a video OUT (.mp4, .gif, ...; default 24)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", type=path_argument("the image to write, such as out/hair.png"),
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   type=path_argument("the image to write, such as out/hair.png"),
                    help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run)
@@ -163,9 +165,9 @@ def _blind_warning(cam_path: str, labels: list, n_images: int, args) -> str:
     """The line for a camera that saw no strand in the images ``labels`` (time codes, None for the
     default time, or turntable indices)."""
     who = "the automatic camera (--camera auto)" if cam_path == "auto" else f"camera {cam_path}"
-    if args.turntable:
-        shown = ", ".join(str(k + 1) for k in labels[:5])
-        where = f"in turntable image{'s' if len(labels) > 1 else ''} {shown}"
+    if args.turntable:   # views numbered from 0, as a pattern numbers them
+        shown = ", ".join(str(k) for k in labels[:5])
+        where = f"in turntable view{'s' if len(labels) > 1 else ''} {shown}"
     elif labels == [None]:
         where = "at the stage's default time"
     else:
@@ -203,8 +205,8 @@ def run(args) -> int:
     _check_frame_numbers(args, times, kind)
     # everything that can fail is checked before the first frame is rendered
     usd_scene.check_samples(stage, times, source)
-    check_writable(image.frame_path(args.output, times[0] if times[0] is not None else 0)
-                   if kind == "pattern" else args.output)
+    first_number = 0 if args.turntable or times[0] is None else times[0]   # a turntable's views count from 0
+    check_writable(image.frame_path(args.output, first_number) if kind == "pattern" else args.output)
     if kind == "video":
         image.check_video(args.output)
     args.device = resolve_device(args.device)

@@ -27,7 +27,8 @@ def add_parser(sub):
     )
     p.add_argument("input", metavar="INPUT", type=path_argument("the USD stage to simulate"),
                    help="USD stage (.usd, .usda, .usdc, .usdz)")
-    p.add_argument("-o", "--output", required=True, metavar="OUTPUT", type=path_argument("the layer to write, such as out/groom.usdc"),
+    p.add_argument("-o", "--output", required=True, metavar="OUTPUT",
+                   type=path_argument("the layer to write, such as out/groom.usdc"),
                    help="output layer (.usdc by default; .usda and .usd allowed)")
     # from the options table (dftl_warp/options.py); the solver names from the live registry
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
