@@ -73,6 +73,9 @@ class Option:
     low: float | None = None
     low_open: bool = False
     high: float | None = None
+    #: the largest sane value of an unbounded range: more is refused as a typo ("must be at most")
+    #: that would run for days (``--substeps 1000000000``); help lists it after the range
+    limit: float | None = None
     #: regular expression a str option must match (after removing spaces)
     pattern: re.Pattern | None = None
     #: ``dftl-warp simulate`` flag, its metavar, and whether it may repeat (a list)
@@ -136,7 +139,9 @@ class Option:
             return bool(value)
         if kind is int:
             ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-            if not ok or not math.isfinite(value) or float(value) != int(value):
+            # an int is whole however large (float(10**20) != 10**20 called it "not an integer")
+            whole = isinstance(value, (int, np.integer)) or (ok and math.isfinite(value) and float(value) == int(value))
+            if not ok or not whole:
                 raise BadValue(self, value, "type", self._type_text())
             value = int(value)
             self._check_range(value)
@@ -184,6 +189,8 @@ class Option:
             raise BadValue(self, value, "range", self.range_text)
         if self.high is not None and value > self.high:
             raise BadValue(self, value, "range", self.range_text)
+        if self.limit is not None and value > self.limit:
+            raise BadValue(self, value, "range", f"at most {_num(self.limit)}")
 
 
 def _num(x) -> str:
@@ -209,12 +216,21 @@ SHAPE_STIFFNESS_RETIRED = (
     "primvars:dftl:bendStiffnessScale, give a rest shape with physics:restShapePoints, and remove "
     "dftl:shapeStiffness")
 
+#: the most substeps per frame: 16x the most --tolerance picks (1024), twice the finest
+#: reference of scripts/ (8192); a value past it is a typo that would run for days
+MAX_SUBSTEPS = 16384
+#: the most pbd iterations per step (4 by default): a value past it is a typo
+MAX_ITERATIONS = 1024
+#: the longest preroll, in seconds: a groom settles in seconds (docs/features.md: 3.8 s on a
+#: lumpy head), and the preroll may go on up to 8x as long
+MAX_PREROLL = 60.0
+
 _RUN = [
     Option("start", int, None, "first frame (default: the stage's startTimeCode)",
            cli="--start", metavar="F", toml="start", api="start"),
     Option("end", int, None, "last frame, inclusive (default: the stage's endTimeCode)",
            cli="--end", metavar="F", toml="end", api="end"),
-    Option("substeps", int, 8, "solver steps per frame", low=1,
+    Option("substeps", int, 8, "solver steps per frame", low=1, limit=MAX_SUBSTEPS,
            cli="--substeps", metavar="N", usd="dftl:substeps", scope="curves", toml="substeps", api="substeps"),
     Option("damping", float, 1.0,
            "share of the follow-the-leader correction removed from velocities", low=0.0, high=1.0,
@@ -230,7 +246,7 @@ _RUN = [
     Option("inverse_statics", bool, True,
            "elastic solver: the authored shape is the equilibrium under gravity (false: it sags "
            "toward its rest shape)", usd="dftl:inverseStatics", scope="curves"),
-    Option("iterations", int, 4, "Gauss-Seidel iterations per step of --solver pbd", low=1,
+    Option("iterations", int, 4, "Gauss-Seidel iterations per step of --solver pbd", low=1, limit=MAX_ITERATIONS,
            cli="--iterations", metavar="K", toml="iterations", api="iterations"),
     Option("precision", str, "float32", "floating-point precision", choices=PRECISION_NAMES,
            cli="--precision", toml="precision", api="precision"),
@@ -434,6 +450,8 @@ def cli_help(option: Option, default_text: str | None = None) -> str:
     text = option.help
     if option.range_text:
         text += f", {option.range_text}"
+    if option.limit is not None:
+        text += f", at most {_num(option.limit)}"
     if option.unit:
         text += f" ({option.unit})"
     if default_text is None and option.default is not None and option.cli != "--device":
@@ -459,7 +477,7 @@ def add_arguments(parser, names, *, choices=None, defaults_from_usd: bool = True
             kw["action"] = "append"
         elif o.choices:
             kw["choices"] = o.choices
-        elif o.type in (int, float) and (o.low is not None or o.high is not None):
+        elif o.type in (int, float) and (o.low is not None or o.high is not None or o.limit is not None):
             kw["type"] = _cli_type(o)
         elif o.type is int:
             kw["type"] = int
@@ -504,7 +522,7 @@ _CLEAN_START = [
     Option("preroll", float, 0.0,
            "settle the groom at the first frame's pose for this long before the shot (hair inside a "
            "collider is moved out first; the preroll goes on, up to 8x as long (whole frames), until the groom is "
-           "settled); 0: no preroll", unit="s", low=0.0,
+           "settled); 0: no preroll", unit="s", low=0.0, limit=MAX_PREROLL,
            cli="--preroll", metavar="SECONDS", toml="preroll", api="preroll"),
 ]
 for _o in _CLEAN_START:

@@ -1,7 +1,8 @@
 """Command-line options that were ignored or misreported: --guides in the guides' own words, flags
 that do nothing here warn once, --quality with --tolerance says what the tolerance overrode (and the
 provenance does not claim the preset), the preroll line with --guides and --tolerance, a bad
-$DFTL_WARP_DEVICE named as the variable, and study's elapsed time."""
+$DFTL_WARP_DEVICE named as the variable, study's elapsed time, empty paths and gates, --guides-output
+with no guides, and --substeps / --preroll past their limits."""
 
 import json
 
@@ -122,3 +123,94 @@ def test_solver_options_no_prim_uses_are_warned_about(tmp_path, capsys):
     assert cli.main(["simulate", str(src), "-o", str(tmp_path / "b.usdc"), "--end", "2",
                      "--solver", "pbd", "--iterations", "5"]) == 0
     assert "does nothing" not in capsys.readouterr().err
+
+
+def one_line(capsys, *fragments):
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for f in fragments:
+        assert f in lines[0], err
+    return lines[0]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["-o", ""], "argument -o/--output: empty path: give the layer to write, such as out/groom.usdc"),
+    (["-o", " "], "argument -o/--output: empty path"),
+    (["-o", "o.usdc", "--check", ""], "--check '': no gates: give METRIC<LIMIT gates such as "
+                                      "'stretch<1e-3,penetration<0.05' (metrics: stretch, penetration"),
+    (["-o", "o.usdc", "--check", "  "], "--check '  ': no gates"),
+])
+def test_empty_output_and_empty_gates_are_one_clear_line(tmp_path, capsys, argv, message):
+    """-o '' said ".: output must end in .usdc"; --check '' said "check must be a string"."""
+    src = hair(tmp_path / "h.usda")
+    with pytest.raises(SystemExit) as e:
+        cli.main(["simulate", str(src), *argv])
+    assert e.value.code == 2
+    one_line(capsys, message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["h.usda"]
+    with pytest.raises(SystemExit):
+        cli.main(["simulate", "", "-o", str(tmp_path / "o.usdc")])
+    one_line(capsys, "argument INPUT: empty path: give the USD stage to simulate")
+    with pytest.raises(SystemExit):
+        cli.main(["import", str(tmp_path / "h.hair"), "-o", ""])
+    one_line(capsys, "argument -o/--output: empty path: give the stage to write, such as groom.usda")
+
+
+def test_empty_output_and_empty_gates_through_the_api(tmp_path):
+    from dftl_warp.errors import UserError
+    from dftl_warp.importers.convert import import_groom
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    src = hair(tmp_path / "h.usda")
+    with pytest.raises(UserError, match=r"^output '': empty path: give the file to write \(\.usdc"):
+        simulate_usd(src, "")
+    with pytest.raises(UserError, match=r"^check '': no gates: give METRIC<LIMIT gates"):
+        simulate_usd(src, tmp_path / "o.usdc", check="")
+    with pytest.raises(UserError, match=r"^check 3: expected a string of METRIC<LIMIT gates"):
+        simulate_usd(src, tmp_path / "o.usdc", check=3)
+    with pytest.raises(UserError, match=r"^output '': empty path: give the stage to write"):
+        import_groom(tmp_path / "h.hair", "")
+    from dftl_warp.batch.jobs import _simulate_options
+
+    with pytest.raises(ValueError, match=r"check '': no gates"):
+        _simulate_options()["check"]("", "check")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["h.usda"]
+
+
+def test_guides_output_without_guides_is_refused_or_warned(tmp_path, capsys):
+    """--guides-output was dropped without a word where no prim is guide-driven: binding (an output
+    without the binding asked for) is refused before anything runs, curves (what is written anyway)
+    says it does nothing. A stage with rel dftl:guides takes it (tests/test_guides_cli.py)."""
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usdc"
+    code, err = simulate(capsys, src, "-o", out, "--guides-output", "binding")
+    assert code == 2 and not out.exists()
+    assert err.strip().splitlines() == [
+        f"dftl-warp: error: {src}: --guides-output binding: no prim here is driven by guides (give --guides "
+        "N|FRACTION to pick them from each prim, or author rel dftl:guides on the render prims)"]
+    code, err = simulate(capsys, src, "-o", out, "--guides-output", "curves", quiet=False)
+    assert code == 0 and out.exists()
+    assert err.count("dftl-warp: warning: --guides-output curves does nothing: no prim here is driven by guides") == 1
+    code, err = simulate(capsys, src, "-o", tmp_path / "g.usdc", "--guides", "3", "--guides-output", "binding",
+                         quiet=False)
+    assert code == 0 and "does nothing" not in err
+    from dftl_warp.errors import UserError
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    with pytest.raises(UserError, match="guides_output binding: no prim here is driven by guides \\(give guides N"):
+        simulate_usd(src, tmp_path / "api.usdc", end=2, guides_output="binding")
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--substeps", "1000000000"], "argument --substeps: must be at most 16384, got 1000000000"),
+    (["--substeps", "99999999999999999999"], "argument --substeps: must be at most 16384"),
+    (["--preroll", "1e9"], "argument --preroll: must be at most 60, got 1e9"),
+    (["--iterations", "100000"], "argument --iterations: must be at most 1024, got 100000"),
+])
+def test_absurd_substeps_and_preroll_are_refused_with_the_limit(tmp_path, capsys, argv, message):
+    """--substeps 10**9 or --preroll 1e9 ran for days (the big integer was "not an integer")."""
+    src, out = hair(tmp_path / "h.usda"), tmp_path / "o.usdc"
+    with pytest.raises(SystemExit) as e:
+        simulate(capsys, src, "-o", out, *argv)
+    assert e.value.code == 2 and not out.exists()
+    one_line(capsys, message)

@@ -198,6 +198,10 @@ def test_unknown_toml_key_suggests_the_table_key(tmp_path):
     ({"prims": ["World"]}, "prims must be a prim path"),
     ({"iterations": True}, "iterations must be an integer"),
     ({"start": "one"}, "start must be an integer"),
+    ({"substeps": 10**9}, "substeps must be at most 16384, got 1000000000"),
+    ({"substeps": 10**20}, "substeps must be at most 16384"),
+    ({"preroll": 1e9}, "preroll must be at most 60, got 1000000000.0"),
+    ({"iterations": 5000}, "iterations must be at most 1024"),
 ])
 def test_simulation_options_check_every_field(kwargs, message):
     from dftl_warp.simulation.settings import SimulationOptions
@@ -270,3 +274,23 @@ def test_a_bad_check_through_the_api_names_the_keyword_not_the_flag(tmp_path):
 
     with pytest.raises(UserError, match=r"^check 'strech<1e-3': each gate is METRIC<LIMIT"):
         dw.simulate_usd(tmp_path / "missing.usda", tmp_path / "out.usdc", check="strech<1e-3")
+
+
+def test_substeps_preroll_and_iterations_have_a_limit_in_every_front_end():
+    """--substeps 10**9 or --preroll 1e9 had no limit (days of running); the table's ``limit`` is
+    refused by the CLI, the API, the batch TOML and the USD reader alike, and --help shows it."""
+    from dftl_warp.batch.jobs import _simulate_options
+    from dftl_warp.options import MAX_ITERATIONS, MAX_PREROLL, MAX_SUBSTEPS, BadValue, usd_message
+
+    assert (MAX_SUBSTEPS, MAX_ITERATIONS, MAX_PREROLL) == (16384, 1024, 60.0)
+    assert OPTIONS["substeps"].check(MAX_SUBSTEPS) == MAX_SUBSTEPS and OPTIONS["preroll"].check(60) == 60.0
+    with pytest.raises(ValueError, match=r"substeps must be at most 16384, got 16385"):
+        _simulate_options()["substeps"](16385, "substeps")
+    with pytest.raises(ValueError, match=r"preroll must be at most 60, got 61"):
+        _simulate_options()["preroll"](61, "preroll")
+    with pytest.raises(BadValue) as exc:
+        OPTIONS["substeps"].check(100000)
+    assert usd_message(exc.value, "in.usda: /World/Hair") == "in.usda: /World/Hair: dftl:substeps = 100000: must be at most 16384"
+    helps = {a.option_strings[-1]: a.help for a in _simulate_parser()._actions if a.option_strings}
+    assert "solver steps per frame, >= 1, at most 16384" in helps["--substeps"]
+    assert ">= 0, at most 60 (s)" in helps["--preroll"] and ">= 1, at most 1024" in helps["--iterations"]

@@ -1,7 +1,8 @@
 """simulate's output guards through the command line: an output that is a layer the input uses is
 refused (one line naming both files, exit 2, nothing written); an output folder that takes no files
 is named as the output, not its lock file; a failed run leaves no folder it created; frames outside
-the stage's animated time range run with one warning naming the file and both ranges."""
+the stage's animated time range run with one warning naming the file and both ranges; ``make demo``'s
+commands run twice overwrite their own outputs."""
 
 from __future__ import annotations
 
@@ -234,3 +235,23 @@ def test_the_api_summary_carries_the_range_warning(tmp_path):
     f = animated_stage(tmp_path / "anim.usda")
     s = simulate_usd(str(f), str(tmp_path / "o.usda"), start=11, end=12, device="cpu")
     assert [w for w in s.warnings if "lie outside the stage's time range 1..10" in w]
+
+
+def test_the_demo_commands_run_twice_overwrite_their_own_outputs(tmp_path, capsys):
+    """``make demo`` twice in a row: the second simulate and render overwrite out/demo.usdc and
+    out/demo.png and leave nothing else behind (a chain stands in for the default groom)."""
+    import shutil
+
+    src = tmp_path / "chain.usda"
+    shutil.copy(Path(__file__).resolve().parents[1] / "scenes" / "chain.usda", src)
+    out = tmp_path / "out"
+    out.mkdir()
+    pictures = []
+    for _ in range(2):
+        assert cli.main(["simulate", str(src), "-o", str(out / "demo.usdc"), "--end", "6", "--quiet"]) == 0
+        assert cli.main(["render", str(out / "demo.usdc"), "--frame", "5", "--resolution", "32x24", "--spp", "2",
+                         "-o", str(out / "demo.png"), "-q"]) == 0
+        assert sorted(p.name for p in out.iterdir()) == ["demo.png", "demo.usdc"]
+        pictures.append((out / "demo.png").read_bytes())
+    assert capsys.readouterr().err == ""
+    assert pictures[0] == pictures[1]

@@ -270,3 +270,154 @@ def test_a_camera_scaled_to_nothing_is_one_line_not_a_blank_image(tmp_path, caps
     assert render(path, "--resolution", "16x12", "--spp", 1, "-o", out) == 2
     one_error(capsys, f"{path}: /cam: the camera's transform is degenerate")
     assert not out.exists()
+
+
+# -- what the command and the Renderer refuse or warn about -----------------------------------------
+
+
+def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_path, capsys):
+    """The camera turns away from the hair at frame 3: the images are written, and one line names the
+    camera and the frame (a blank image came out without a word)."""
+    from pxr import Gf, UsdGeom
+
+    path = tmp_path / "away.usda"
+    stage = new_stage(path)
+    stage.SetStartTimeCode(1)
+    stage.SetEndTimeCode(3)
+    cam = UsdGeom.Camera.Define(stage, "/cam")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0, 0.5, 3))
+    turn = cam.AddRotateYOp()   # about the camera's own position
+    for t, angle in ((1, 0.0), (2, 0.0), (3, 180.0)):
+        turn.Set(angle, t)
+    cam.CreateClippingRangeAttr(Gf.Vec2f(0.01, 100))
+    add_curves(stage, "/hair", [np.array([[x, 0, 0], [x, 0.5, 0.1], [x, 1.0, 0]]) for x in (-0.2, 0.0, 0.2)],
+               widths=[0.05])
+    stage.Save()
+    sheet = tmp_path / "sheet.png"
+    assert render(path, "--start", 1, "--end", 3, "--contact-sheet", "--resolution", "24x16", "--spp", 2, "-o", sheet) == 0
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "dftl-warp: warning: camera /cam sees no strand at frame 3 (1 of 3 images): no strand sample lands in the "
+        "image (it looks away from the hair, or the hair is outside its clipping range, hidden behind geometry or "
+        "too thin for --spp 2)"]
+    alpha = image.read_png(sheet)[..., 3]   # 3 frames on a 2 x 2 grid of 24 x 16 tiles, 4 pixels apart
+    assert alpha[:16, :24].sum() > 0 and alpha[:16, 28:].sum() > 0 and alpha[20:, :24].sum() == 0
+    out = tmp_path / "one.png"
+    assert render(path, "--frame", 3, "--resolution", "24x16", "--spp", 2, "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "camera /cam sees no strand at frame 3: no strand sample" in err, err
+    assert image.read_png(out)[..., 3].sum() == 0
+    assert render(path, "--frame", 1, "--resolution", "24x16", "--spp", 2, "-o", out) == 0
+    assert capsys.readouterr().err == ""   # the camera sees the hair: nothing to say
+    # a turntable names its views as its pattern numbers them, from 0
+    assert render(path, "--turntable", 2, "--frame", 3, "--resolution", "24x16", "--spp", 2,
+                  "-o", tmp_path / "t" / "view.#.png") == 0
+    err = capsys.readouterr().err
+    assert "camera /cam sees no strand in turntable views 0, 1 (2 of 2 images): no strand sample" in err, err
+    assert sorted(p.name for p in (tmp_path / "t").iterdir()) == ["view.0.png", "view.1.png"]
+
+
+def test_renderer_says_whether_the_image_shows_a_strand():
+    from dftl_warp.render.camera import look_at
+
+    scene = RenderScene.from_strands(PTS, [3], 0.1)
+    r = Renderer(16, 12, spp=1)
+    assert r.hair_visible is None
+    r.render(scene)
+    assert r.hair_visible is True
+    away = Camera(world_from_camera=look_at([0, -1, 5], [0, -1, 10], [0, 1, 0]))
+    assert r.render(scene, away)[..., 3].sum() == 0 and r.hair_visible is False
+    # hidden behind a sphere: the image is not blank, but no strand is seen
+    from dftl_warp.render.scene import Shape
+
+    hidden = RenderScene.from_strands(PTS, [3], 0.1)
+    hidden.shapes.append(Shape(kind=0, world_from_local=np.diag([5.0, 5.0, 5.0, 1.0]), params=(1.0, 0.0, 0.0)))
+    front = Camera(world_from_camera=look_at([0, -1, 20], [0, -1, 0], [0, 1, 0]))
+    assert r.render(hidden, front)[..., 3].sum() > 0 and r.hair_visible is False
+
+
+@pytest.mark.parametrize("args, kwargs, error, message", [
+    ((8.5,), {}, ValueError, "width 8.5: expected a whole number"),
+    ((8, 6.7), {}, ValueError, "height 6.7: expected a whole number"),
+    (("8",), {}, ValueError, "width '8': expected a whole number"),
+    ((True, 8), {}, ValueError, "width True: expected a whole number"),
+    ((0, 8), {}, ValueError, "width 0: must be at least 1"),
+    ((20000, 8), {}, ValueError, "width 20000: must be at most 16384"),
+    ((8, 8), {"spp": 2.5}, ValueError, "spp 2.5: expected a whole number"),
+    ((8, 8), {"spp": float("nan")}, ValueError, "spp nan: expected a whole number"),
+    ((8, 8), {"spp": 5000}, ValueError, "spp 5000: must be at most 4096"),
+    ((8, 8), {"seed": 1.5}, ValueError, "seed 1.5: expected a whole number"),
+    ((8, 8), {"threads": 0}, ValueError, "threads 0: must be at least 1"),
+    ((8, 8), {"threads": 2.5}, ValueError, "threads 2.5: expected a whole number"),
+    ((8, 8), {"shading": "phong"}, ValueError, "shading 'phong': choose one of marschner, kajiya-kay"),
+    ((8, 8), {"conform": "stretch"}, ValueError, "conform 'stretch': choose one of expandAperture"),
+    ((8, 8), {"device": "cuda:99"}, ValueError, "device 'cuda:99' is not available here"),
+    ((8, 8), {"lighting": 3}, TypeError, "lighting must be a Lighting or None, got int"),
+])
+def test_renderer_refuses_bad_arguments_instead_of_truncating_them(args, kwargs, error, message):
+    with pytest.raises(error) as e:
+        Renderer(*args, **kwargs)
+    assert message in str(e.value)
+
+
+def test_renderer_takes_whole_numbers_of_any_type_and_refuses_a_wrong_scene_or_camera():
+    r = Renderer(np.int64(8), 6.0, spp=np.int32(2), threads=1)
+    assert (r.width, r.height, r.spp, r.threads) == (8, 6, 2, 1) and type(r.height) is int
+    with pytest.raises(TypeError, match="scene must be a RenderScene, got ndarray"):
+        r.render(PTS)
+    with pytest.raises(TypeError, match="camera must be a Camera or None, got str"):
+        r.render(RenderScene.from_strands(PTS, [3], 0.1), "/cam")
+
+
+@pytest.fixture
+def static_groom(tmp_path):
+    """A stage without a time range or time samples."""
+    path = tmp_path / "static.usda"
+    stage = new_stage(path)
+    add_camera(stage, translate=(0, 0.5, 3))
+    add_curves(stage, "/hair", [np.array([[0.0, 0, 0], [0.0, 0.5, 0.1], [0.1, 1.0, 0]])], widths=[0.03])
+    stage.Save()
+    return path
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--frame", "nan"], "--frame nan: expected a finite time code"),
+    (["--frame", "inf"], "--frame inf: expected a finite time code"),
+    (["--frame=-inf"], "--frame -inf: expected a finite time code"),
+    (["--start", "nan", "--end", "3"], "--start nan: expected a finite time code"),
+    (["--start", "1", "--end", "inf"], "--end inf: expected a finite time code"),
+    (["--start", "1", "--end", "3", "--step", "nan"], "--step nan: expected a finite time code"),
+    (["--start", "1", "--end", "3", "--step", "inf"], "--step inf: expected a finite time code"),
+    (["--start", "1", "--end", "1e12"], "--start 1 --end 1e+12 --step 1: 1e+12 frames; one render makes at most 100000"),
+    (["--start", "1", "--end", "2", "--step", "1e-320"], ": inf frames; one render makes at most 100000"),
+    (["--turntable", "1000000"], "--turntable 1000000: must be at most 100000"),
+    (["--spp", "5000"], "--spp 5000: must be at most 4096"),
+    (["--resolution", "20000x10"], "--resolution '20000x10': width and height must be between 1 and 16384"),
+])
+def test_non_finite_frames_and_absurd_counts_are_one_line(static_groom, tmp_path, capsys, args, message):
+    """``--frame nan`` on a static stage rendered the default time, exit 0; ``--start nan`` was a
+    traceback; ``--end 1e12`` or ``--turntable 1000000`` made a list of a trillion cameras."""
+    out = tmp_path / "out.png"
+    assert render(static_groom, *args, "-o", out) == 2
+    one_error(capsys, message)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["static.usda"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["-o", ""], "argument -o/--output: empty path: give the image to write, such as out/hair.png"),
+    (["-o", "  "], "argument -o/--output: empty path"),
+    (["--camera", "", "-o", "x.png"], "argument --camera: empty path: give a UsdGeom.Camera prim path, or auto"),
+])
+def test_an_empty_output_or_camera_is_one_line(static_groom, capsys, args, message):
+    with pytest.raises(SystemExit) as e:
+        render(static_groom, *args)
+    assert e.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+
+
+def test_a_turntable_of_a_fractional_frame_into_a_pattern_renders(groom, tmp_path):
+    """The views are numbered 0, 1, ...: the pattern was checked with the frame (1.5) instead, a
+    ValueError traceback."""
+    out = tmp_path / "tt" / "view.##.png"
+    assert render(groom, "--turntable", 2, "--frame", 1.5, "--resolution", "8x8", "--spp", 1, "-o", out) == 0
+    assert sorted(p.name for p in out.parent.iterdir()) == ["view.00.png", "view.01.png"]

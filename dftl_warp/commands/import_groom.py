@@ -7,14 +7,19 @@ import sys
 
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+
     p = sub.add_parser(
         "import",
         help="convert research hair data (.hair, .data, .tfx, strand .ply, CT2Hair .bin) to a USD groom",
         description="Read a hair file (Cem Yuksel's .hair, USC-HairSalon .data, AMD TressFX .tfx, strand PLY, "
                     "CT2Hair .bin) and write a USD stage with a BasisCurves groom (and an optional head collider).",
     )
-    p.add_argument("input", metavar="FILE", help="hair file; its format comes from the extension unless --format")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output stage (.usda, .usdc or .usd)")
+    p.add_argument("input", metavar="FILE", type=path_argument("the hair file to import"),
+                   help="hair file; its format comes from the extension unless --format")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   type=path_argument("the stage to write, such as groom.usda"),
+                   help="output stage (.usda, .usdc or .usd)")
     p.add_argument("--format", dest="fmt", choices=("hair", "data", "tfx", "ply", "ct2hair"),
                    help="read FILE as this format whatever its extension")
     p.add_argument("--units", metavar="UNIT",

@@ -19,46 +19,76 @@ from pathlib import Path
 
 from ..errors import UserError
 
+#: the most images one render makes (a --start/--end/--step range, or --turntable N)
+MAX_IMAGES = 100_000
+
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+    from ..render.renderer import MAX_SIDE, MAX_SPP
+
     p = sub.add_parser(
         "render", help="render hair previews of a USD stage (PNG, image sequence, contact sheet, video)",
         description="Ray-trace the BasisCurves of a USD stage as tubes (with Sphere/Capsule/Cube/Mesh "
                     "gprims in a neutral material) through a UsdGeom.Camera or an automatic framing. "
                     "Writes RGBA PNGs with straight colour and alpha = coverage.")
-    p.add_argument("input", metavar="INPUT", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    p.add_argument("input", metavar="INPUT", type=path_argument("the USD stage to render"),
+                   help="USD stage (.usd, .usda, .usdc, .usdz)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--frame", type=float, help="time code to render (default: the stage's start time, or its default time)")
     g.add_argument("--start", type=float, help="first time code of a range (with --end)")
     p.add_argument("--end", type=float, help="last time code of a range, inclusive")
     p.add_argument("--step", type=float, default=1.0, help="time-code step of a range (default 1)")
-    p.add_argument("--camera", metavar="PRIM", help="UsdGeom.Camera prim path, or 'auto' to frame the hair "
-                   "(default: the stage's first camera, else auto)")
-    p.add_argument("--resolution", default="960x540", metavar="WxH", help="image size in pixels (default 960x540)")
-    p.add_argument("--spp", type=int, default=8, help="samples per pixel (default 8)")
+    p.add_argument("--camera", metavar="PRIM", type=path_argument("a UsdGeom.Camera prim path, or auto"),
+                   help="UsdGeom.Camera prim path, or 'auto' to frame the hair (default: the stage's first camera, "
+                        "else auto)")
+    p.add_argument("--resolution", default="960x540", metavar="WxH",
+                   help=f"image size in pixels, each side 1 to {MAX_SIDE} (default 960x540)")
+    p.add_argument("--spp", type=int, default=8, help=f"samples per pixel, 1 to {MAX_SPP} (default 8)")
     p.add_argument("--device", default=None,
                    help="Warp device: cpu or cuda:N (default cuda:0 when there is a CUDA device, else cpu)")
     p.add_argument("--shading", default="marschner", choices=("marschner", "kajiya-kay"), help="hair shading model")
     p.add_argument("--conform", default="expandAperture",
                    choices=("expandAperture", "cropAperture", "adjustApertureWidth", "adjustApertureHeight"),
                    help="how the camera aperture meets a different image aspect (UsdRender policy; default expandAperture)")
-    p.add_argument("--turntable", type=int, metavar="N", help="N frames orbiting the hair once around the up axis")
+    p.add_argument("--turntable", type=int, metavar="N",
+                   help=f"N frames orbiting the hair once around the up axis (at most {MAX_IMAGES})")
     p.add_argument("--contact-sheet", action="store_true", help="write all frames as one grid image to OUT")
     p.add_argument("--fps", type=float, default=None,
                    help="frames per second of a video OUT (.mp4, .gif, ...; default 24)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   type=path_argument("the image to write, such as out/hair.png"),
+                   help="PNG, pattern like frames/hair.####.png, .mp4 or .gif")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run)
 
 
 def parse_resolution(text: str):
+    from ..render.renderer import MAX_SIDE
+
     try:
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise UserError(f"--resolution {text!r}: expected WIDTHxHEIGHT, e.g. 1920x1080") from None
-    if w < 1 or h < 1 or w * h > 16384 * 16384:
-        raise UserError(f"--resolution {text!r}: width and height must be between 1 and 16384")
+    if not (1 <= w <= MAX_SIDE and 1 <= h <= MAX_SIDE):
+        raise UserError(f"--resolution {text!r}: width and height must be between 1 and {MAX_SIDE}")
     return w, h
+
+
+def _check_numbers(args) -> None:
+    """Time codes finite (``--frame nan`` rendered the default time without a word), and --spp
+    and --turntable within the renderer's limits, before the stage is read."""
+    import math
+
+    from ..render.renderer import MAX_SPP, whole_number
+
+    for flag in ("frame", "start", "end", "step"):
+        value = getattr(args, flag)
+        if value is not None and not math.isfinite(value):
+            raise UserError(f"--{flag} {value:g}: expected a finite time code")
+    whole_number("--spp", args.spp, 1, MAX_SPP)
+    if args.turntable is not None:
+        whole_number("--turntable", args.turntable, 1, MAX_IMAGES)
 
 
 def _frames(args, stage):
@@ -74,7 +104,11 @@ def _frames(args, stage):
             raise UserError(f"--end {args.end:g} is before --start {args.start:g}")
         if args.step <= 0:
             raise UserError(f"--step {args.step:g}: must be positive")
-        n = int((args.end - args.start) / args.step + 1e-9) + 1
+        span = (args.end - args.start) / args.step   # frames after the first (inf for a tiny --step)
+        if span + 1 > MAX_IMAGES:
+            raise UserError(f"--start {args.start:g} --end {args.end:g} --step {args.step:g}: {span + 1:.6g} frames; "
+                            f"one render makes at most {MAX_IMAGES}")
+        n = int(span + 1e-9) + 1
         return [args.start + k * args.step for k in range(n)]
     if args.frame is not None:
         return [args.frame]
@@ -127,6 +161,26 @@ def _check_fps(args) -> float:
     return args.fps
 
 
+def _blind_warning(cam_path: str, labels: list, n_images: int, args) -> str:
+    """The line for a camera that saw no strand in the images ``labels`` (time codes, None for the
+    default time, or turntable indices)."""
+    who = "the automatic camera (--camera auto)" if cam_path == "auto" else f"camera {cam_path}"
+    if args.turntable:   # views numbered from 0, as a pattern numbers them
+        shown = ", ".join(str(k) for k in labels[:5])
+        where = f"in turntable view{'s' if len(labels) > 1 else ''} {shown}"
+    elif labels == [None]:
+        where = "at the stage's default time"
+    else:
+        shown = ", ".join(f"{t:g}" for t in labels[:5])
+        where = f"at frame{'s' if len(labels) > 1 else ''} {shown}"
+    if len(labels) > 5:
+        where += ", ..."
+    if n_images > 1:
+        where += f" ({len(labels)} of {n_images} images)"
+    return (f"{who} sees no strand {where}: no strand sample lands in the image (it looks away from the hair, or the "
+            f"hair is outside its clipping range, hidden behind geometry or too thin for --spp {args.spp})")
+
+
 def run(args) -> int:
     from ..core.devices import device_line, resolve_device
     from ..output.paths import check_writable
@@ -135,8 +189,7 @@ def run(args) -> int:
 
     width, height = parse_resolution(args.resolution)
     fps = _check_fps(args)
-    if args.turntable is not None and args.turntable < 1:
-        raise UserError(f"--turntable {args.turntable}: must be at least 1")
+    _check_numbers(args)
     if args.turntable and args.start is not None:
         raise UserError("--turntable orbits one frame: give --frame, not --start/--end")
 
@@ -152,8 +205,8 @@ def run(args) -> int:
     _check_frame_numbers(args, times, kind)
     # everything that can fail is checked before the first frame is rendered
     usd_scene.check_samples(stage, times, source)
-    check_writable(image.frame_path(args.output, times[0] if times[0] is not None else 0)
-                   if kind == "pattern" else args.output)
+    first_number = 0 if args.turntable or times[0] is None else times[0]   # a turntable's views count from 0
+    check_writable(image.frame_path(args.output, first_number) if kind == "pattern" else args.output)
     if kind == "video":
         image.check_video(args.output)
     args.device = resolve_device(args.device)
@@ -199,6 +252,7 @@ def run(args) -> int:
     # a sequence's frames wait in a hidden folder beside it and move into place once every frame
     # has rendered: a frame that fails leaves no part of the sequence behind
     staged = []  # (temporary path, final path)
+    blind = []  # the labels of images in which the camera saw no strand
     pending = None
     if kind == "pattern":
         first = Path(image.frame_path(args.output, jobs[0][0] if jobs[0][0] is not None else 0)).resolve().parent
@@ -215,6 +269,8 @@ def run(args) -> int:
             t0 = _time.perf_counter()
             rgba = to_rgba8(renderer.render(scene, cam))
             dt = _time.perf_counter() - t0
+            if not renderer.hair_visible and scene.segment_count:
+                blind.append(label)
             number = label if label is not None else 0
             if kind == "pattern":
                 path = image.frame_path(args.output, number)
@@ -243,6 +299,8 @@ def run(args) -> int:
     elif frames:
         image.write_png(args.output, image.contact_sheet(frames))
         say(f"{args.output}  contact sheet of {len(frames)} frames")
+    if blind:   # once every image is written: a render that fails later says only why
+        warn(_blind_warning(cam_path, blind, n_images, args))
     if n_images > 1:
         say(f"{n_images} frames in {_time.perf_counter() - t_all:.1f} s")
     return 0

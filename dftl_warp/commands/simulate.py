@@ -12,6 +12,7 @@ FLAGS = ("start", "end", "substeps", "damping", "correction", "solver", "iterati
 
 def add_parser(sub):
     from ..options import add_arguments
+    from ..output.paths import path_argument
     from ..solvers import SOLVERS
 
     p = sub.add_parser(
@@ -24,8 +25,10 @@ def add_parser(sub):
             "apply where no flag is given."
         ),
     )
-    p.add_argument("input", metavar="INPUT", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    p.add_argument("input", metavar="INPUT", type=path_argument("the USD stage to simulate"),
+                   help="USD stage (.usd, .usda, .usdc, .usdz)")
     p.add_argument("-o", "--output", required=True, metavar="OUTPUT",
+                   type=path_argument("the layer to write, such as out/groom.usdc"),
                    help="output layer (.usdc by default; .usda and .usd allowed)")
     # from the options table (dftl_warp/options.py); the solver names from the live registry
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})

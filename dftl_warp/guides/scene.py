@@ -58,6 +58,22 @@ def parse_count(text):
     return value
 
 
+def check_guides_output(scene: Scene, guides: dict, cli: bool = False) -> None:
+    """``guides_output`` asked for where no prim is guide-driven (no ``guides`` count, no ``rel
+    dftl:guides``) was ignored without a word: ``binding`` raises a UserError naming ``scene``'s file
+    (the output would hold no binding), ``curves`` (written anyway) adds a line to
+    ``scene.warnings``. ``cli``: name the flags (``--guides-output``), else the keywords."""
+    what = guides.get("guides_output")
+    if what is None or guides.get("guides") is not None or any(c.guides for c in scene.curves):
+        return
+    output, count = ("--guides-output", "--guides") if cli else ("guides_output", "guides")
+    why = (f"no prim here is driven by guides (give {count} N|FRACTION to pick them from each prim, or author "
+           "rel dftl:guides on the render prims)")
+    if what == "binding":
+        raise UserError(f"{scene.source}: {output} binding: {why}")
+    scene.warnings.append(f"{output} {what} does nothing: {why}")
+
+
 def _subset(c: CurvesPrim, strands: np.ndarray, path: str) -> CurvesPrim:
     """The strands ``strands`` of ``c`` as a prim of their own (same transform and settings)."""
     starts = np.concatenate([[0], np.cumsum(c.counts)[:-1]])

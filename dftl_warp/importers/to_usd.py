@@ -25,6 +25,8 @@ START, END, TCPS = 1, 48, 24
 
 def check_output(path) -> str:
     path = os.fspath(path)
+    if not path.strip():
+        raise UserError(f"output {path!r}: empty path: give the stage to write ({', '.join(OUTPUT_EXTENSIONS)})")
     ext = os.path.splitext(path)[1].lower()
     if ext not in OUTPUT_EXTENSIONS:
         raise UserError(f"{path}: output must be a {', '.join(OUTPUT_EXTENSIONS)} file")

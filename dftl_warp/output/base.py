@@ -157,7 +157,10 @@ def extensions_text() -> str:
 
 
 def writer_for(output) -> type:
-    """The writer class of ``output``'s extension; a UserError naming the choices otherwise."""
+    """The writer class of ``output``'s extension; a UserError naming the choices otherwise (and
+    for an empty path, which Path reads as the current folder)."""
+    if not os.fspath(output).strip():
+        raise UserError(f"output {os.fspath(output)!r}: empty path: give the file to write ({extensions_text()})")
     output = Path(os.fspath(output))
     cls = WRITERS.get(output.suffix.lower())
     if cls is None:

@@ -142,3 +142,18 @@ def _remove_empty(folders) -> None:
             f.rmdir()
         except OSError:
             return
+
+
+def path_argument(what: str):
+    """An argparse ``type`` for a file path on the command line: the text as given, or one line
+    for an empty (or blank) one, which named the current folder or nothing at all (``-o ''``:
+    ``.: output must end in .usdc``). ``what`` completes "give ...": the file expected."""
+    import argparse
+
+    def parse(text: str) -> str:
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"empty path: give {what}")
+        return text
+
+    parse.__name__ = "path"
+    return parse

@@ -67,9 +67,15 @@ class QCError(UserError):
 def parse_gates(text: str | None, name: str = "--check") -> dict[str, float]:
     """``'stretch<1e-3, penetration<0.05'`` -> ``{"stretch": 0.001, "penetration": 0.05}``; a bad
     gate is a UserError naming the option as ``name`` (``--check`` on the command line, ``check``
-    for the API and job files)."""
-    if not text:
+    for the API and job files). None is no gates; an empty text is refused (``--check ''`` was
+    "check must be a string")."""
+    if text is None:
         return {}
+    example = f"METRIC<LIMIT gates such as 'stretch<1e-3,penetration<0.05' (metrics: {', '.join(METRICS)})"
+    if not isinstance(text, str):
+        raise UserError(f"{name} {text!r}: expected a string of {example}")
+    if not text.strip():
+        raise UserError(f"{name} {text!r}: no gates: give {example}")
     gates = {}
     for part in text.split(","):
         m = re.fullmatch(r"\s*([a-z]+)\s*<\s*(\S+)\s*", part)

@@ -2,7 +2,12 @@
 
 The strand BVH (``wp.Bvh`` over segment boxes) is kept between frames: when a new frame has
 the same strand topology, the segment boxes are rewritten on the device and the tree is refit
-(``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both.
+(``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both;
+``Renderer.hair_visible`` says whether the last image shows any strand.
+
+Bad arguments (a resolution of 8.5 or 0 pixels, a fractional ``spp``, an unknown shading or
+conform policy) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
+line for ``dftl-warp render``; nothing is truncated to an integer.
 """
 
 from __future__ import annotations
@@ -16,12 +21,16 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..errors import UserError
 from ..kernels.render import tracer as rk
-from .camera import Camera, auto_frame
+from ..options import OptionError
+from .camera import CONFORM_POLICIES, Camera, auto_frame
 from .scene import RenderScene
 
 SHADINGS = {"marschner": 0, "kajiya-kay": 1}
+#: the largest image width or height, in pixels (``dftl-warp render --resolution``)
+MAX_SIDE = 16384
+#: the most samples per pixel (``--spp``; 8 by default, 64 in the comparisons of docs/render.md)
+MAX_SPP = 4096
 
 
 @dataclass
@@ -41,12 +50,25 @@ class Lighting:
 
 
 def parse_device(name: str) -> str:
-    """A Warp device name, checked; raises UserError for one this machine lacks."""
+    """A Warp device name, checked; raises OptionError (a UserError) for one this machine lacks."""
     try:
         return str(wp.get_device(name))
     except Exception:
         available = ", ".join(str(d) for d in wp.get_devices())
-        raise UserError(f"device {name!r} is not available here (available: {available})") from None
+        raise OptionError(f"device {name!r} is not available here (available: {available})") from None
+
+
+def whole_number(name: str, value, low: int = 1, high: int | None = None) -> int:
+    """``value`` as an int in [``low``, ``high``]; OptionError naming ``name`` for a fraction
+    (8.5 is refused, not cut to 8), a bool, a string or a number out of range."""
+    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not numeric or not math.isfinite(value) or value != int(value):
+        raise OptionError(f"{name} {value!r}: expected a whole number")
+    if value < low:
+        raise OptionError(f"{name} {value!r}: must be at least {low}")
+    if high is not None and value > high:
+        raise OptionError(f"{name} {value!r}: must be at most {high}")
+    return int(value)
 
 
 class Renderer:
@@ -55,25 +77,32 @@ class Renderer:
 
     def __init__(self, width=640, height=480, spp=4, device="cpu", shading="marschner",
                  conform="expandAperture", lighting: Lighting | None = None, seed=0, threads=None):
-        if width < 1 or height < 1:
-            raise UserError(f"resolution {width}x{height}: both must be at least 1")
-        if spp < 1:
-            raise UserError(f"--spp {spp}: must be at least 1")
+        self.width = whole_number("width", width, 1, MAX_SIDE)
+        self.height = whole_number("height", height, 1, MAX_SIDE)
+        self.spp = whole_number("spp", spp, 1, MAX_SPP)
         if shading not in SHADINGS:
-            raise UserError(f"shading {shading!r}: choose one of {', '.join(SHADINGS)}")
-        self.width, self.height, self.spp = int(width), int(height), int(spp)
+            raise OptionError(f"shading {shading!r}: choose one of {', '.join(SHADINGS)}")
+        if conform not in CONFORM_POLICIES:
+            raise OptionError(f"conform {conform!r}: choose one of {', '.join(CONFORM_POLICIES)}")
+        if lighting is not None and not isinstance(lighting, Lighting):
+            raise TypeError(f"lighting must be a Lighting or None, got {type(lighting).__name__}")
         self.device = parse_device(device)
         self.shading = shading
         self.conform = conform
         self.lighting = lighting or Lighting()
-        self.seed = seed
+        self.seed = whole_number("seed", seed, 0, 2**31 - 1)
         #: CPU threads rendering bands of rows (default: all cores); one launch on CUDA
-        self.threads = 1 if wp.get_device(self.device).is_cuda else int(threads or os.cpu_count() or 1)
+        threads = None if threads is None else whole_number("threads", threads)
+        self.threads = 1 if wp.get_device(self.device).is_cuda else threads or os.cpu_count() or 1
         self.bvh_builds = 0
         self.bvh_refits = 0
+        #: whether a sample of the last :meth:`render` saw a strand first (None before any);
+        #: False: the camera sees no strand (it looks away, or they are clipped, hidden or too thin)
+        self.hair_visible = None
         self._hair_counts = None
         self._hair = None
         self._image = wp.zeros((self.height, self.width), dtype=wp.vec4, device=self.device)
+        self._hair_seen = wp.zeros(1, dtype=wp.int32, device=self.device)
 
     # -- scene upload --------------------------------------------------------------------
     def _upload_hair(self, scene: RenderScene, origin: np.ndarray):
@@ -189,6 +218,10 @@ class Renderer:
     def render(self, scene: RenderScene, camera: Camera | None = None) -> np.ndarray:
         """(height, width, 4) float32: linear straight colour and alpha = coverage. ValueError
         (:meth:`RenderScene.check`) when the scene's strand arrays do not fit together."""
+        if not isinstance(scene, RenderScene):
+            raise TypeError(f"scene must be a RenderScene, got {type(scene).__name__}")
+        if camera is not None and not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a Camera or None, got {type(camera).__name__}")
         scene.check()
         if camera is None:
             camera = self.default_camera(scene)
@@ -196,10 +229,12 @@ class Renderer:
         origin = np.zeros(3) if bounds is None else 0.5 * (bounds[0] + bounds[1])
         self._upload_hair(scene, origin)
         self._upload_shapes(scene, origin)
-        inputs = [self._camera(camera, origin), self._hair, self._shapes, self._lights(camera), self.spp, int(self.seed)]
+        inputs = [self._camera(camera, origin), self._hair, self._shapes, self._lights(camera), self.spp, self.seed]
+        outputs = [self._image, self._hair_seen]
+        self._hair_seen.zero_()
         if self.threads <= 1 or self.height < 2:
             wp.launch(rk.render_kernel, dim=(self.height, self.width), inputs=[*inputs, 0],
-                      outputs=[self._image], device=self.device)
+                      outputs=outputs, device=self.device)
         else:
             # Warp runs a CPU launch on one thread (and lets go of the GIL): render bands of
             # rows concurrently, small bands handed out in turn to even out the work
@@ -208,10 +243,11 @@ class Renderer:
             def launch(row):
                 rows = min(band, self.height - row)
                 wp.launch(rk.render_kernel, dim=(rows, self.width), inputs=[*inputs, row],
-                          outputs=[self._image], device=self.device)
+                          outputs=outputs, device=self.device)
 
             with ThreadPoolExecutor(self.threads) as pool:
                 list(pool.map(launch, range(0, self.height, band)))
+        self.hair_visible = bool(self._hair_seen.numpy()[0])
         return self._image.numpy().copy()
 
 

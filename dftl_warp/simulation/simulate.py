@@ -481,6 +481,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     out_opts = {k: check_api(k, options.pop(k, None)) for k in OUTPUT_OPTIONS}
     tolerance = check_api("tolerance", options.pop("tolerance", None))  # simulation.tolerance
     from ..options import GUIDE_OPTIONS
+    from ..guides.scene import check_guides_output
 
     guides = {k: check_api(k, options.pop(k, None)) for k in GUIDE_OPTIONS}  # guides.scene (issue 22)
     if "device" in options and options["device"] is None:
@@ -494,6 +495,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
     frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
+    check_guides_output(scene, guides, cli=command is not None)   # --guides-output with no guides
     if not out_opts["no_clips"]:  # clips: their writer processes start while the simulation sets up
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,

@@ -17,7 +17,8 @@ simulator's output).
   not; an ambient term lifts the shadows.
 - :func:`render_kernel`: one thread per pixel, ``spp`` stratified jittered samples; writes the
   mean linear radiance of the samples that hit something (straight colour) and the fraction
-  that hit (alpha = coverage).
+  that hit (alpha = coverage), and sets ``hair_seen[0]`` to 1 where a sample's first hit is a
+  strand (the host warns about a camera that sees no strand).
 """
 
 import warp as wp
@@ -455,10 +456,12 @@ def render_kernel(
     seed: int,
     row_offset: int,
     image: wp.array2d(dtype=wp.vec4),
+    hair_seen: wp.array(dtype=wp.int32),
 ):
     """One pixel: ``spp`` jittered samples on a stratified grid; straight colour + coverage.
     Launched over (rows, width) from image row ``row_offset`` (the CPU splits the image in
-    bands rendered by several threads)."""
+    bands rendered by several threads). A pixel with a sample whose first hit is a strand sets
+    ``hair_seen[0] = 1`` (every such pixel writes the same value: a plain store, no atomic)."""
     ty, px = wp.tid()
     py = ty + row_offset
     state = wp.rand_init(seed, py * cam.width + px)
@@ -466,6 +469,7 @@ def render_kernel(
     rows = (spp + grid - 1) // grid
     radiance = wp.vec3(0.0, 0.0, 0.0)
     hits = int(0)
+    hair_hits = int(0)
     for s in range(spp):
         jx = (float(s % grid) + wp.randf(state)) / float(grid)
         jy = (float(s // grid) + wp.randf(state)) / float(rows)
@@ -498,6 +502,7 @@ def render_kernel(
                 e = e + lights.fill_color * nf
             radiance += wp.cw_mul(lights.geometry_albedo, e / 3.14159265 + lights.ambient)
         else:
+            hair_hits += 1
             v = hair.seg_v0[seg]
             a = hair.points[v]
             b = hair.points[v + 1]
@@ -531,4 +536,6 @@ def render_kernel(
             radiance += c
     if hits > 0:
         radiance = radiance / float(hits)
+    if hair_hits > 0:
+        hair_seen[0] = 1
     image[py, px] = wp.vec4(radiance[0], radiance[1], radiance[2], float(hits) / float(spp))
