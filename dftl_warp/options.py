@@ -297,7 +297,8 @@ _USD = [
            unit="stage units", low=0.0, low_open=True, usd="dftl:hairHairCellSize", scope="scene"),
     Option("hairHairFriction", float, 2.0, "rate of relaxation toward the local mean velocity", unit="1/s",
            low=0.0, usd="dftl:hairHairFriction", scope="scene"),
-    Option("hairHairRepulsion", float, 5.0, "acceleration per unit density difference across a cell",
+    Option("hairHairRepulsion", float, None, "acceleration per unit difference of the hair's density relative "
+           "to its rest density, across a cell (default 5 m/s^2: a groom's edge at rest is pushed out at about g/2)",
            unit="stage units/s^2", low=0.0, usd="dftl:hairHairRepulsion", scope="scene"),
     Option("hairHairSplatInterval", int, 1,
            "substeps between rebuilds of the hair-hair grid (1: every substep; the substeps per frame or "

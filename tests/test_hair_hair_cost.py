@@ -66,7 +66,7 @@ def test_interval_1_is_todays_pipeline_bit_for_bit():
                 g["density"].zero_()
                 g["momentum"].zero_()
                 wp.launch(grid_splat_kernel(s), dim=model.num_slots, device=model.device,
-                          inputs=[state.positions, state.velocities, g["lower"], 1.0 / 0.02, 0.0,
+                          inputs=[state.positions, state.velocities, g["weights"], g["lower"], 1.0 / 0.02, 0.0,
                                   *step._grid.shape], outputs=[g["density"], g["momentum"]])
                 step.sweep(state, state, control, solver.feature_head(control, dt, alpha))
         runs.append([a.numpy().copy() for a in (state.positions, state.velocities, state.corrections)])
@@ -94,8 +94,9 @@ def test_the_grid_is_rebuilt_every_interval_substeps_of_each_frame(interval, reb
 
 
 def test_strand_splat_is_the_particle_splat_and_conserves_particles_and_momentum():
-    """Trilinear weights sum to one: the grid holds every particle inside it once, and the sum of
-    their velocities; the per-strand splat adds the same terms in another order."""
+    """Trilinear weights sum to one: the grid holds the hair volume fraction of every particle
+    inside it once, and the sum of their velocities weighted by it; the per-strand splat adds the
+    same terms in another order."""
     pts, counts = head_groom(60, 16, seed=2)
     rng = np.random.default_rng(5)
     velocities = rng.normal(size=pts.shape)
@@ -116,9 +117,12 @@ def test_strand_splat_is_the_particle_splat_and_conserves_particles_and_momentum
         cell = (x - lower) / 0.015 + 1.0
         inside = np.all((cell >= 0) & (cell < np.array(grid.shape) - 1), axis=1)
         assert 0.2 * len(x) < inside.sum() < len(x)  # some hair outside the grid
-        assert grids[splat]["density"].sum() == pytest.approx(inside.sum(), rel=1e-12)
-        np.testing.assert_allclose(grids[splat]["momentum"].sum(axis=(0, 1, 2)), velocities[inside].sum(0),
-                                   rtol=1e-10, atol=1e-10)
+        weights = grids[splat]["weights"][model.layout.slot_of_point]   # input order
+        assert weights.min() > 0.0
+        assert grids[splat]["density"].sum() == pytest.approx(weights[inside].sum(), rel=1e-12)
+        momentum = (weights[:, None] * velocities)[inside].sum(0)
+        np.testing.assert_allclose(grids[splat]["momentum"].sum(axis=(0, 1, 2)), momentum,
+                                   rtol=1e-10, atol=1e-10 * np.abs(momentum).max())
     a, b = grids["particles"], grids["strands"]
     assert np.array_equal(a["lower"], b["lower"])
     np.testing.assert_allclose(b["density"], a["density"], rtol=1e-13, atol=1e-13)

@@ -50,6 +50,7 @@ def test_feature_attributes_agree_with_the_features():
 
 def test_feature_defaults_agree_with_the_features():
     from dftl_warp.features import HairHair, Wind
+    from dftl_warp.features.hair_hair import DEFAULT_REPULSION
 
     feats = _features().features_from_attributes({"dftl:drag": 1.0, "dftl:wind": [1.0, 0.0, 0.0], "dftl:hairHair": True},
                                      [{}], [1], mean_segment=0.1)
@@ -60,7 +61,9 @@ def test_feature_defaults_agree_with_the_features():
     assert wind.seed == OPTIONS["windSeed"].default
     hh = next(f for f in feats if isinstance(f, HairHair))
     assert hh.friction == OPTIONS["hairHairFriction"].default
-    assert hh.repulsion == OPTIONS["hairHairRepulsion"].default
+    # the table's None: the feature's SI default, in stage units (here metres)
+    assert OPTIONS["hairHairRepulsion"].default is None
+    assert hh.repulsion == DEFAULT_REPULSION
 
 
 def test_pbd_iterations_default_is_the_table_default():

@@ -20,6 +20,10 @@ from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layo
 from .precision import numpy_type, scalar_type, vec3_type
 from .state import feature_hook
 
+#: diameter (m) of human hair (about 80 um; Robbins 2002), taken where a model gives no widths (the
+#: elastic solver's radius, the hair-hair grid's hair volume)
+DEFAULT_HAIR_WIDTH = 80e-6
+
 
 def _world_origin(points: np.ndarray) -> np.ndarray:
     """Origin subtracted on upload so that float32 keeps its precision far from (0, 0, 0).

@@ -1,7 +1,9 @@
 """Hair-hair interaction (:class:`HairHair`) on a grid that follows the hair (Petrovic et al. 2005).
 
-Model data: the grid's node counts and cell size (m). Step scratch (:class:`Grid`): the grid's
-lower corner (m), density (particles per node) and momentum (m/s per node), rebuilt every
+Model data: the grid's node counts and cell size (m), and what each particle splats: its hair
+volume over a cell's, relative to the groom's rest density (:func:`grid_weights`). Step scratch
+(:class:`Grid`): the grid's lower corner (m), density (relative to the rest density, per node) and
+momentum (relative density x m/s per node), rebuilt every
 ``splat_interval`` substeps (``kernels/features/grid.py``, ``grid_strands.py``). USD:
 ``dftl:hairHair`` and ``dftl:hairHair*`` on the scene. Memory: 4 scalars per node.
 """
@@ -16,14 +18,20 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
 from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
+from ..core.model import DEFAULT_HAIR_WIDTH
 from .base import authored, find, nonnegative, vector
+
+#: default repulsion (m/s^2 per unit relative density across a cell): the hair at a groom's edge at
+#: rest is pushed out at about half of g
+DEFAULT_REPULSION = 5.0
 
 #: name -> (type, where: "scene", "curves" or "both", description)
 ATTRIBUTES = {
     "dftl:hairHair": (bool, "scene", "true turns hair-hair interaction on"),
     "dftl:hairHairCellSize": (float, "scene", "grid cell size (stage units); default 4 x the mean segment length"),
     "dftl:hairHairFriction": (float, "scene", "rate (1/s) of relaxation toward the local mean velocity"),
-    "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit density difference across a cell"),
+    "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit difference of the hair's "
+                               "density relative to its rest density, across a cell"),
     "dftl:hairHairSplatInterval": (int, "scene", "substeps between rebuilds of the grid (1: every substep)"),
 }
 
@@ -41,9 +49,16 @@ SPLATS = ("particles", "strands")
 class HairHair:
     """Hair-hair interaction on a grid of ``cell_size`` (m) that follows the hair.
 
-    ``friction`` (1/s): rate at which velocities relax toward the grid (local mean) velocity;
-    ``repulsion`` (m/s^2): acceleration per unit density difference (particles per grid node)
-    across one cell, pushing particles toward lower density. ``extent`` (3,), m: the grid's size,
+    ``friction`` (1/s): rate at which velocities relax toward the grid (local volume-weighted mean)
+    velocity; ``repulsion`` (m/s^2): acceleration per unit difference of the hair's *relative
+    density* across one cell, pushing particles toward lower density. The relative density is the
+    hair's volume fraction (hair volume per volume, from the particles' widths and Voronoi lengths)
+    over its typical value at rest (``rest_density``; None: computed from the rest positions,
+    :func:`rest_density`): 1 where the hair is as dense as it typically is at rest. So the push
+    does not depend on how many strands or vertices represent the hair (it grew with them: 10 times
+    the strands pushed 10 times harder), and hair at the edge of a groom at rest is pushed out at
+    about ``repulsion`` (default :data:`DEFAULT_REPULSION`). ``hair_width`` (m): the diameter of
+    hair without widths (default human hair's). ``extent`` (3,), m: the grid's size,
     by default the rest bounds of the hair plus twice the longest strand on each axis, capped
     at ``max_cells`` nodes (particles outside the grid feel nothing).
 
@@ -58,7 +73,9 @@ class HairHair:
 
     cell_size: float
     friction: float = 2.0
-    repulsion: float = 5.0
+    repulsion: float = DEFAULT_REPULSION
+    hair_width: float = DEFAULT_HAIR_WIDTH
+    rest_density: float | None = None
     extent: np.ndarray | None = None
     max_cells: int = 1 << 24
     splat_interval: int = 1
@@ -83,6 +100,15 @@ class HairHair:
             raise ValueError(f"hair-hair max_cells must be an integer >= 1, got {n!r}")
         nonnegative(self.friction, "hair-hair friction")
         nonnegative(self.repulsion, "hair-hair repulsion")
+        width = self.hair_width
+        if isinstance(width, (bool, np.bool_)) or not isinstance(width, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(width) and width > 0):
+            raise ValueError(f"hair-hair hair_width must be a finite number > 0 (m), got {width!r}")
+        typical = self.rest_density
+        if typical is not None and not (isinstance(typical, (int, float, np.integer, np.floating))
+                                        and not isinstance(typical, (bool, np.bool_))
+                                        and np.isfinite(typical) and typical > 0):
+            raise ValueError(f"hair-hair rest_density must be a finite number > 0 (volume fraction), got {typical!r}")
         k = self.splat_interval
         if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"hair-hair splat_interval must be an integer >= 1 (substeps), got {k!r}")
@@ -106,6 +132,75 @@ def hair_hair_extent(hh: HairHair, points, counts) -> np.ndarray:
     seg[starts] = 0.0
     longest = float(np.add.reduceat(seg, starts).max())
     return points.max(0) - points.min(0) + 2.0 * longest
+
+
+def volume_fractions(points, counts, widths, cell: float, hair_width: float = DEFAULT_HAIR_WIDTH) -> np.ndarray:
+    """Each point's hair volume over a grid cell's (dimensionless, input order): ``pi r^2 l / cell^3``,
+    ``r`` half its width (``widths``: one or one per point; None or 0: ``hair_width``), ``l`` its Voronoi
+    length along the strand (half of each segment it ends or starts) at ``points`` (N, 3)."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    starts = strand_offsets(counts)
+    seg = np.zeros(len(points))
+    seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    seg[starts] = 0.0  # roots end no segment
+    length = 0.5 * seg
+    length[:-1] += 0.5 * seg[1:]   # the segment a point starts (0 where the next point is a root)
+    w = hair_width if widths is None else np.asarray(widths, dtype=np.float64).reshape(-1)
+    # a width of 0 (a prim without widths simulated beside prims with them) is hair_width's hair
+    w = np.where(np.asarray(w) > 0.0, w, hair_width)
+    return np.pi * (0.5 * w) ** 2 * length / float(cell) ** 3
+
+
+def splat_nodes(points, weights, cell: float) -> np.ndarray:
+    """Node densities (3D array from the points' lower corner) of ``weights`` splatted trilinearly
+    at ``points`` (N, 3) on a grid of ``cell`` (numpy; the device kernels' weights)."""
+    g = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - np.min(points, axis=0)) / float(cell)
+    base = np.floor(g).astype(np.int64)
+    f = g - base
+    shape = base.max(0) + 2
+    node = (base[:, 0] * shape[1] + base[:, 1]) * shape[2] + base[:, 2]
+    rho = np.zeros(int(np.prod(shape)))
+    for c in range(8):
+        d = (c & 1, (c >> 1) & 1, (c >> 2) & 1)
+        w = np.array(weights, dtype=np.float64).reshape(-1)
+        for axis in range(3):
+            w *= f[:, axis] if d[axis] else 1.0 - f[:, axis]
+        rho += np.bincount(node + (d[0] * shape[1] + d[1]) * shape[2] + d[2], weights=w, minlength=rho.size)
+    return rho.reshape(shape)
+
+
+def rest_density(points, fractions, cell: float) -> float:
+    """The hair's typical volume fraction at ``points`` (N, 3): its trilinear splat on a grid of
+    ``cell`` (m) averaged over the hair, ``sum rho^2 / sum rho`` over the nodes (the density a
+    particle sits in); 1 where there is no hair volume."""
+    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1)
+    if not len(fractions) or fractions.sum() <= 0.0:
+        return 1.0
+    rho = splat_nodes(points, fractions, cell)
+    return float(np.sum(rho ** 2) / np.sum(rho))
+
+
+def group_rest_density(hh: HairHair, points, counts, widths) -> float:
+    """:func:`rest_density` of strands ``points`` (N, 3) / ``counts`` with ``widths`` (one, one per
+    point or None) on ``hh``'s cells: what the parts of a groom split across devices share."""
+    cell = float(hh.cell_size)
+    return rest_density(points, volume_fractions(points, counts, widths, cell, hh.hair_width), cell)
+
+
+def grid_weights(model, hh: HairHair, cell: float) -> np.ndarray:
+    """What each particle splats (one per slot, 0 in unused slots): its hair volume fraction
+    (:func:`volume_fractions`) over the groom's rest density (``hh.rest_density``, else
+    :func:`rest_density` of this model's rest positions), so the grid's density is 1 where the
+    hair is as dense as it typically is at rest, whatever strands and vertices represent it."""
+    lay = model.layout
+    if lay.slot_of_point is None or model.rest_positions is None:
+        raise ValueError("hair-hair interaction needs a model with host rest positions")
+    points = model.rest_positions[lay.slot_of_point]
+    fractions = volume_fractions(points, model.counts, model.widths, cell, hh.hair_width)
+    typical = hh.rest_density if hh.rest_density is not None else rest_density(points, fractions, cell)
+    out = np.zeros(lay.num_slots)
+    out[lay.slot_of_point] = fractions / typical
+    return out
 
 
 def grid_dimensions(hh: HairHair, points, counts) -> tuple[tuple[int, int, int], float]:
@@ -141,6 +236,9 @@ class Grid:
         self._last_alpha = None
         self._substep = 0
         self.arrays = {
+            # what each particle splats: its hair volume fraction over the rest density's
+            "weights": wp.array(grid_weights(model, hh if hh is not None else HairHair(self.cell), self.cell),
+                                dtype=model.scalar, device=model.device),
             "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
             "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
             "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),
@@ -224,7 +322,7 @@ class Grid:
 
     def _launch(self, kernel, positions, velocities, lead: float, density) -> None:
         m, g = self.model, self.arrays
-        tail = [g["lower"], 1.0 / self.cell, float(lead), *self.shape]
+        tail = [g["weights"], g["lower"], 1.0 / self.cell, float(lead), *self.shape]
         if self.by_strands:
             wp.launch(kernel, dim=m.num_strands, device=m.device, block_dim=SPLAT_BLOCK_DIM,
                       inputs=[m.strand_base, m.strand_stride, m.strand_count, positions, velocities, *tail],
@@ -235,6 +333,7 @@ class Grid:
 
     def fill_struct(self, st, hh: HairHair) -> None:
         g = self.arrays
+        st.grid_weights = g["weights"]
         st.grid_lower = g["lower"]
         st.grid_h = self.cell
         st.grid_inv_h = 1.0 / self.cell
@@ -246,8 +345,10 @@ class Grid:
         st.grid_repulsion = float(hh.repulsion)
 
 
-def from_attributes(scene: dict, where: str, mean_segment: float) -> list:
-    """HairHair from authored ``dftl:hairHair*`` values; the default cell is 4 mean segments."""
+def from_attributes(scene: dict, where: str, mean_segment: float, meters_per_unit: float = 1.0) -> list:
+    """HairHair from authored ``dftl:hairHair*`` values; the default cell is 4 mean segments, the
+    repulsion :data:`DEFAULT_REPULSION` m/s^2 and the width of hair without widths human hair's,
+    both in stage units (``meters_per_unit``)."""
     if not authored(scene, "dftl:hairHair", where, bool, False):
         return []
     cell = authored(scene, "dftl:hairHairCellSize", where, float, 4.0 * mean_segment)
@@ -257,5 +358,6 @@ def from_attributes(scene: dict, where: str, mean_segment: float) -> list:
     if interval < 1:
         raise ValueError(f"{where}: dftl:hairHairSplatInterval = {interval}: must be >= 1")
     return [HairHair(cell_size=cell, friction=authored(scene, "dftl:hairHairFriction", where, float, 2.0),
-                     repulsion=authored(scene, "dftl:hairHairRepulsion", where, float, 5.0),
-                     splat_interval=interval)]
+                     repulsion=authored(scene, "dftl:hairHairRepulsion", where, float,
+                                        DEFAULT_REPULSION / meters_per_unit),  # m/s^2 in stage units
+                     hair_width=DEFAULT_HAIR_WIDTH / meters_per_unit, splat_interval=interval)]

@@ -22,7 +22,7 @@ ATTRIBUTES = {**air.ATTRIBUTES, **hair_hair.ATTRIBUTES, **colliders.ATTRIBUTES,
 
 
 def features_from_attributes(scene: dict, curves: list, counts: list, *, mean_segment: float = 0.0,
-                             where: str = "scene") -> list:
+                             where: str = "scene", meters_per_unit: float = 1.0) -> list:
     """Feature objects for authored ``dftl:`` values.
 
     Args:
@@ -31,13 +31,14 @@ def features_from_attributes(scene: dict, curves: list, counts: list, *, mean_se
         curves: one dict per curves prim (with an optional ``"path"`` for messages).
         counts: strands in each curves prim, same order.
         mean_segment: mean rest segment length (stage units), for the default grid cell.
+        meters_per_unit: the stage's unit, for defaults given in SI units.
 
     Returns the features the attributes turn on (possibly none); raises ``ValueError`` naming the
     prim and attribute for a bad value.
     """
     counts = [int(c) for c in counts]
     return (air.from_attributes(scene, curves, counts, where)
-            + hair_hair.from_attributes(scene, where, mean_segment))
+            + hair_hair.from_attributes(scene, where, mean_segment, meters_per_unit))
 
 
 def widths_per_point(curve) -> np.ndarray | None:
@@ -62,7 +63,8 @@ def group_features(scene, curves, frame) -> tuple[list, np.ndarray | None]:
     try:
         feats += features_from_attributes(
             scene.features, [dict(c.features, path=f"{where}: {c.path}") for c in curves],
-            [c.num_strands for c in curves], mean_segment=float(np.mean(seg)) if seg else 0.0, where=where)
+            [c.num_strands for c in curves], mean_segment=float(np.mean(seg)) if seg else 0.0, where=where,
+            meters_per_unit=float(scene.stage.meters_per_unit))
     except ValueError as exc:
         raise UserError(str(exc)) from None
     feats += binding.from_scene(curves, frame)

@@ -11,12 +11,15 @@ computed exactly as on one device.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..core.layout import strand_offsets
 from ..core.model import Model, _world_origin
 from ..errors import UserError
 from ..features import HairHair, find, group_features, hair_hair_extent
+from ..features.hair_hair import group_rest_density
 from ..solvers import carries_corrections, make_solver
 from ..usd.scene import transform_points
 from .multi_device import (
@@ -57,10 +60,16 @@ class Group:
         starts = strand_offsets(counts, with_end=True)
         self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
         origin = grid_extent = None
+        hair_hair = find(features, HairHair)
+        if hair_hair is not None and hair_hair.rest_density is None:
+            # the hair-hair grid's rest density from the group's points (a split group's parts all
+            # weigh against the whole group's, and on one device or several alike)
+            features = [replace(f, rest_density=group_rest_density(f, points, counts, widths)) if f is hair_hair
+                        else f for f in features]
+            hair_hair = find(features, HairHair)
         if split:
             # every part shares the group's origin and (hair-hair) grid
             origin = _world_origin(points)
-            hair_hair = find(features, HairHair)
             grid_extent = None if hair_hair is None else hair_hair_extent(hair_hair, points, counts)
         extra = {} if options.iterations is None else {"iterations": options.iterations}
         elastic = settings.solver == "elastic"

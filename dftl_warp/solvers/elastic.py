@@ -66,6 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from ..core.model import DEFAULT_HAIR_WIDTH
 from ..core.precision import numpy_type, scalar_type
 from ..core.state import State
 from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_kernel
@@ -79,7 +80,7 @@ HAIR_DENSITY = 1320.0
 #: default twist-coupling modulus: 10 x HAIR_G (see the module docstring)
 TWIST_G = 10 * HAIR_G
 #: default hair radius (m) when the model has no widths
-DEFAULT_RADIUS = 40e-6
+DEFAULT_RADIUS = 0.5 * DEFAULT_HAIR_WIDTH
 
 
 #: CUDA threads per block of the elastic step (H200, the 1M production scene: blocks of 128 measured

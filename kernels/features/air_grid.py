@@ -141,10 +141,10 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
             if wp.static(VELOCITY):
                 v = ld(velocities_in[k])
                 if wp.static(HAIR_HAIR):
-                    v_grid, grad = grid_sample(positions_in[k], features.grid_lower, features.grid_inv_h,
-                                               features.grid_nx, features.grid_ny, features.grid_nz,
-                                               features.grid_density, features.grid_mass,
-                                           features.grid_momentum)
+                    v_grid, grad = grid_sample(positions_in[k], features.grid_weights[k], features.grid_lower,
+                                               features.grid_inv_h, features.grid_nx, features.grid_ny,
+                                               features.grid_nz, features.grid_density, features.grid_mass,
+                                               features.grid_momentum)
                     v = v + blend_grid * (ld(v_grid) - v) - (push * dt) * ld(grad)
                 if wp.static(DRAG):
                     v = air + (v - air) * decay
@@ -155,10 +155,10 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
                 if wp.static(DRAG):
                     a = rate * air
                 if wp.static(HAIR_HAIR):
-                    v_grid, grad = grid_sample(positions_in[k], features.grid_lower, features.grid_inv_h,
-                                               features.grid_nx, features.grid_ny, features.grid_nz,
-                                               features.grid_density, features.grid_mass,
-                                           features.grid_momentum)
+                    v_grid, grad = grid_sample(positions_in[k], features.grid_weights[k], features.grid_lower,
+                                               features.grid_inv_h, features.grid_nx, features.grid_ny,
+                                               features.grid_nz, features.grid_density, features.grid_mass,
+                                               features.grid_momentum)
                     a = a + friction * ld(v_grid) - push * ld(grad)
                     c = c + friction
                 accelerations_out[k] = vec4(a[0], a[1], a[2], c)

@@ -115,7 +115,8 @@ def grid_cell_func(scalar):
 
 @functools.cache
 def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
-    """Kernel splatting density (particles per node) and momentum (m/s per node) trilinearly;
+    """Kernel splatting density (the particles' ``weights``, their hair volume fraction relative to
+    the groom's rest density, per node) and momentum (weight x m/s per node) trilinearly;
     ``ahead``: each particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused);
     ``density_only``: the density alone (``momentum`` untouched)."""
     vec3 = wp.types.vector(3, scalar)
@@ -129,6 +130,8 @@ def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
         # Data in: particle positions (m) and velocities (m/s), device frame
         positions: wp.array(dtype=vec3),
         velocities: wp.array(dtype=vec3),
+        # Model: each particle's weight: its hair volume fraction over the rest density's
+        weights: wp.array(dtype=scalar),
         # Model: the grid (lower corner m, 1 / cell size 1/m, node counts); lead (s)
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
@@ -136,11 +139,13 @@ def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
         nx: int,
         ny: int,
         nz: int,
-        # Data out: density (particles per node) and momentum (m/s per node), zeroed beforehand
+        # Data out: density (weights per node) and momentum (weight x m/s per node),
+        # zeroed beforehand
         density: wp.array3d(dtype=scalar),
         momentum: wp.array3d(dtype=vec3),
     ):
         p = wp.tid()
+        weight = weights[p]
         x = positions[p]
         if wp.static(AHEAD):
             x = x + lead * velocities[p]
@@ -157,7 +162,7 @@ def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
             wx = fx if di == 1 else one - fx
             wy = fy if dj == 1 else one - fy
             wz = fz if dk == 1 else one - fz
-            w = wx * wy * wz
+            w = wx * wy * wz * weight
             wp.atomic_add(density, i + di, j + dj, k + dk, w)
             if wp.static(MOMENTUM):
                 wp.atomic_add(momentum, i + di, j + dj, k + dk, w * v)
@@ -167,10 +172,12 @@ def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
 
 @functools.cache
 def grid_sample_func(scalar):
-    """``sample(x, ..., density, mass, momentum) -> (v_grid, grad_rho)``: grid velocity (m/s,
+    """``sample(x, own, ..., density, mass, momentum) -> (v_grid, grad_rho)``: grid velocity (m/s,
     ``momentum`` over ``mass``, the density splatted with it) and the gradient (1/m) of the
-    ``density`` of the other particles at ``x``; zeros outside the grid or where the grid is empty.
-    ``mass`` empty: the momentum was splatted with ``density`` (every substep a full rebuild)."""
+    ``density`` (relative to the rest density) of the other particles at ``x``, the sampling particle's own
+    share (its weight ``own`` splatted at ``x``) removed; zeros outside the grid or where the grid
+    is empty. ``mass`` empty: the momentum was splatted with ``density`` (every substep a full
+    rebuild)."""
     vec3 = wp.types.vector(3, scalar)
     cell = grid_cell_func(scalar)
     one = scalar(1.0)
@@ -179,6 +186,7 @@ def grid_sample_func(scalar):
     @wp.func
     def grid_sample(
         x: vec3,
+        own: scalar,
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
         nx: int,
@@ -217,8 +225,9 @@ def grid_sample_func(scalar):
             grad += node * dw
             self_grad += w * dw
         v_grid = vec3()
-        if rho > scalar(1.0e-6):
+        # a weighted mean of the velocities splatted near x: undefined only where (nearly) nothing was
+        if rho > scalar(1.0e-6) * own:
             v_grid = mom / rho
-        return v_grid, grad - self_grad
+        return v_grid, grad - own * self_grad
 
     return grid_sample

@@ -4,8 +4,8 @@
 atomic triple per strand instead of one per particle; the minimum is exact, so the lower corner is
 bit-for-bit :func:`~dftl_warp.kernels.features.grid.grid_bounds_kernel`'s).
 
-:func:`grid_splat_strands_kernel` walks a strand root to tip and keeps the density (particles per
-node) and momentum (m/s per node) of the 8 nodes of the particle's cell in registers: while the
+:func:`grid_splat_strands_kernel` walks a strand root to tip and keeps the density (weights per
+node) and momentum (weight x m/s per node) of the 8 nodes of the particle's cell in registers: while the
 strand stays in one cell nothing is written; when it steps to the next cell along one axis, the 4
 nodes the two cells share carry over and only the 4 it leaves behind go to the grid (atomics); any
 other move writes all 8. Consecutive particles of a strand are about one segment apart, so a strand
@@ -71,7 +71,8 @@ CUDA_MAX_REGISTERS = None
 
 @functools.cache
 def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = True, density_only: bool = False):
-    """Kernel (one thread per strand) splatting density (particles per node) and momentum (m/s per
+    """Kernel (one thread per strand) splatting density (the particles' ``weights``, their hair
+    volume fraction relative to the groom's rest density, per node) and momentum (weight x m/s per
     node) trilinearly, a strand's runs through one cell summed in registers first; ``ahead``: each
     particle at ``x + lead v`` (``lead`` in s), else at ``x`` (``lead`` unused); ``aggregate``:
     node writes aggregated over a warp's lanes on CUDA (``grid_aggregate.py``; False: one write per
@@ -113,6 +114,8 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
         # Data in: particle positions (m) and velocities (m/s), device frame
         positions: wp.array(dtype=vec3),
         velocities: wp.array(dtype=vec3),
+        # Model: each particle's weight: its hair volume fraction over the rest density's
+        weights: wp.array(dtype=scalar),
         # Model: the grid (lower corner m, 1 / cell size 1/m, node counts); lead (s): splat x + lead v
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
@@ -120,7 +123,8 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
         nx: int,
         ny: int,
         nz: int,
-        # Data out: density (particles per node) and momentum (m/s per node), zeroed beforehand
+        # Data out: density (weights per node) and momentum (weight x m/s per node),
+        # zeroed beforehand
         density: wp.array3d(dtype=scalar),
         momentum: wp.array3d(dtype=vec3),
     ):
@@ -193,11 +197,12 @@ def grid_splat_strands_kernel(scalar, ahead: bool = False, aggregate: bool = Tru
                 cj = j0
                 ck = k0
                 held = True
+                weight = weights[k]
                 for c in range(8):
                     wx = fx if (c & 1) == 1 else one - fx
                     wy = fy if ((c >> 1) & 1) == 1 else one - fy
                     wz = fz if ((c >> 2) & 1) == 1 else one - fz
-                    w = wx * wy * wz
+                    w = wx * wy * wz * weight
                     rho[c] = rho[c] + w
                     if wp.static(MOMENTUM):
                         mx[c] = mx[c] + w * v[0]

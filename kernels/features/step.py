@@ -58,6 +58,7 @@ def feature_struct(scalar, flags: frozenset):
         )
     if "hair_hair" in flags:
         fields.update(
+            grid_weights=wp.array(dtype=scalar),
             grid_lower=wp.array(dtype=scalar),
             grid_inv_h=scalar,
             grid_h=scalar,

@@ -1,0 +1,107 @@
+"""The hair-hair repulsion does not depend on how many strands or vertices represent the hair (CPU).
+
+The grid's density was once a count of particles, so the same hair drawn with 4 times the strands
+pushed 4 times harder: a 1M-strand groom was pushed at up to 700 g where its 100k-strand version
+was pushed at 70 g (docs/features.md). Each particle now splats its hair volume (its width and
+Voronoi length) over the groom's typical volume fraction at rest, so the density is 1 where the
+hair is as dense as it typically is at rest, and the repulsion is an acceleration per unit of that
+relative density across a cell."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dftl_warp as dw
+from dftl_warp import features as F
+from dftl_warp.features.hair_hair import rest_density, volume_fractions
+
+CELL = 0.01
+
+
+def slab(copies: int, width: float, side: int = 30, spacing: float = 0.002):
+    """Pendulums (a root and one free particle 5 mm below it) in a square slab of ``side`` x ``side``
+    positions ``spacing`` apart, each drawn ``copies`` times (1 um apart) with hair ``width``."""
+    pts = []
+    for i in range(side):
+        for j in range(side):
+            for c in range(copies):
+                root = np.array([i * spacing + 1e-6 * c, 0.0, j * spacing])
+                pts += [root, root + [0.0, -0.005, 0.0]]
+    return np.array(pts), np.full(side * side * copies, 2), width
+
+
+def push(pts, counts, width, repulsion=5.0, splat="strands"):
+    """The free particles' acceleration (m/s^2) in one substep without gravity or friction: the
+    repulsion alone, and their x positions."""
+    model = dw.Model.from_strands(pts, counts, precision="float64", widths=width,
+                                  features=[F.HairHair(cell_size=CELL, friction=0.0, repulsion=repulsion,
+                                                       splat=splat)])
+    solver = dw.DFTLSolver(model, gravity=(0.0, 0.0, 0.0), fused=False)
+    state, control = solver.state(), model.control()
+    dt = 1e-4
+    solver.step(state, state, control, dt, 1.0)
+    v = model.points_from_device(state.velocities, relative=False)[1::2]
+    return v / dt, pts[1::2]
+
+
+@pytest.mark.parametrize("splat", ["strands", "particles"])
+def test_four_times_the_strands_a_quarter_as_thick_push_alike(splat):
+    a1, x = push(*slab(1, 80e-6), splat=splat)
+    a4, _ = push(*slab(4, 40e-6), splat=splat)
+    a4 = a4[::4]                              # the first copy of each pendulum
+    edge = np.argmax(np.linalg.norm(a1, axis=1))
+    assert np.linalg.norm(a1[edge]) > 0.5     # the repulsion acts
+    # alike up to each particle's own share, which it does not feel: a whole pendulum's in one slab,
+    # a quarter of it in the other (its 3 twins push it); with particle counts for density, the
+    # second slab pushed 4 times harder
+    np.testing.assert_allclose(a4, a1, atol=0.05 * np.abs(a1).max())
+
+
+def test_the_edge_of_a_groom_at_rest_is_pushed_at_about_the_repulsion():
+    """Inside a uniform slab the relative density is about 1 and flat; across its edge it falls to
+    0 within about a cell, so the hair there is pushed outward at about ``repulsion``, whatever the
+    strand count."""
+    for copies, width in ((1, 80e-6), (4, 80e-6), (9, 20e-6)):
+        a, x = push(*slab(copies, width), repulsion=5.0)
+        a = a[::copies]
+        x = x[::copies]
+        largest = np.abs(a[:, 0]).max()
+        assert 1.0 < largest < 10.0, (copies, largest)
+        centre = np.abs(x[:, 0] - x[:, 0].mean()) < 0.01
+        edge = np.abs(x[:, 0] - x[:, 0].mean()) > 0.025
+        assert np.abs(a[centre, 0]).max() < 0.5 * largest
+        # outward at both edges
+        assert (np.sign(a[edge, 0]) == np.sign(x[edge, 0] - x[:, 0].mean())).mean() > 0.9
+
+
+def test_refined_strands_splat_the_same_volume():
+    """Twice the vertices along the same strands: each particle carries half the length, and the
+    rest density (the density a particle sits in) is the same."""
+    rng = np.random.default_rng(3)
+    roots = rng.uniform(-0.03, 0.03, (40, 3))
+    coarse = np.concatenate([r + np.outer(np.arange(9), [0.003, -0.004, 0.0]) for r in roots])
+    fine = np.concatenate([r + np.outer(np.arange(17) * 0.5, [0.003, -0.004, 0.0]) for r in roots])
+    phi_c = volume_fractions(coarse, [9] * 40, None, CELL)
+    phi_f = volume_fractions(fine, [17] * 40, None, CELL)
+    assert phi_f.sum() == pytest.approx(phi_c.sum(), rel=1e-12)   # the same hair volume
+    assert rest_density(fine, phi_f, CELL) == pytest.approx(rest_density(coarse, phi_c, CELL), rel=0.05)
+
+
+def test_a_point_without_width_counts_as_human_hair():
+    pts = np.array([[0.0, 0.0, 0.0], [0.0, -0.01, 0.0], [0.0, -0.02, 0.0]])
+    none = volume_fractions(pts, [3], None, CELL)
+    zero = volume_fractions(pts, [3], np.array([0.0, 0.0, 80e-6]), CELL)
+    np.testing.assert_allclose(zero, none, rtol=1e-15)
+    # the middle point carries a whole segment of 80 um hair
+    assert none[1] == pytest.approx(np.pi * 40e-6 ** 2 * 0.01 / CELL ** 3, rel=1e-12)
+
+
+def test_usd_defaults_are_si_values_in_stage_units():
+    """On a stage in centimetres the default repulsion (5 m/s^2) is 500 cm/s^2 and hair without
+    widths is 80 um = 0.008 cm wide."""
+    from dftl_warp.features import features_from_attributes
+
+    (hh,) = features_from_attributes({"dftl:hairHair": True}, [{}], [1], mean_segment=1.0, meters_per_unit=0.01)
+    assert hh.repulsion == pytest.approx(500.0)
+    assert hh.hair_width == pytest.approx(0.008)
