@@ -3,6 +3,8 @@ rooted on it, some strands starting inside. After the clean start and a preroll,
 penetrates the contact distance by more than 1% of the hair radius, and the shot has no pop."""
 
 import numpy as np
+import pytest
+from pxr import Usd
 
 import dftl_warp as dw
 from dftl_warp import features as F
@@ -147,3 +149,45 @@ def test_simulate_cli_moves_hair_out_of_a_sphere_and_prerolls(tmp_path, capsys):
     assert np.abs(velocities[1.0]).max() == 0.0
     assert np.linalg.norm(second - first, axis=1).max() <= radius          # settled into the shot
     assert np.linalg.norm(velocities[2.0], axis=1).max() <= radius * 24.0
+
+
+def test_hair_the_push_out_cannot_free_is_named_in_one_line(tmp_path):
+    """A strand rooted 5 cm inside a sphere: the particle next to its root has 1 cm of rest length
+    to leave by and stays 4 cm inside (the roots are kinematic), so the clean start says so in one
+    line naming the prim, strand (second of the prim, after a clean one; a second prim before it in
+    the same group) and point, with the depth that frame 1's penetration QC measures: (r + depth) / r.
+    Strands combed into the sphere from outside come out and are not named."""
+    from usd_stages import add_curves, chain, new_stage
+    from test_usd_features import sphere_collider
+
+    from dftl_warp.output.qc import ATTRIBUTES
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
+    d = np.array([1.0, -1.0, 0.0]) / np.sqrt(2)
+    combed = [chain(12, 0.01, direction=d, origin=(0.0, 0.1, z)) for z in (-0.02, 0.02)]
+    add_curves(stage, "/World/Fur", np.concatenate(combed), [12, 12], widths=0.002)
+    held = [chain(12, 0.01, direction=(0.0, 1.0, 0.0), origin=o) for o in ((0.3, 0.3, 0.0), (0.0, 0.05, 0.0))]
+    add_curves(stage, "/World/Hair", np.concatenate(held), [12, 12], widths=0.002)
+    sphere_collider(stage, "/World/Ball", 0.1)
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    summary = simulate_usd(tmp_path / "in.usda", out, device="cpu", substeps=4)
+    lines = [w for w in summary.start_notes if "still inside" in w]
+    assert len(lines) == 1, summary.start_notes
+    assert "at /World/Hair strand 1, point 1:" in lines[0] and "of 1 strand(s)" in lines[0], lines[0]
+    assert lines[0] in summary.warnings
+    deep = float(lines[0].split("up to ")[1].split(" m deep")[0])
+    radii = float(lines[0].split("deep (")[1].split(" hair radii")[0])
+    assert deep == pytest.approx(0.04, rel=1e-3) and radii == pytest.approx(deep / 0.001, rel=1e-3)
+    written = Usd.Stage.Open(str(out))
+    qc = written.GetPrimAtPath("/dftl_qc/World_Hair").GetAttribute(ATTRIBUTES["penetration"])
+    assert qc.Get(1.0) == pytest.approx(1.0 + radii, rel=1e-3)
+    # without the held strand everything comes out, and nothing is named
+    stage = new_stage(tmp_path / "clean.usda", start=1, end=2)
+    add_curves(stage, "/World/Fur", np.concatenate(combed), [12, 12], widths=0.002)
+    sphere_collider(stage, "/World/Ball", 0.1)
+    stage.Save()
+    summary = simulate_usd(tmp_path / "clean.usda", tmp_path / "clean.usdc", device="cpu", substeps=4)
+    assert any("started inside a collider" in w for w in summary.start_notes), summary.start_notes
+    assert not any("still inside" in w for w in summary.start_notes), summary.start_notes

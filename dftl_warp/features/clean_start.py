@@ -7,6 +7,8 @@ groom can settle at the first frame's pose (a preroll) before the shot.
   the gradient of its signed distance), then re-projects each strand to its rest lengths from the
   root, as follow-the-leader does, colliding again after each projection; a few rounds. Mesh
   colliders are queried here to any depth (the step's ``depth_band`` does not apply);
+- :func:`still_inside` and :func:`inside_note`: the particles the push-out could not free, and
+  their one line;
 - :func:`preroll`: ``seconds`` of simulation with the roots and colliders held where the control
   puts them (the caller sets the first frame's pose, start = end), velocities damped every frame,
   going on (up to 8x ``seconds``) until no particle moves more than the settling tolerance over a
@@ -78,10 +80,9 @@ def _head(model):
     return [model.strand_base, model.strand_stride, model.strand_count]
 
 
-def measure_start(model, state, control) -> StartReport:
-    """How many particles of ``state`` are inside the colliders at ``control``'s frame-start pose."""
-    if control.features is None or control.features.colliders is None:
-        return StartReport(model.num_points - model.num_strands, 0, 0, 0.0, 0.0, 0.0, 0.0)
+def _depths(model, state, control):
+    """Per device strand and particle 1.. (roots excluded): the distance each collider's response
+    would move it, its hair radius, and which entries are particles."""
     Features, flags, st, keep = _struct(model, control)
     counts = model.strand_count.numpy()
     shape = (model.num_strands, int(counts.max()))
@@ -90,7 +91,14 @@ def measure_start(model, state, control) -> StartReport:
     wp.launch(penetration_kernel(model.scalar, Features, flags), dim=shape, device=model.device,
               inputs=[*_head(model), st, state.positions, pen, rad])
     pen, rad = pen.numpy().astype(np.float64)[:, 1:], rad.numpy().astype(np.float64)[:, 1:]
-    valid = np.arange(1, shape[1])[None, :] < counts[:, None]
+    return pen, rad, np.arange(1, shape[1])[None, :] < counts[:, None]
+
+
+def measure_start(model, state, control) -> StartReport:
+    """How many particles of ``state`` are inside the colliders at ``control``'s frame-start pose."""
+    if control.features is None or control.features.colliders is None:
+        return StartReport(model.num_points - model.num_strands, 0, 0, 0.0, 0.0, 0.0, 0.0)
+    pen, rad, valid = _depths(model, state, control)
     inside = valid & (pen > rad)
     touching = valid & (pen > 0)
     depth = np.where(inside, pen - rad, 0.0)
@@ -123,6 +131,46 @@ def resolve_start(model, state, control, *, iterations: int = 4, rounds: int = 8
         if after.touching == 0 or after.max_penetration_radii <= tolerance:
             break
     return before
+
+
+def still_inside(model, state, control) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The particles of ``state`` (roots excluded) below a collider's surface at ``control``'s
+    frame-start pose, deepest first: their input strand indices, their indices along the strand,
+    their depths below the surface (m, or stage units) and their hair radii. After
+    :func:`resolve_start` these are the particles it could not free: no point at the rest length
+    from their leader is outside (a strand through a thin part, or folded in a concave one)."""
+    empty = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    if control.features is None or control.features.colliders is None:
+        return empty
+    pen, rad, valid = _depths(model, state, control)
+    s, i = np.nonzero(valid & (pen > rad))
+    depth = (pen - rad)[s, i]
+    order = np.argsort(-depth, kind="stable")
+    return model.layout.strand_order[s[order]], i[order] + 1, depth[order], rad[s, i][order]
+
+
+def inside_note(parts, prims, units: str = "m") -> str | None:
+    """One line for the particles still inside a collider (:func:`still_inside`) in ``parts``
+    ((model, state), control) pairs holding consecutive strands of a group, naming the deepest
+    one's prim, strand and point; ``prims``: (path, number of strands) of the group's prims in
+    order. None when nothing is inside."""
+    found, offset = [], 0
+    for (model, state), control in parts:
+        s, i, d, r = still_inside(model, state, control)
+        found.append((s + offset, i, d, r))
+        offset += model.num_strands
+    strands, particles, depth, radius = (np.concatenate(a) for a in zip(*found))
+    if len(strands) == 0:
+        return None
+    k = int(np.argmax(depth))
+    offsets = np.cumsum([0] + [n for _, n in prims])
+    p = int(np.searchsorted(offsets, strands[k], side="right")) - 1
+    radii = f" ({depth[k] / radius[k]:.3g} hair radii)" if radius[k] > 0 else ""
+    return (f"clean start: {len(strands)} particle(s) of {len(np.unique(strands))} strand(s) are still inside a "
+            f"collider after moving out, up to {depth[k]:.3g} {units} deep{radii} at {prims[p][0]} strand "
+            f"{int(strands[k] - offsets[p])}, point {int(particles[k])}: no point at their rest lengths from "
+            "the root is outside (a strand through a thin part of the collider, or folded inside it); they stay "
+            "in until the motion throws them out: check the groom there")
 
 
 def damp_velocities(model, state, factor: float) -> None:

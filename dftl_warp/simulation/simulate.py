@@ -153,7 +153,7 @@ class Simulation:
         import warp as wp
 
         from ..features import update_frame
-        from ..features.clean_start import StartReport, preroll, resolve_start
+        from ..features.clean_start import StartReport, inside_note, preroll, resolve_start
         from .elastic_setup import rest_where_moved
 
         notes = []
@@ -171,7 +171,7 @@ class Simulation:
                 update_frame(self.scene, g.curves, g.control, self.frame, self.frame)  # the first frame's pose
                 if has_colliders:
                     # per strand, so a split group is pushed out part by part exactly as on one device
-                    parts = zip(g._parts, g.control.parts) if split else [((g.model, g.state), g.control)]
+                    parts = list(zip(g._parts, g.control.parts)) if split else [((g.model, g.state), g.control)]
                     reports = [resolve_start(m, st, c, inside_only=True) for (m, st), c in parts]
                     report = reports[0] if len(reports) == 1 else StartReport(
                         *(sum(getattr(r, f) for r in reports) for f in ("particles", "inside", "touching")),
@@ -184,13 +184,12 @@ class Simulation:
                 if split and seconds > 0:
                     notes.append(f"preroll: not run for {len(g.members)} prim(s) split across devices "
                                  f"{', '.join(g.devices)}")
-                    if g.control.features is not None:
-                        g.control.features.resync()
-                    continue
-                if seconds > 0:
+                elif seconds > 0:
                     tcps = self.scene.stage.time_codes_per_second
                     notes.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
                                          resolve=has_colliders).line(units))
+                if has_colliders:   # what the push-out (and the preroll) could not free, in one line
+                    notes += filter(None, [inside_note(parts, [(c.path, c.num_strands) for c in g.curves], units)])
                 if g.control.features is not None:
                     g.control.features.resync()
         return notes
