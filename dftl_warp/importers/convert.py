@@ -13,6 +13,7 @@ from ..errors import UserError
 from ..options import OPTIONS, BadValue, OptionError
 from . import Groom, GroomImportWarning, read_groom, reader_for
 from ._binary import check_finite
+from .scale import head_note, units_note
 
 #: metres per unit of the names ``--units`` accepts
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "um": 1e-6, "in": 0.0254, "ft": 0.3048}
@@ -257,8 +258,11 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
         notes.append(f"{source}: X-up input rotated a quarter turn about Z to Y up ((x, y, z) -> (-y, x, z))")
         axis = "Y"
     coincident = coincident_note(source, groom, segments is not None)
-    if coincident:
-        notes.append(coincident)
+    roots = groom.points[np.concatenate([[0], np.cumsum(groom.counts)[:-1]])]
+    for note in (coincident, units_note(source, groom.points, groom.counts, mpu, units is not None),
+                 None if mesh is None else head_note(os.fspath(head), mesh.points, roots)):
+        if note:
+            notes.append(note)
 
     for note in notes:
         _warnings.warn(note, GroomImportWarning, stacklevel=2)
