@@ -214,3 +214,23 @@ def test_absurd_substeps_and_preroll_are_refused_with_the_limit(tmp_path, capsys
         simulate(capsys, src, "-o", out, *argv)
     assert e.value.code == 2 and not out.exists()
     one_line(capsys, message)
+
+
+def test_every_quiet_command_takes_q(tmp_path, capsys):
+    """-q is --quiet wherever --quiet is (import and render took -q; simulate, batch and study
+    refused it as an unrecognized argument), and simulate -q prints what --quiet does: no
+    progress, only the summary line."""
+    import argparse
+
+    sub = next(a for a in cli.build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    quiet = {name: p for name, p in sub.choices.items() if "--quiet" in p._option_string_actions}
+    assert {"simulate", "batch", "study", "import", "render"} <= set(quiet)
+    for name, p in quiet.items():
+        assert p._option_string_actions.get("-q") is p._option_string_actions["--quiet"], name
+    path = hair(tmp_path / "in.usda")
+    errs = []
+    for flag in ("-q", "--quiet"):
+        assert cli.main(["simulate", str(path), "-o", str(tmp_path / f"o{flag}.usdc"), "--device", "cpu", "--end", "2",
+                         flag]) == 0
+        errs.append(capsys.readouterr().err)
+    assert errs[0] == errs[1] == "", errs

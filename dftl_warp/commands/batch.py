@@ -26,7 +26,7 @@ def add_parser(sub):
                    help="checkpoint every N frames (default 0: by time only)")
     p.add_argument("--checkpoint-seconds", type=_non_negative_float, default=30.0, metavar="S",
                    help="checkpoint every S seconds of wall time (default 30; 0: by frames only)")
-    p.add_argument("--quiet", action="store_true", help="no progress; only the summary table")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress; only the summary table")
     p.set_defaults(run=run)
 
 

@@ -34,7 +34,7 @@ def add_parser(sub):
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
     _add_output_flags(p)
     add_arguments(p, ("guides", "guide_method", "guides_output"))   # issue 22: docs/guides.md
-    p.add_argument("--quiet", action="store_true", help="no progress bar or warnings")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or warnings")
     p.set_defaults(run=run)
 
 

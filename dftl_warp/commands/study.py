@@ -22,7 +22,7 @@ def add_parser(sub):
                    help="Warp device, e.g. cpu or cuda:0 (default cuda:0 when there is a CUDA device, else cpu)")
     p.add_argument("--out", default="study", help="folder for CSV, PNG and accuracy.md (default ./study)")
     p.add_argument("--docs", default=None, help="also write the report here, image links relative to it")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     front = p.add_argument_group(
         "the front at scale (docs/accuracy-h200/front.md)",
         "--front runs only the GPU-scale section: every solver and setting on a released groom of "
