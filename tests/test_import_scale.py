@@ -80,7 +80,8 @@ def test_a_head_in_other_units_than_the_hair_is_named(tmp_path, capsys):
     code, _, err = run_cli(["import", str(src), "-o", str(out), "--head", str(head)], capsys)
     lines = [w for w in err.splitlines() if "head mesh" in w]
     assert code == 0 and len(lines) == 1 and out.exists(), err
-    assert lines[0].startswith(f"dftl-warp: warning: {head}: 9 of 9 hair roots lie outside the head mesh's bounds "
-                               f"(head {np.sqrt(3) * 0.1:.3g} units across, roots {np.hypot(40, 40):.3g} across"), lines[0]
+    expected = (f"dftl-warp: warning: {head}: 9 of 9 hair roots lie outside the head mesh's bounds "
+                f"(head {np.sqrt(3) * 0.1:.3g} units across, roots {np.hypot(40, 40):.3g} across")
+    assert lines[0].startswith(expected), lines[0]
     # --up-axis X turns the hair and the head alike before they are compared
     assert notes(src, tmp_path / "r.usda", head=cube(tmp_path / "head.obj", 50.0), up_axis="X") == []
