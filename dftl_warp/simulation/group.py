@@ -64,8 +64,11 @@ class Group:
         if hair_hair is not None and hair_hair.rest_density is None:
             # the hair-hair grid's rest density from the group's points (a split group's parts all
             # weigh against the whole group's, and on one device or several alike)
-            features = [replace(f, rest_density=group_rest_density(f, points, counts, widths)) if f is hair_hair
-                        else f for f in features]
+            try:   # a grid of too many nodes is refused before the rest density allocates it
+                typical = group_rest_density(hair_hair, points, counts, widths)
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
+            features = [replace(f, rest_density=typical) if f is hair_hair else f for f in features]
             hair_hair = find(features, HairHair)
         if split:
             # every part shares the group's origin and (hair-hair) grid
