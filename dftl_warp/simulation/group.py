@@ -11,6 +11,7 @@ computed exactly as on one device.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -112,7 +113,16 @@ class Group:
         self.devices = [str(m.device) for m in models]
         if split:
             self.model = SplitModel(models, ranges)
-            self.solver = SplitSolver(solvers)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                self.solver = SplitSolver(solvers)
+            for w in caught:   # a splat interval a split groom cannot keep: one line naming file and prims
+                message = f"{scene.source}: {', '.join(c.path for c in curves)}: {w.message}"
+                notes = getattr(scene, "warnings", None)
+                if notes is None:
+                    warnings.warn(message, w.category, stacklevel=2)
+                elif message not in notes:
+                    notes.append(message)
             self.state = SplitState(states, models)
             self.control = SplitControl(controls, ranges)
         else:
