@@ -105,3 +105,67 @@ def test_usd_defaults_are_si_values_in_stage_units():
     (hh,) = features_from_attributes({"dftl:hairHair": True}, [{}], [1], mean_segment=1.0, meters_per_unit=0.01)
     assert hh.repulsion == pytest.approx(500.0)
     assert hh.hair_width == pytest.approx(0.008)
+
+
+def test_hair_outside_a_smaller_grid_is_left_out_of_the_rest_density():
+    """A grid ``extent`` smaller than the hair: the hair outside it is neither splatted nor pushed,
+    so the rest density is the hair's inside it, and the slab inside is pushed as it is alone. The
+    rest density's numpy splat spanned the whole hair (a slab and its copy 1 km away: 10^15 nodes,
+    a MemoryError); now it is no larger than the device grid."""
+    import tracemalloc
+
+    pts, counts, width = slab(1, 80e-6)
+    far = pts + [1000.0, 0.0, 1000.0]
+    extent = np.array([0.1, 0.1, 0.1])
+
+    def accelerations(points, n):
+        model = dw.Model.from_strands(points, np.full(n, 2), precision="float64", widths=width,
+                                      features=[F.HairHair(cell_size=CELL, friction=0.0, extent=extent)])
+        solver = dw.DFTLSolver(model, gravity=(0.0, 0.0, 0.0), fused=False)
+        state = solver.state()
+        solver.step(state, state, model.control(), 1e-4, 1.0)
+        return model.points_from_device(state.velocities, relative=False)[1::2] / 1e-4
+
+    alone = accelerations(pts, len(counts))
+    tracemalloc.start()
+    both = accelerations(np.concatenate([pts, far]), 2 * len(counts))
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 100e6, peak
+    assert np.abs(alone).max() > 0.5                      # the repulsion acts
+    np.testing.assert_allclose(both[:len(counts)], alone, rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(both[len(counts):], 0.0)   # outside the grid: nothing
+
+
+def test_a_grid_of_too_many_nodes_is_refused_in_one_line(tmp_path, capsys):
+    """Two tufts 20 km apart on 4 cm cells: 2.5e12 nodes. simulate and info refuse it in one line
+    naming the file and max_cells, before anything is allocated (simulate's rest density splatted
+    the whole box first: a MemoryError traceback for 1.75 TiB here, killed by the kernel at 24 GB
+    for tufts 2 km apart; info gave a ValueError traceback)."""
+    import tracemalloc
+
+    from usd_stages import add_curves, new_stage, set_attr
+
+    from dftl_warp import cli
+
+    path = tmp_path / "far.usda"
+    stage = new_stage(path, end=2)
+    for k, offset in enumerate([(0.0, 0.0, 0.0), (20000.0, 0.0, 20000.0)]):
+        tuft = [np.array(offset) + [0.002 * s, 0.0, 0.0] + np.outer(np.arange(10), [0.0, -0.01, 0.0])
+                for s in range(20)]
+        add_curves(stage, f"/World/Tuft{k}", np.concatenate(tuft), [10] * 20)
+    set_attr(stage.GetPrimAtPath("/World"), "dftl:hairHair", "Bool", True)
+    stage.GetRootLayer().Save()
+    out = tmp_path / "out.usdc"
+    for argv in (["simulate", str(path), "-o", str(out), "--device", "cpu", "--quiet"], ["info", str(path)]):
+        tracemalloc.start()
+        code = cli.main(argv)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2, (argv, err)
+        assert len(err) == 1 and "Traceback" not in err[0], err
+        assert err[0].startswith(f"dftl-warp: error: {path}: hair-hair grid of "), err
+        assert "exceeds max_cells=16777216" in err[0]
+        assert peak < 200e6, (argv, peak)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["far.usda"]

@@ -13,7 +13,7 @@ from dftl_warp.simulation.multi_device import SplitModel, split_strands
 from dftl_warp.batch.checkpoint import CheckpointPolicy, run_job
 from dftl_warp.simulation.simulate import Simulation, SimulationOptions, simulate_usd
 from dftl_warp.usd.read import read_scene
-from pxr import Sdf
+from pxr import Sdf, Usd
 from usd_stages import add_curves, animated_xform, chain, new_stage
 
 
@@ -238,3 +238,23 @@ def test_split_hair_hair_grid_equals_single_device_grid(tmp_path):
         np.testing.assert_allclose(got["momentum"], want["momentum"], rtol=1e-14, atol=1e-12)
         # each part alone splats only its own strands
         assert step.model.num_points < one.model.num_points
+
+
+def test_a_splat_interval_a_split_groom_cannot_keep_is_one_warning_line(tmp_path, capsys):
+    """dftl:hairHairSplatInterval > 1 on several devices: the grid is rebuilt every substep, and
+    simulate says so in one 'dftl-warp: warning:' line naming the file and prims (it was Python's
+    UserWarning with a source line of group.py, naming neither)."""
+    path = _featured_stage(tmp_path / "hairhair.usda", hair_hair=True)
+    stage = Usd.Stage.Open(str(path))
+    stage.GetPrimAtPath("/World").CreateAttribute("dftl:hairHairSplatInterval", Sdf.ValueTypeNames.Int,
+                                                  custom=True).Set(3)
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    assert main(["simulate", str(path), "-o", str(out), "--device", "cpu,cpu", "--end", "2"]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "dftl:hairHairSplatInterval" in line]
+    assert lines == [f"dftl-warp: warning: {path}: /World/Head/Long, /World/Head/Short: hair-hair: a groom split "
+                     "across devices rebuilds its grid every substep (dftl:hairHairSplatInterval > 1 applies on "
+                     "one device only)"], err
+    assert "UserWarning" not in err and "group.py" not in err
+    assert out.exists()

@@ -154,3 +154,52 @@ def test_retired_shape_stiffness_is_refused_naming_its_replacement(tmp_path, cap
     assert f"{where}: dftl:shapeStiffness: shape retention is retired" in err[0]
     assert "elastic rods" in err[0] and "primvars:dftl:bendStiffnessScale" in err[0]
     assert not out.exists()
+
+
+def hair_hair_patch(path, scale=1.0, order=None):
+    """A 10 x 10 patch of 10 cm strands 2.5 mm apart with hair-hair on, under an Xform scaled by
+    ``scale`` (its points authored 1 / scale as large), strands in ``order``."""
+    stage = new_stage(path, end=3)
+    rng = np.random.default_rng(0)
+    ys = -np.linspace(0.0, 0.1, 9)
+    strands = [np.array([i * 0.0025, 0.0, j * 0.0025]) + rng.normal(0.0, 1e-4, 3)
+               + np.stack([0.001 * np.sin(30 * ys), ys, np.zeros(9)], 1) for i in range(10) for j in range(10)]
+    if order is not None:
+        strands = [strands[k] for k in order]
+    UsdGeom.Xform.Define(stage, "/World/Groom").AddScaleOp().Set(Gf.Vec3f(scale, scale, scale))
+    add_curves(stage, "/World/Groom/Hair", np.concatenate(strands) / scale, [9] * 100)
+    set_attr(stage.GetPrimAtPath("/World"), "dftl:hairHair", "Bool", True)
+    stage.Save()
+    return path
+
+
+def test_the_default_hair_hair_cell_is_four_segments_in_the_world_whatever_the_strand_order(tmp_path):
+    """The default cell is 4 x the mean segment of the strands as simulated: in the world (a groom
+    authored 100 times larger under a 0.01 scale was given a cell 100 times too large, 8.9 m here)
+    and within strands (the jumps from each tip to the next root counted as segments: the cell
+    depended on the order of the strands and was 0.089 m here instead of 0.050)."""
+    from dftl_warp.features import HairHair, find, group_features
+    from dftl_warp.usd.read import read_scene
+
+    segment = None
+    shuffled = np.random.default_rng(1).permutation(100)
+    for name, scale, order in (("plain", 1.0, None), ("scaled", 0.01, None), ("shuffled", 1.0, shuffled)):
+        scene = read_scene(str(hair_hair_patch(tmp_path / f"{name}.usda", scale, order)))
+        (curve,) = scene.curves
+        if segment is None:
+            segment = np.mean(np.concatenate([np.linalg.norm(np.diff(s, axis=0), axis=1)
+                                              for s in np.split(curve.points, 100)]))
+        cell = find(group_features(scene, scene.curves, 1)[0], HairHair).cell_size
+        assert cell == pytest.approx(4 * segment, rel=1e-5), name
+
+
+def test_a_scaled_groom_moves_as_the_same_groom_authored_in_the_world(tmp_path):
+    """Hair-hair through an Xform scale: the same strands, in the world, whether authored in metres
+    or 100 times larger under a 0.01 scale (6 mm apart after 2 frames, the scaled groom's cell 100
+    times too large)."""
+    runs = []
+    for name, scale in (("plain", 1.0), ("scaled", 0.01)):
+        out = tmp_path / f"{name}.usdc"
+        simulate_usd(hair_hair_patch(tmp_path / f"{name}.usda", scale), out, precision="float64", device="cpu")
+        runs.append(composed_samples(out, "/World/Groom/Hair")[3.0] * scale)
+    np.testing.assert_allclose(runs[1], runs[0], atol=1e-6)

@@ -89,6 +89,7 @@ def feature_summary(scene, precision: str = "float32") -> dict:
     import numpy as np
 
     from ..core.model import Model
+    from ..errors import UserError
     from ..usd.scene import transform_points
     from ..features import feature_names, group_features, memory_estimate
 
@@ -101,7 +102,11 @@ def feature_summary(scene, precision: str = "float32") -> dict:
         feats, widths = group_features(scene, curves, time)
         points = np.concatenate([transform_points(c.transform(time), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
-        model = Model.from_strands(points, counts, device="cpu", precision=precision, widths=widths, features=feats)
+        try:   # as simulate refuses them: a hair-hair grid of too many nodes, say
+            model = Model.from_strands(points, counts, device="cpu", precision=precision, widths=widths,
+                                       features=feats)
+        except ValueError as exc:
+            raise UserError(f"{scene.source}: {exc}") from None
         flags |= model.feature_flags
         est = memory_estimate(model)
         per_strand += est["feature_bytes_per_strand"] * model.num_strands

@@ -151,53 +151,67 @@ def volume_fractions(points, counts, widths, cell: float, hair_width: float = DE
     return np.pi * (0.5 * w) ** 2 * length / float(cell) ** 3
 
 
-def splat_nodes(points, weights, cell: float) -> np.ndarray:
+def splat_nodes(points, weights, cell: float, shape=None) -> np.ndarray:
     """Node densities (3D array from the points' lower corner) of ``weights`` splatted trilinearly
-    at ``points`` (N, 3) on a grid of ``cell`` (numpy; the device kernels' weights)."""
+    at ``points`` (N, 3) on a grid of ``cell`` (numpy; the device kernels' weights). ``shape``: the
+    device grid's node counts (:func:`grid_dimensions`); the points it leaves out (its extent is
+    smaller than the hair's) are left out here too, and the array is no larger than that grid."""
     g = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - np.min(points, axis=0)) / float(cell)
     base = np.floor(g).astype(np.int64)
+    weights = np.broadcast_to(np.asarray(weights, dtype=np.float64).reshape(-1), len(g))
+    if shape is not None:
+        # the device grid's cell of a point is base + 1 (one cell of margin below), splatted where
+        # that is below its last node but one (kernels/features/grid.py, grid_cell)
+        inside = np.all(base < np.asarray(shape, dtype=np.int64) - 2, axis=1)
+        g, base, weights = g[inside], base[inside], weights[inside]
+        if not len(g):
+            return np.zeros((1, 1, 1))
     f = g - base
     shape = base.max(0) + 2
     node = (base[:, 0] * shape[1] + base[:, 1]) * shape[2] + base[:, 2]
     rho = np.zeros(int(np.prod(shape)))
     for c in range(8):
         d = (c & 1, (c >> 1) & 1, (c >> 2) & 1)
-        w = np.array(weights, dtype=np.float64).reshape(-1)
+        w = np.array(weights, dtype=np.float64)
         for axis in range(3):
             w *= f[:, axis] if d[axis] else 1.0 - f[:, axis]
         rho += np.bincount(node + (d[0] * shape[1] + d[1]) * shape[2] + d[2], weights=w, minlength=rho.size)
     return rho.reshape(shape)
 
 
-def rest_density(points, fractions, cell: float) -> float:
+def rest_density(points, fractions, cell: float, shape=None) -> float:
     """The hair's typical volume fraction at ``points`` (N, 3): its trilinear splat on a grid of
     ``cell`` (m) averaged over the hair, ``sum rho^2 / sum rho`` over the nodes (the density a
-    particle sits in); 1 where there is no hair volume."""
+    particle sits in); 1 where there is no hair volume. ``shape``: the device grid's node counts
+    (only the hair inside it counts; see :func:`splat_nodes`)."""
     fractions = np.asarray(fractions, dtype=np.float64).reshape(-1)
     if not len(fractions) or fractions.sum() <= 0.0:
         return 1.0
-    rho = splat_nodes(points, fractions, cell)
-    return float(np.sum(rho ** 2) / np.sum(rho))
+    rho = splat_nodes(points, fractions, cell, shape)
+    total = np.sum(rho)
+    return float(np.sum(rho ** 2) / total) if total > 0.0 else 1.0
 
 
 def group_rest_density(hh: HairHair, points, counts, widths) -> float:
     """:func:`rest_density` of strands ``points`` (N, 3) / ``counts`` with ``widths`` (one, one per
-    point or None) on ``hh``'s cells: what the parts of a groom split across devices share."""
-    cell = float(hh.cell_size)
-    return rest_density(points, volume_fractions(points, counts, widths, cell, hh.hair_width), cell)
+    point or None) on ``hh``'s grid (:func:`grid_dimensions`: a ValueError where it has too many
+    nodes, before any is allocated): what the parts of a groom split across devices share."""
+    shape, cell = grid_dimensions(hh, points, counts)
+    return rest_density(points, volume_fractions(points, counts, widths, cell, hh.hair_width), cell, shape)
 
 
-def grid_weights(model, hh: HairHair, cell: float) -> np.ndarray:
+def grid_weights(model, hh: HairHair, cell: float, shape=None) -> np.ndarray:
     """What each particle splats (one per slot, 0 in unused slots): its hair volume fraction
     (:func:`volume_fractions`) over the groom's rest density (``hh.rest_density``, else
-    :func:`rest_density` of this model's rest positions), so the grid's density is 1 where the
-    hair is as dense as it typically is at rest, whatever strands and vertices represent it."""
+    :func:`rest_density` of this model's rest positions on the grid of node counts ``shape``), so
+    the grid's density is 1 where the hair is as dense as it typically is at rest, whatever strands
+    and vertices represent it."""
     lay = model.layout
     if lay.slot_of_point is None or model.rest_positions is None:
         raise ValueError("hair-hair interaction needs a model with host rest positions")
     points = model.rest_positions[lay.slot_of_point]
     fractions = volume_fractions(points, model.counts, model.widths, cell, hh.hair_width)
-    typical = hh.rest_density if hh.rest_density is not None else rest_density(points, fractions, cell)
+    typical = hh.rest_density if hh.rest_density is not None else rest_density(points, fractions, cell, shape)
     out = np.zeros(lay.num_slots)
     out[lay.slot_of_point] = fractions / typical
     return out
@@ -237,8 +251,8 @@ class Grid:
         self._substep = 0
         self.arrays = {
             # what each particle splats: its hair volume fraction over the rest density's
-            "weights": wp.array(grid_weights(model, hh if hh is not None else HairHair(self.cell), self.cell),
-                                dtype=model.scalar, device=model.device),
+            "weights": wp.array(grid_weights(model, hh if hh is not None else HairHair(self.cell), self.cell,
+                                             self.shape), dtype=model.scalar, device=model.device),
             "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
             "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
             "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),

@@ -55,15 +55,23 @@ def widths_per_point(curve) -> np.ndarray | None:
     return np.full(curve.num_points, float(np.mean(w)))  # e.g. varying widths of cubic curves
 
 
+def segment_lengths(curve, frame) -> np.ndarray:
+    """Lengths (stage units) of a curves prim's segments in the world at ``frame``, within its
+    strands (not from one strand's tip to the next one's root)."""
+    m = curve.transform(frame)
+    d = np.linalg.norm(np.diff(curve.points @ m[:3, :3], axis=0), axis=1)
+    return np.delete(d, np.cumsum(curve.counts)[:-1] - 1)
+
+
 def group_features(scene, curves, frame) -> tuple[list, np.ndarray | None]:
     """(features, widths per point or None) of the curves prims ``curves`` simulated together."""
     where = scene.source
     feats = colliders.from_scene(scene, frame)
-    seg = [np.linalg.norm(np.diff(c.points, axis=0), axis=1).mean() for c in curves if c.num_points > 1]
+    seg = np.concatenate([segment_lengths(c, frame) for c in curves])
     try:
         feats += features_from_attributes(
             scene.features, [dict(c.features, path=f"{where}: {c.path}") for c in curves],
-            [c.num_strands for c in curves], mean_segment=float(np.mean(seg)) if seg else 0.0, where=where,
+            [c.num_strands for c in curves], mean_segment=float(np.mean(seg)) if seg.size else 0.0, where=where,
             meters_per_unit=float(scene.stage.meters_per_unit))
     except ValueError as exc:
         raise UserError(str(exc)) from None

@@ -11,6 +11,7 @@ computed exactly as on one device.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -64,8 +65,11 @@ class Group:
         if hair_hair is not None and hair_hair.rest_density is None:
             # the hair-hair grid's rest density from the group's points (a split group's parts all
             # weigh against the whole group's, and on one device or several alike)
-            features = [replace(f, rest_density=group_rest_density(f, points, counts, widths)) if f is hair_hair
-                        else f for f in features]
+            try:   # a grid of too many nodes is refused before the rest density allocates it
+                typical = group_rest_density(hair_hair, points, counts, widths)
+            except ValueError as exc:
+                raise UserError(f"{scene.source}: {exc}") from None
+            features = [replace(f, rest_density=typical) if f is hair_hair else f for f in features]
             hair_hair = find(features, HairHair)
         if split:
             # every part shares the group's origin and (hair-hair) grid
@@ -109,7 +113,16 @@ class Group:
         self.devices = [str(m.device) for m in models]
         if split:
             self.model = SplitModel(models, ranges)
-            self.solver = SplitSolver(solvers)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                self.solver = SplitSolver(solvers)
+            for w in caught:   # a splat interval a split groom cannot keep: one line naming file and prims
+                message = f"{scene.source}: {', '.join(c.path for c in curves)}: {w.message}"
+                notes = getattr(scene, "warnings", None)
+                if notes is None:
+                    warnings.warn(message, w.category, stacklevel=2)
+                elif message not in notes:
+                    notes.append(message)
             self.state = SplitState(states, models)
             self.control = SplitControl(controls, ranges)
         else:
