@@ -51,3 +51,31 @@ def test_energy_warning_is_in_joules_per_kilogram_in_any_stage_units(tmp_path, c
         values[units] = (float(grew.split(" J/kg")[0]), grew.split(" at frame ")[1].split(",")[0])
     (joules_m, frame_m), (joules_mm, frame_mm) = values["m"], values["mm"]
     assert frame_m == frame_mm and joules_m == pytest.approx(joules_mm, rel=2e-3), values
+
+
+@pytest.mark.parametrize("feature", ["dftl:hairHair", "dftl:wind"])
+def test_scenes_with_energy_sources_say_the_check_is_off_instead_of_calling_it_unstable(tmp_path, capsys, feature):
+    """Wind and hair-hair's repulsion add energy the monitor cannot account for (a groom's edge at
+    rest is pushed out by the repulsion; the wind blows): the run says once that there is no energy
+    check, and never calls the setting unstable; a scene without them keeps the check."""
+    from pxr import Gf, Sdf
+
+    stage = new_stage(tmp_path / "in.usda", start=1, end=12)
+    rng = np.random.default_rng(0)
+    pts = np.concatenate([chain(12, 0.01, direction=(rng.uniform(-0.3, 0.3), -1.0, rng.uniform(-0.3, 0.3)),
+                                origin=(0.002 * (k % 8), 0.0, 0.002 * (k // 8))) for k in range(64)])
+    curves = add_curves(stage, "/World/Hair", pts, [12] * 64, widths=1e-4)
+    world = stage.GetPrimAtPath("/World")
+    if feature == "dftl:hairHair":
+        world.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    else:
+        world.CreateAttribute("dftl:wind", Sdf.ValueTypeNames.Float3, custom=True).Set(Gf.Vec3f(3.0, 0.0, 0.0))
+        curves.GetPrim().CreateAttribute("dftl:drag", Sdf.ValueTypeNames.Float, custom=True).Set(2.0)
+    stage.Save()
+    assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "out.usdc"),
+                     "--solver", "dftl"]) == 0
+    err = capsys.readouterr().err
+    assert not grown_lines(err), err
+    notes = [line for line in err.splitlines() if "no energy check" in line]
+    assert len(notes) == 1 and "/World/Hair" in notes[0], err
+    assert ("repulsion" if feature == "dftl:hairHair" else "wind") in notes[0]

@@ -19,7 +19,7 @@ import numpy as np
 from ..core.layout import strand_offsets
 from ..core.model import Model, _world_origin
 from ..errors import UserError
-from ..features import HairHair, find, group_features, hair_hair_extent
+from ..features import HairHair, Wind, find, group_features, hair_hair_extent
 from ..features.hair_hair import group_rest_density
 from ..solvers import carries_corrections, make_solver
 from ..usd.scene import transform_points
@@ -130,7 +130,16 @@ class Group:
         #: substep length, s
         self.dt = 1.0 / (scene.stage.time_codes_per_second * settings.substeps)
         self.monitor = None
-        if options.monitor:
+        sources = energy_sources(features)
+        if options.monitor and sources:
+            # the monitor's account holds kinetic and gravitational energy only: a strand that
+            # gains energy from these is not unstable, and it would say so (every hair-hair run did)
+            note = (f"{scene.source}: {', '.join(c.path for c in curves)}: no energy check ({' and '.join(sources)} "
+                    "add energy the check cannot tell from an unstable setting)")
+            notes = getattr(scene, "warnings", None)
+            if notes is not None and note not in notes:
+                notes.append(note)
+        elif options.monitor:
             from .monitor import EnergyMonitor
 
             setting = describe_setting(scene, members, settings, options)
@@ -181,3 +190,16 @@ class Group:
             return self._sample_buffers[0].fetch(owned)
         gathered = [buffers.fetch(owned=False) for buffers in self._sample_buffers]
         return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])
+
+
+def energy_sources(features) -> list[str]:
+    """The features among ``features`` that can add energy to the hair beyond its roots' motion:
+    wind, and hair-hair's repulsion (its compression energy is not in the energy monitor's
+    account of kinetic and gravitational energy)."""
+    sources = []
+    if find(features, Wind) is not None:
+        sources.append("the wind")
+    hh = find(features, HairHair)
+    if hh is not None and hh.repulsion > 0:
+        sources.append("hair-hair's repulsion")
+    return sources
