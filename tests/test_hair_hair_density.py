@@ -169,3 +169,27 @@ def test_a_grid_of_too_many_nodes_is_refused_in_one_line(tmp_path, capsys):
         assert "exceeds max_cells=16777216" in err[0]
         assert peak < 200e6, (argv, peak)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["far.usda"]
+
+
+def test_info_prints_the_grid_simulate_sets_up(tmp_path, capsys):
+    """`info` gives each group's hair-hair cell, repulsion (stage units and m/s^2) and rest volume
+    fraction, the one simulate weighs the particles against (20 strands of 80 um hair 2 mm apart on
+    4 cm cells: a few 1e-5)."""
+    from pxr import Sdf
+    from usd_stages import add_curves, chain, new_stage
+
+    from dftl_warp import cli
+    from dftl_warp.features.hair_hair import group_rest_density
+
+    path = tmp_path / "hh.usda"
+    stage = new_stage(path, start=1, end=4, meters_per_unit=0.01)
+    pts = np.concatenate([chain(10, 1.0, direction=(0, -1, 0), origin=(0.2 * k, 0, 0)) for k in range(20)])
+    add_curves(stage, "/World/Hair", pts, [10] * 20, widths=0.008)
+    stage.GetPrimAtPath("/World").CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    stage.Save()
+    assert cli.main(["info", str(path)]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("hair-hair")]
+    assert len(lines) == 1, lines
+    want = group_rest_density(F.HairHair(cell_size=4.0, hair_width=0.008), pts, [10] * 20, 0.008)
+    assert "/World/Hair: cell 4 units, repulsion 500 units/s^2 (5 m/s^2)" in lines[0], lines
+    assert f"rest volume fraction {want:.3g}" in lines[0] and 1e-5 < want < 1e-4, (lines, want)

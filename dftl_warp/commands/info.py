@@ -91,12 +91,14 @@ def feature_summary(scene, precision: str = "float32") -> dict:
     from ..core.model import Model
     from ..errors import UserError
     from ..usd.scene import transform_points
-    from ..features import feature_names, group_features, memory_estimate
+    from ..features import HairHair, feature_names, find, group_features, memory_estimate
+    from ..features.hair_hair import group_rest_density
 
     groups: dict = {}
     for c in scene.curves:
         groups.setdefault(c.root_mesh.path if c.root_mesh is not None else None, []).append(c)
     flags, per_strand, fixed, bound = set(), 0.0, 0, 0
+    hair_hair = []
     time = scene.read_time
     for mesh, curves in groups.items():
         feats, widths = group_features(scene, curves, time)
@@ -113,9 +115,17 @@ def feature_summary(scene, precision: str = "float32") -> dict:
         fixed += est["fixed_feature_bytes"]
         if mesh is not None:
             bound += model.num_strands
+        hh = find(feats, HairHair)
+        if hh is not None:   # as simulate sets it up (its rest density from the group's points)
+            hair_hair.append({"prims": [c.path for c in curves], "cell": float(hh.cell_size),
+                              "repulsion": float(hh.repulsion), "friction": float(hh.friction),
+                              "splat_interval": int(hh.splat_interval),
+                              "rest_volume_fraction": group_rest_density(hh, points, counts, widths),
+                              "grid_nodes": [int(n) for n in model.feature_data.grid_shape]})
     strands = max(sum(c.num_strands for c in scene.curves), 1)
     return {"flags": sorted(flags), "names": feature_names(flags), "bound_roots": bound,
-            "feature_bytes_per_strand": per_strand / strands, "fixed_feature_bytes": int(fixed)}
+            "feature_bytes_per_strand": per_strand / strands, "fixed_feature_bytes": int(fixed),
+            "hair_hair": hair_hair}
 
 
 def material_summary(scene, curve) -> dict:
@@ -179,6 +189,7 @@ def describe(scene) -> dict:
         "features": features["float32"]["names"],
         "feature_flags": features["float32"]["flags"],
         "roots_bound_to_a_mesh": features["float32"]["bound_roots"],
+        "hair_hair": features["float32"]["hair_hair"],
         "feature_bytes_per_strand": {p: f["feature_bytes_per_strand"] for p, f in features.items()},
         "feature_fixed_bytes": {p: f["fixed_feature_bytes"] for p, f in features.items()},
         "scene_feature_attributes": {k: (v.tolist() if hasattr(v, "tolist") else v) for k, v in scene.features.items()},
@@ -246,6 +257,13 @@ def run(args) -> int:
         bound = f"; {d['roots_bound_to_a_mesh']} roots bound to a mesh" if d["roots_bound_to_a_mesh"] else ""
         print(f"  features    {', '.join(d['features'])} ({_bytes(extra)} per strand and {_bytes(fixed)} "
               f"fixed in float32{bound})")
+        mpu = d["meters_per_unit"]
+        for h in d["hair_hair"]:
+            nodes = "x".join(str(n) for n in h["grid_nodes"])
+            print(f"  hair-hair   {', '.join(h['prims'])}: cell {h['cell']:g} units, repulsion {h['repulsion']:g} "
+                  f"units/s^2 ({h['repulsion'] * mpu:g} m/s^2) per unit density relative to the rest volume "
+                  f"fraction {h['rest_volume_fraction']:.3g}, friction {h['friction']:g}/s, grid {nodes} nodes, "
+                  f"rebuilt every {h['splat_interval']} substep(s)")
     else:
         # the bare step is DFTL's only where every prim runs DFTL
         bare = "; the step is the bare DFTL step" if {c["solver"] for c in d["curves"]} <= {"dftl"} else ""
