@@ -224,7 +224,8 @@ def grid_dimensions(hh: HairHair, points, counts) -> tuple[tuple[int, int, int],
     shape = tuple(int(np.ceil(e / cell)) + 3 for e in extent)
     if int(np.prod(shape)) > hh.max_cells:
         raise ValueError(f"hair-hair grid of {shape} nodes exceeds max_cells={hh.max_cells}; "
-                         f"increase cell_size ({cell} m) or give a smaller extent")
+                         f"increase the cell ({cell:g} units: dftl:hairHairCellSize, or the API's cell_size) or "
+                         "give a smaller extent")
     return shape, cell
 
 
