@@ -14,7 +14,7 @@ import pytest
 
 import dftl_warp as dw
 from dftl_warp import features as F
-from dftl_warp.features.hair_hair import rest_density, volume_fractions
+from dftl_warp.features.hair_hair import rest_density, rest_peak, volume_fractions
 
 CELL = 0.01
 
@@ -193,3 +193,49 @@ def test_info_prints_the_grid_simulate_sets_up(tmp_path, capsys):
     want = group_rest_density(F.HairHair(cell_size=4.0, hair_width=0.008), pts, [10] * 20, 0.008)
     assert "/World/Hair: cell 4 units, repulsion 500 units/s^2 (5 m/s^2)" in lines[0], lines
     assert f"rest volume fraction {want:.3g}" in lines[0] and 1e-5 < want < 1e-4, (lines, want)
+    assert "densest node at rest " in lines[0] and "threshold 0)" in lines[0], lines
+
+
+def test_a_threshold_at_the_rest_peak_leaves_a_groom_at_rest_alone_and_pushes_compressed_hair():
+    """Only hair packed denser than ``threshold`` pushes. The uniform slab at rest is pushed out at
+    its edge by about the repulsion with threshold 0, and not at all with the threshold at its
+    densest node at rest (1.42 times its typical density); the same slab squeezed to half its
+    spacing (4 times as dense) is pushed with it."""
+    pts, counts, width = slab(1, 80e-6)
+    typical = rest_density(pts, volume_fractions(pts, counts, width, CELL), CELL)
+    peak = rest_peak(pts, volume_fractions(pts, counts, width, CELL), CELL)
+    assert 1.2 < peak < 1.6, peak
+
+    def largest(points, threshold):
+        model = dw.Model.from_strands(points, counts, precision="float64", widths=width,
+                                      features=[F.HairHair(cell_size=CELL, friction=0.0, repulsion=5.0,
+                                                           threshold=threshold, rest_density=typical)])
+        solver = dw.DFTLSolver(model, gravity=(0.0, 0.0, 0.0), fused=False)
+        state, control = solver.state(), model.control()
+        solver.step(state, state, control, 1e-4, 1.0)
+        return np.abs(model.points_from_device(state.velocities, relative=False)[1::2, [0, 2]]).max() / 1e-4
+
+    free, held = largest(pts, 0.0), largest(pts, peak)
+    assert free > 1.0 and held < 1e-6 * free, (free, held)
+    centre = pts.reshape(-1, 2, 3)[:, :1].mean(0)
+    squeezed = centre + (pts - centre) * np.array([0.5, 1.0, 0.5])
+    assert largest(squeezed, peak) > 0.5 * free
+
+
+def test_a_negative_threshold_is_one_line_naming_the_attribute(tmp_path, capsys):
+    from pxr import Sdf
+    from usd_stages import add_curves, chain, new_stage
+
+    from dftl_warp import cli
+
+    path = tmp_path / "hh.usda"
+    stage = new_stage(path, start=1, end=2)
+    add_curves(stage, "/World/Hair", chain(5, 0.01), [5])
+    world = stage.GetPrimAtPath("/World")
+    world.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    world.CreateAttribute("dftl:hairHairThreshold", Sdf.ValueTypeNames.Float, custom=True).Set(-1.0)
+    stage.Save()
+    assert cli.main(["simulate", str(path), "-o", str(tmp_path / "out.usdc")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "dftl:hairHairThreshold" in err[0] and str(path) in err[0], err
+    assert not (tmp_path / "out.usdc").exists()

@@ -92,7 +92,7 @@ def feature_summary(scene, precision: str = "float32") -> dict:
     from ..errors import UserError
     from ..usd.scene import transform_points
     from ..features import HairHair, feature_names, find, group_features, memory_estimate
-    from ..features.hair_hair import group_rest_density
+    from ..features.hair_hair import group_rest_density, rest_peak, volume_fractions
 
     groups: dict = {}
     for c in scene.curves:
@@ -121,6 +121,9 @@ def feature_summary(scene, precision: str = "float32") -> dict:
                               "repulsion": float(hh.repulsion), "friction": float(hh.friction),
                               "splat_interval": int(hh.splat_interval),
                               "rest_volume_fraction": group_rest_density(hh, points, counts, widths),
+                              "threshold": float(hh.threshold),
+                              "rest_peak": rest_peak(points, volume_fractions(points, counts, widths, hh.cell_size,
+                                                                              hh.hair_width), hh.cell_size),
                               "grid_nodes": [int(n) for n in model.feature_data.grid_shape]})
     strands = max(sum(c.num_strands for c in scene.curves), 1)
     return {"flags": sorted(flags), "names": feature_names(flags), "bound_roots": bound,
@@ -262,7 +265,8 @@ def run(args) -> int:
             nodes = "x".join(str(n) for n in h["grid_nodes"])
             print(f"  hair-hair   {', '.join(h['prims'])}: cell {h['cell']:g} units, repulsion {h['repulsion']:g} "
                   f"units/s^2 ({h['repulsion'] * mpu:g} m/s^2) per unit density relative to the rest volume "
-                  f"fraction {h['rest_volume_fraction']:.3g}, friction {h['friction']:g}/s, grid {nodes} nodes, "
+                  f"fraction {h['rest_volume_fraction']:.3g} (densest node at rest {h['rest_peak']:.3g}; threshold "
+                  f"{h['threshold']:g}), friction {h['friction']:g}/s, grid {nodes} nodes, "
                   f"rebuilt every {h['splat_interval']} substep(s)")
     else:
         # the bare step is DFTL's only where every prim runs DFTL

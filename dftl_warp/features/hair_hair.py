@@ -33,6 +33,8 @@ ATTRIBUTES = {
     "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit difference of the hair's "
                                "density relative to its rest density, across a cell"),
     "dftl:hairHairSplatInterval": (int, "scene", "substeps between rebuilds of the grid (1: every substep)"),
+    "dftl:hairHairThreshold": (float, "scene", "relative density below which the hair exerts no repulsion (0: all of it; "
+                               "the densest node at rest, which info prints: a groom at rest is not pushed)"),
 }
 
 #: CUDA threads per block of the per-strand splat: 160 registers a thread, so one block of 256 per
@@ -57,7 +59,10 @@ class HairHair:
     :func:`rest_density`): 1 where the hair is as dense as it typically is at rest. So the push
     does not depend on how many strands or vertices represent the hair (it grew with them: 10 times
     the strands pushed 10 times harder), and hair at the edge of a groom at rest is pushed out at
-    about ``repulsion`` (default :data:`DEFAULT_REPULSION`). ``hair_width`` (m): the diameter of
+    about ``repulsion`` (default :data:`DEFAULT_REPULSION`). ``threshold``: the relative density
+    below which the hair exerts no repulsion, the push following ``max(rho - threshold, 0)`` (0,
+    the default: all of it; at least the densest node at rest, :func:`rest_peak`, which ``info``
+    prints: a groom at rest is not pushed, only hair packed denser than anywhere at rest). ``hair_width`` (m): the diameter of
     hair without widths (default human hair's). ``extent`` (3,), m: the grid's size,
     by default the rest bounds of the hair plus twice the longest strand on each axis, capped
     at ``max_cells`` nodes (particles outside the grid feel nothing).
@@ -76,6 +81,7 @@ class HairHair:
     repulsion: float = DEFAULT_REPULSION
     hair_width: float = DEFAULT_HAIR_WIDTH
     rest_density: float | None = None
+    threshold: float = 0.0
     extent: np.ndarray | None = None
     max_cells: int = 1 << 24
     splat_interval: int = 1
@@ -100,6 +106,7 @@ class HairHair:
             raise ValueError(f"hair-hair max_cells must be an integer >= 1, got {n!r}")
         nonnegative(self.friction, "hair-hair friction")
         nonnegative(self.repulsion, "hair-hair repulsion")
+        nonnegative(self.threshold, "hair-hair threshold")
         width = self.hair_width
         if isinstance(width, (bool, np.bool_)) or not isinstance(width, (int, float, np.integer, np.floating)) \
                 or not (np.isfinite(width) and width > 0):
@@ -190,6 +197,16 @@ def rest_density(points, fractions, cell: float, shape=None) -> float:
     rho = splat_nodes(points, fractions, cell, shape)
     total = np.sum(rho)
     return float(np.sum(rho ** 2) / total) if total > 0.0 else 1.0
+
+
+def rest_peak(points, fractions, cell: float) -> float:
+    """The densest node of the hair at ``points`` relative to its :func:`rest_density`: a
+    ``threshold`` at least this leaves the hair at rest without repulsion."""
+    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1)
+    if not len(fractions) or fractions.sum() <= 0.0:
+        return 0.0
+    rho = splat_nodes(points, fractions, cell)
+    return float(rho.max() * np.sum(rho) / np.sum(rho ** 2))
 
 
 def group_rest_density(hh: HairHair, points, counts, widths) -> float:
@@ -358,6 +375,7 @@ class Grid:
         st.grid_mass = g["mass"]
         st.grid_friction = float(hh.friction)
         st.grid_repulsion = float(hh.repulsion)
+        st.grid_threshold = float(hh.threshold)
 
 
 def from_attributes(scene: dict, where: str, mean_segment: float, meters_per_unit: float = 1.0) -> list:
@@ -375,4 +393,5 @@ def from_attributes(scene: dict, where: str, mean_segment: float, meters_per_uni
     return [HairHair(cell_size=cell, friction=authored(scene, "dftl:hairHairFriction", where, float, 2.0),
                      repulsion=authored(scene, "dftl:hairHairRepulsion", where, float,
                                         DEFAULT_REPULSION / meters_per_unit),  # m/s^2 in stage units
-                     hair_width=DEFAULT_HAIR_WIDTH / meters_per_unit, splat_interval=interval)]
+                     hair_width=DEFAULT_HAIR_WIDTH / meters_per_unit, splat_interval=interval,
+                     threshold=authored(scene, "dftl:hairHairThreshold", where, float, 0.0))]

@@ -141,7 +141,8 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
             if wp.static(VELOCITY):
                 v = ld(velocities_in[k])
                 if wp.static(HAIR_HAIR):
-                    v_grid, grad = grid_sample(positions_in[k], features.grid_weights[k], features.grid_lower,
+                    v_grid, grad = grid_sample(positions_in[k], features.grid_weights[k], features.grid_threshold,
+                                               features.grid_lower,
                                                features.grid_inv_h, features.grid_nx, features.grid_ny,
                                                features.grid_nz, features.grid_density, features.grid_mass,
                                                features.grid_momentum)
@@ -155,7 +156,8 @@ def velocity_features_kernel(scalar, real, flags: frozenset, form: str):
                 if wp.static(DRAG):
                     a = rate * air
                 if wp.static(HAIR_HAIR):
-                    v_grid, grad = grid_sample(positions_in[k], features.grid_weights[k], features.grid_lower,
+                    v_grid, grad = grid_sample(positions_in[k], features.grid_weights[k], features.grid_threshold,
+                                               features.grid_lower,
                                                features.grid_inv_h, features.grid_nx, features.grid_ny,
                                                features.grid_nz, features.grid_density, features.grid_mass,
                                                features.grid_momentum)

@@ -172,12 +172,13 @@ def grid_splat_kernel(scalar, ahead: bool = False, density_only: bool = False):
 
 @functools.cache
 def grid_sample_func(scalar):
-    """``sample(x, own, ..., density, mass, momentum) -> (v_grid, grad_rho)``: grid velocity (m/s,
-    ``momentum`` over ``mass``, the density splatted with it) and the gradient (1/m) of the
-    ``density`` (relative to the rest density) of the other particles at ``x``, the sampling particle's own
-    share (its weight ``own`` splatted at ``x``) removed; zeros outside the grid or where the grid
-    is empty. ``mass`` empty: the momentum was splatted with ``density`` (every substep a full
-    rebuild)."""
+    """``sample(x, own, threshold, ..., density, mass, momentum) -> (v_grid, grad_rho)``: grid
+    velocity (m/s, ``momentum`` over ``mass``, the density splatted with it) and the gradient (1/m)
+    of the ``density`` (relative to the rest density) of the other particles beyond ``threshold``,
+    ``max(rho - threshold, 0)``, at ``x``: the sampling particle's own share (its weight ``own``
+    splatted at ``x``) removed (node by node with a threshold, from the sum without); zeros
+    outside the grid or where the grid is empty.
+    ``mass`` empty: the momentum was splatted with ``density`` (every substep a full rebuild)."""
     vec3 = wp.types.vector(3, scalar)
     cell = grid_cell_func(scalar)
     one = scalar(1.0)
@@ -187,6 +188,7 @@ def grid_sample_func(scalar):
     def grid_sample(
         x: vec3,
         own: scalar,
+        threshold: scalar,
         lower: wp.array(dtype=scalar),
         inv_h: scalar,
         nx: int,
@@ -203,7 +205,7 @@ def grid_sample_func(scalar):
         rho = zero
         mom = vec3()
         grad = vec3()
-        self_grad = vec3()
+        self_grad = vec3()   # the particle's own share, without a threshold (removed at the end)
         for c in range(8):
             di = c & 1
             dj = (c >> 1) & 1
@@ -222,8 +224,12 @@ def grid_sample_func(scalar):
             else:
                 rho += w * node
             mom += w * momentum[i + di, j + dj, k + dk]
-            grad += node * dw
-            self_grad += w * dw
+            if threshold > zero:
+                # the other particles' density at this node beyond the threshold
+                grad += wp.max(node - own * w - threshold, zero) * dw
+            else:
+                grad += node * dw
+                self_grad += w * dw
         v_grid = vec3()
         # a weighted mean of the velocities splatted near x: undefined only where (nearly) nothing was
         if rho > scalar(1.0e-6) * own:

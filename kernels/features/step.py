@@ -70,6 +70,7 @@ def feature_struct(scalar, flags: frozenset):
             grid_momentum=wp.array3d(dtype=vec3),
             grid_friction=scalar,
             grid_repulsion=scalar,
+            grid_threshold=scalar,
         )
     name = "StepFeatures_" + ("f64_" if scalar == wp.float64 else "f32_") + "_".join(sorted(flags))
     cls = type(name, (), {"__annotations__": fields, "__module__": __name__, "__qualname__": name})

@@ -475,7 +475,8 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 rv = rv + (h * mk) * vec3(ac[0], ac[1], ac[2])
                 a_drag = ac[3]
             if wp.static(HAIR_HAIR):
-                v_grid, grad = grid_sample(positions_in[kk], features.grid_weights[kk], features.grid_lower,
+                v_grid, grad = grid_sample(positions_in[kk], features.grid_weights[kk], features.grid_threshold,
+                                           features.grid_lower,
                                            features.grid_inv_h, features.grid_nx, features.grid_ny, features.grid_nz,
                                            features.grid_density, features.grid_mass,
                                            features.grid_momentum)

@@ -124,8 +124,9 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
             x_old = positions_in[k]
             v = velocities_in[k]
             if wp.static(HAIR_HAIR):
-                v_grid, grad = grid_sample(x_old, features.grid_weights[k], features.grid_lower, features.grid_inv_h,
-                                           features.grid_nx, features.grid_ny, features.grid_nz, features.grid_density,
+                v_grid, grad = grid_sample(x_old, features.grid_weights[k], features.grid_threshold,
+                                           features.grid_lower, features.grid_inv_h, features.grid_nx,
+                                           features.grid_ny, features.grid_nz, features.grid_density,
                                            features.grid_mass, features.grid_momentum)
                 v = v + blend_grid * (v_grid - v) - push * grad
             if wp.static(DRAG):
