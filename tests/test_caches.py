@@ -433,3 +433,18 @@ def test_shot_usdc_and_shot_usd_never_share_their_clips_folder(tmp_path, capsys)
     assert [j.error is None for j in jobs] == [True, False, True, True]
     assert jobs[1].error.endswith("output o/s.usd would write its value clips into s_clips/, as the output of "
                                   "job 1 does: give it another name")
+
+
+def test_a_single_layer_over_a_clips_output_removes_its_clips(tmp_path):
+    src = groom(tmp_path / "in.usda")
+    for clips in ("3", "2"):  # clips over clips: the folder holds the new chunks only
+        assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usdc"), "--clips", clips, "--quiet",
+                         "--device", "cpu"]) == 0
+    assert len(list((tmp_path / "x_clips").iterdir())) == 5
+    (tmp_path / "y_clips").mkdir()  # a folder of that name no output uses is not ours to remove
+    for name in ("x", "y"):
+        simulate_usd(src, tmp_path / f"{name}.usdc", device="cpu", no_clips=True)
+    # x_clips was left beside the new single layer, which no longer names it: stale frames
+    assert not (tmp_path / "x_clips").exists() and (tmp_path / "y_clips").is_dir()
+    one = points(tmp_path / "x.usdc")
+    assert sorted(one) == [float(t) for t in range(1, 9)]

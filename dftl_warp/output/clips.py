@@ -33,7 +33,7 @@ from pathlib import Path
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder
 from .clip_pool import ClipWriterPool, writer_count
-from .usd import UsdWriter, check_output_path
+from .usd import UsdWriter, check_output_path, uses_clips_folder
 
 #: the clip set's name
 CLIP_SET = "default"
@@ -63,21 +63,10 @@ def clips_partial_folder(output: Path) -> Path:
 def check_clips_folder(output: Path) -> None:
     """Refuse clips whose folder another output's layer uses: ``shot.usdc`` and ``shot.usd`` share
     ``shot_clips/``, and writing one's clips would silently replace the other's animation."""
-    from pxr import Sdf
-
     folder = clips_folder(output)
-    if not folder.is_dir():
-        return
-    topology = f"./{folder.name}/topology.usdc"
     for ext in (".usdc", ".usd"):
         other = output.with_suffix(ext)
-        if other.suffix.lower() == output.suffix.lower() or not other.is_file():
-            continue
-        try:
-            layer = Sdf.Layer.OpenAsAnonymous(str(other), True)   # metadata only: its sublayers
-        except Exception:  # pxr raises Tf.ErrorException: not a layer, so not a clips output
-            continue
-        if layer is not None and topology in list(layer.subLayerPaths):
+        if other.suffix.lower() != output.suffix.lower() and uses_clips_folder(other, folder):
             raise UserError(f"{output}: its value clips would replace those of {other} in {folder}: "
                             f"give the output another name")
 
