@@ -380,3 +380,71 @@ def test_automatic_clips_and_no_clips(tmp_path, monkeypatch):
     assert sorted(one) == sorted(auto) and all(np.array_equal(one[t], auto[t]) for t in one)
     assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usdc"), "--clips", "2", "--no-clips",
                      "--quiet", "--device", "cpu"]) == 2
+
+
+def test_clips_with_frame_step_hold_clips_written_frames_through_simulate_and_batch(tmp_path):
+    from dftl_warp.batch.checkpoint import CheckpointPolicy, run_job
+    from dftl_warp.batch.jobs import Job
+
+    src = groom(tmp_path / "in.usda", end=8)
+    simulate_usd(src, tmp_path / "one.usdc", device="cpu", frame_step=2, no_clips=True)
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "c.usdc"), "--frame-step", "2", "--clips", "2",
+                     "--quiet", "--device", "cpu"]) == 0
+    job = Job(index=1, name="b", input=str(src), output=str(tmp_path / "b.usdc"), options={"clips": 2, "frame_step": 2})
+    run_job(job, "cpu", CheckpointPolicy(every_seconds=0), lambda event: None)
+    one = points(tmp_path / "one.usdc")
+    assert sorted(one) == [1.0, 3.0, 5.0, 7.0]
+    for name in ("c", "b"):  # frames 1, 3 | 5, 7: two clips of 2 written frames (it was 4 of one)
+        assert sorted(p.name for p in (tmp_path / f"{name}_clips").iterdir()) == [
+            "clip.0000.usdc", "clip.0001.usdc", "topology.usdc"], name
+        assert [Sdf.Layer.FindOrOpen(str(tmp_path / f"{name}_clips" / f"clip.000{i}.usdc")).ListAllTimeSamples()
+                for i in (0, 1)] == [[1.0, 3.0], [5.0, 7.0]]
+        got = points(tmp_path / f"{name}.usdc")
+        assert sorted(got) == sorted(one) and all(np.array_equal(one[t], got[t]) for t in one), name
+
+
+def test_shot_usdc_and_shot_usd_never_share_their_clips_folder(tmp_path, capsys):
+    from dftl_warp.batch.jobs import load_jobs
+
+    src = groom(tmp_path / "in.usda")
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usdc"), "--clips", "2", "--quiet",
+                     "--device", "cpu"]) == 0
+    before = points(tmp_path / "x.usdc")
+    layers = {p.name: p.read_bytes() for p in (tmp_path / "x_clips").iterdir()}
+    capsys.readouterr()
+    # x.usd's clips go into x_clips/ too: they replaced x.usdc's animation without a word
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usd"), "--clips", "3", "--substeps", "1",
+                     "--quiet", "--device", "cpu"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert f"{tmp_path / 'x.usd'}: its value clips would replace those of {tmp_path / 'x.usdc'}" in err
+    assert not (tmp_path / "x.usd").exists() and not list(tmp_path.glob(".*"))
+    assert {p.name: p.read_bytes() for p in (tmp_path / "x_clips").iterdir()} == layers
+    after = points(tmp_path / "x.usdc")
+    assert all(np.array_equal(before[t], after[t]) for t in before)
+    # a single layer beside it, or clips of another stem, are fine
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usda"), "--quiet", "--device", "cpu"]) == 0
+    # batch: both jobs may write clips (asked for, or automatic) into the one folder
+    (tmp_path / "jobs.toml").write_text('[[job]]\ninput = "in.usda"\noutput = "o/s.usdc"\n'
+                                        '[[job]]\ninput = "in.usda"\noutput = "o/s.usd"\nclips = 2\n'
+                                        '[[job]]\ninput = "in.usda"\noutput = "o/t.usdc"\nno_clips = true\n'
+                                        '[[job]]\ninput = "in.usda"\noutput = "o/t.usd"\n')
+    jobs = load_jobs(tmp_path / "jobs.toml")
+    assert [j.error is None for j in jobs] == [True, False, True, True]
+    assert jobs[1].error.endswith("output o/s.usd would write its value clips into s_clips/, as the output of "
+                                  "job 1 does: give it another name")
+
+
+def test_a_single_layer_over_a_clips_output_removes_its_clips(tmp_path):
+    src = groom(tmp_path / "in.usda")
+    for clips in ("3", "2"):  # clips over clips: the folder holds the new chunks only
+        assert cli.main(["simulate", str(src), "-o", str(tmp_path / "x.usdc"), "--clips", clips, "--quiet",
+                         "--device", "cpu"]) == 0
+    assert len(list((tmp_path / "x_clips").iterdir())) == 5
+    (tmp_path / "y_clips").mkdir()  # a folder of that name no output uses is not ours to remove
+    for name in ("x", "y"):
+        simulate_usd(src, tmp_path / f"{name}.usdc", device="cpu", no_clips=True)
+    # x_clips was left beside the new single layer, which no longer names it: stale frames
+    assert not (tmp_path / "x_clips").exists() and (tmp_path / "y_clips").is_dir()
+    one = points(tmp_path / "x.usdc")
+    assert sorted(one) == [float(t) for t in range(1, 9)]

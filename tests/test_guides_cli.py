@@ -197,3 +197,22 @@ def test_input_errors(tmp_path, capsys):
     err = _error([dense, "-o", tmp_path / "o.usdc", "--guides", "100"], capsys)
     assert str(dense) in err and "/World/Hair" in err and "100 guides" in err and "40 strands" in err
     assert not (tmp_path / "o.usdc").exists()
+
+
+def test_info_says_a_render_prim_is_deformed_from_its_guides_not_simulated(tmp_path, capsys):
+    import json
+
+    src = tmp_path / "g.usda"
+    groom_stage(src)
+    assert cli.main(["info", str(src)]) == 0
+    out = capsys.readouterr().out
+    # it said "/World/Head/Offset/Hair: 40 strands ...; solver dftl": a prim simulate never simulates
+    assert (f"/World/Head/Offset/Hair: 40 strands, {40 * N} particles, linear, nonperiodic; not simulated: "
+            "deformed from its guides /World/Head/Guides") in out
+    assert f"/World/Head/Guides: 8 strands, {8 * N} particles, linear, nonperiodic; solver dftl" in out
+    assert "the step is the bare DFTL step" in out
+    assert cli.main(["info", str(src), "--json"]) == 0
+    curves = {c["path"]: c for c in json.loads(capsys.readouterr().out)["curves"]}
+    assert curves["/World/Head/Offset/Hair"]["solver"] is None
+    assert curves["/World/Head/Offset/Hair"]["guides"] == ["/World/Head/Guides"]
+    assert (curves["/World/Head/Guides"]["solver"], curves["/World/Head/Guides"]["guides"]) == ("dftl", [])

@@ -137,21 +137,38 @@ def load_jobs(path) -> list[Job]:
         raise UserError(f"{path}: [defaults]: {exc}") from None
 
     folder = path.parent
-    jobs, outputs = [], {}
+    jobs, outputs, clip_folders = [], {}, {}
     for k, table in enumerate(tables, start=1):
         job = _make_job(k, table, defaults, folder)
         if job.error is None:
             key = os.path.normcase(job.output)
+            # shot.usdc and shot.usd write their value clips (asked for or automatic) into one shot_clips/
+            clips = _clips_folder_of(job)
             if key in outputs:
                 job.error = f"output {table['output']} is also the output of job {outputs[key]}"
+            elif clips is not None and clips in clip_folders:
+                job.error = (f"output {table['output']} would write its value clips into {Path(clips).name}/, "
+                             f"as the output of job {clip_folders[clips]} does: give it another name")
             else:
                 outputs[key] = k
+                if clips is not None:
+                    clip_folders[clips] = k
         jobs.append(job)
     _check_inputs_survive(jobs, tables)
     for job in jobs:
         if job.error is not None:
             job.error = f"{path}: {job.error}"
     return jobs
+
+
+def _clips_folder_of(job: Job) -> str | None:
+    """The value-clips folder a job's output may fill (a crate output without ``no_clips``), normcased."""
+    from ..output.clips import clips_folder
+
+    output = Path(job.output)
+    if output.suffix.lower() not in (".usdc", ".usd") or job.options.get("no_clips"):
+        return None
+    return os.path.normcase(clips_folder(output))
 
 
 def _check_inputs_survive(jobs: list, tables: list) -> None:

@@ -199,8 +199,10 @@ def describe(scene) -> dict:
         "curves": [
             {
                 "path": c.path,
-                # what `simulate` runs the prim with when the command line sets no solver
-                "solver": group_settings(scene, defaults, i).solver,
+                # what `simulate` runs the prim with when the command line sets no solver; a render
+                # prim (``rel dftl:guides``) is not simulated: its guides are (docs/guides.md)
+                "solver": None if c.guides else group_settings(scene, defaults, i).solver,
+                "guides": list(c.guides),
                 "type": c.type,
                 "basis": c.basis if c.type == "cubic" else None,
                 "wrap": c.wrap,
@@ -270,7 +272,7 @@ def run(args) -> int:
                   f"rebuilt every {h['splat_interval']} substep(s)")
     else:
         # the bare step is DFTL's only where every prim runs DFTL
-        bare = "; the step is the bare DFTL step" if {c["solver"] for c in d["curves"]} <= {"dftl"} else ""
+        bare = "; the step is the bare DFTL step" if {c["solver"] for c in d["curves"]} <= {"dftl", None} else ""
         if d["roots_bound_to_a_mesh"]:
             print(f"  features    roots bound to a mesh ({d['roots_bound_to_a_mesh']}){bare}")
         else:
@@ -289,8 +291,9 @@ def run(args) -> int:
                             for k, v in c["feature_attributes"].items())
         if c["root_mesh"]:
             settings += f", roots on {c['root_mesh']}"
-        print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}; "
-              f"solver {c['solver']}")
+        runs = (f"solver {c['solver']}" if c["solver"] is not None else
+                f"not simulated: deformed from its guides {', '.join(c['guides'])}")
+        print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}; {runs}")
         m = c["material"]
         ei = "" if m["bend_stiffness"] is None else f", EI {m['bend_stiffness']:.4g}"
         extras = "".join(t for t, on in ((", restShapePoints", m["rest_shape_points"]),

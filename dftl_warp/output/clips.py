@@ -33,7 +33,7 @@ from pathlib import Path
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder
 from .clip_pool import ClipWriterPool, writer_count
-from .usd import UsdWriter, check_output_path
+from .usd import UsdWriter, check_output_path, uses_clips_folder
 
 #: the clip set's name
 CLIP_SET = "default"
@@ -58,6 +58,17 @@ def clips_partial_folder(output: Path) -> Path:
     """The hidden folder the chunks are written into before :meth:`ClipsWriter.commit`."""
     output = Path(output)
     return output.with_name(f".{clips_folder(output).name}.dftl-partial")
+
+
+def check_clips_folder(output: Path) -> None:
+    """Refuse clips whose folder another output's layer uses: ``shot.usdc`` and ``shot.usd`` share
+    ``shot_clips/``, and writing one's clips would silently replace the other's animation."""
+    folder = clips_folder(output)
+    for ext in (".usdc", ".usd"):
+        other = output.with_suffix(ext)
+        if other.suffix.lower() != output.suffix.lower() and uses_clips_folder(other, folder):
+            raise UserError(f"{output}: its value clips would replace those of {other} in {folder}: "
+                            f"give the output another name")
 
 
 def _clip_name(index: int) -> str:
@@ -226,7 +237,7 @@ class ClipsWriter(FrameWriter):
         return writer
 
     def write_frame(self, time_code: float, samples) -> None:
-        index = (int(round(time_code)) - self.first) // self.clip_frames
+        index = self._chunk_of(int(round(time_code)))
         if self._chunk and index != self._chunk_index:
             self._submit()
         self._chunk_index = index
@@ -234,8 +245,13 @@ class ClipsWriter(FrameWriter):
         self._chunk.append(float(time_code))
         self._written.append(float(time_code))
         following = int(round(time_code)) + self.step
-        if following > self.last or (following - self.first) // self.clip_frames != index:
+        if following > self.last or self._chunk_of(following) != index:
             self._submit()  # the chunk is whole: hand it over now (a checkpoint may follow)
+
+    def _chunk_of(self, frame: int) -> int:
+        """The chunk of a written frame: ``clip_frames`` written frames a chunk, as :func:`auto_clips`
+        and :func:`auto_clip_frames` count them (with ``--frame-step N``, N times as many simulated)."""
+        return (frame - self.first) // self.step // self.clip_frames
 
     @property
     def chunks_handed_over(self) -> int:
@@ -358,6 +374,7 @@ def create_clips(output, scene, *, frames, clip_frames: int = 0, velocities: boo
     output = check_output_path(output, scene.source)
     if output.suffix.lower() == ".usda":
         raise UserError(f"{output}: --clips writes a .usdc or .usd output layer")
+    check_clips_folder(output)
     ensure_folder(output)
     frames = (int(frames[0]), int(frames[1]))
     return ClipsWriter(output, scene, frames, clip_frames or auto_clip_frames(scene, velocities), velocities,

@@ -335,6 +335,10 @@ class UsdWriter(FrameWriter):
         from pxr import Tf
 
         self.flush()
+        # the value clips of the output this replaces (``shot_clips/``), unless this layer uses them too
+        folder = self.output.with_name(self.output.stem + "_clips")
+        stale = (f"./{folder.name}/topology.usdc" not in list(self.layer.subLayerPaths)
+                 and uses_clips_folder(self.output, folder))
         try:
             if self.output.suffix.lower() == ".usda":
                 text = self.partial.with_suffix(".usda")
@@ -351,6 +355,10 @@ class UsdWriter(FrameWriter):
                 self._close()
                 _usual_permissions(self.partial)
                 os.replace(self.partial, self.output)
+            if stale:  # nothing names them any more: left, they read as part of this output
+                import shutil
+
+                shutil.rmtree(folder, ignore_errors=True)
         except OSError as exc:
             self.abort()
             raise UserError(f"{self.output}: cannot write: {exc.strerror or exc}") from None
@@ -383,6 +391,20 @@ def _usual_permissions(path) -> None:
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(path, 0o666 & ~umask)
+
+
+def uses_clips_folder(path: Path, folder: Path) -> bool:
+    """Whether the layer at ``path`` is a value-clips output whose clips are in ``folder`` (it
+    sublayers ``./FOLDER/topology.usdc``; docs/caches.md). Reads the layer's metadata only."""
+    from pxr import Sdf
+
+    if not folder.is_dir() or not path.is_file():
+        return False
+    try:
+        layer = Sdf.Layer.OpenAsAnonymous(str(path), True)
+    except Exception:  # pxr's Tf.ErrorException: not a layer, so not a clips output
+        return False
+    return layer is not None and f"./{folder.name}/topology.usdc" in list(layer.subLayerPaths)
 
 
 def _remove(path) -> None:

@@ -550,7 +550,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
                 from ..output.clips import create_clips
 
                 opened = create_clips(output, sim.output_scene, frames=(first, last_written), clip_frames=out_opts["clips"],
-                                      **extra)
+                                      step=step, **extra)
             else:
                 opened = cls.create(output, sim.output_scene, frames=(first, last_written), **extra)
             with opened as writer:
