@@ -309,7 +309,7 @@ def analytic_collide_func(scalar, sdf_factory, name: str):
             path = q - q_old
             length = wp.length(path)
             # the SDF is 1-Lipschitz: a path ending farther than its length from the surface never crossed it
-            stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
+            stop = radius * scalar(1.0e-3) + rest * scalar(1.0e-4)
             if dist < length and length > tiny:
                 d_old, n_old = sdf(q_old, size, axis)
                 if d_old > stop:

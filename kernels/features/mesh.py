@@ -80,7 +80,7 @@ def collide_mesh_func(scalar):
                 dipped = bool(False)
                 if hit.result and query.result and query.sign < wp.float32(0.0):
                     start_height = -scalar(hit.t) * wp.dot(direction, vec3(hit.normal))
-                    if start_height <= radius * scalar(1.001) + scalar(1.0e-6):
+                    if start_height <= radius * scalar(1.001) + rest * scalar(1.0e-4):
                         dipped = wp.dot(wp.mesh_eval_face_normal(mesh, query.face), hit.normal) > wp.float32(0.0)
                 if hit.result and hit.sign > wp.float32(0.0) and not dipped:
                     n = vec3(hit.normal)

@@ -240,7 +240,7 @@ def collide_sdf_func(scalar):
                 # reaches its whole path below the surface
                 return x, False, 7, taken
             if ccd:
-                stop = radius * scalar(1.0e-3) + scalar(1.0e-6)
+                stop = radius * scalar(1.0e-3) + rest * scalar(1.0e-4)
                 if scalar(ds) <= radius + stop and (state != ANSWERS or wp.dot(n, vec3(ns)) <= scalar(0.0)):
                     # from contact to where the field cannot say it stayed on the same side: the
                     # exact query decides
