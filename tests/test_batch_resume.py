@@ -93,6 +93,23 @@ def test_checkpoint_of_other_settings_is_not_used(tmp_path, stage, reference):
     assert again.status == "done" and layer_content(out) == layer_content(reference[4])
 
 
+def test_checkpoint_of_an_older_format_is_not_used(tmp_path, stage, reference):
+    """A checkpoint written by an older release (format 1: its clips under a frame step counted
+    simulated frames) starts over instead of resuming into clips numbered the other way."""
+    out = _same_place(tmp_path, "old")
+    run_job(job(stage, out, substeps=4), "cpu", CheckpointPolicy(every_frames=2), interrupt_after(7))
+    files = JobFiles(out)
+    with np.load(files.checkpoint_state, allow_pickle=False) as data:
+        state = {k: data[k] for k in data.files}
+    assert int(state["format"]) == resumable.FORMAT >= 2
+    state["format"] = np.array(1)
+    with open(files.checkpoint_state, "wb") as f:
+        np.savez(f, **state)
+    again = run_job(job(stage, out, substeps=4), "cpu", CheckpointPolicy(every_frames=2))
+    assert again.status == "done" and again.resumed_from is None
+    assert layer_content(out) == layer_content(reference[4])
+
+
 def test_output_of_simulate_is_not_taken_for_complete(tmp_path, stage, reference):
     from dftl_warp.simulation.simulate import simulate_usd
 

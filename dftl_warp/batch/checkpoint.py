@@ -38,8 +38,10 @@ import numpy as np
 
 from ..errors import UserError
 
-#: version of the checkpoint and completion records (bump when their meaning changes)
-FORMAT = 1
+#: version of the checkpoint and completion records (bump when their meaning changes); 2: clips of
+#: a job with a frame step count written frames (commit d7d9519), so a checkpoint of format 1 would
+#: resume with the clips numbered the other way
+FORMAT = 2
 #: name of the output's record (:meth:`~dftl_warp.output.base.FrameWriter.set_record`; USD: the
 #: ``customLayerData`` key) holding the batch record
 LAYER_DATA_KEY = "dftl_warp_batch"
