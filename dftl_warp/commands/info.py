@@ -309,6 +309,8 @@ def run(args) -> int:
         extra = ", animated transform" if c["animated_transform"] else ""
         print(f"    {c['path']}: {c['kind']}{friction}{extra}")
     for w in d["warnings"]:
+        if made is not None and "points are time-sampled (an animated groom)" in w:
+            continue   # a dftl-warp output: its points are the simulated frames (the provenance below)
         print(f"  warning     {w}")
     if made is not None:
         print("  provenance")
