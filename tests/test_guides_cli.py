@@ -216,3 +216,19 @@ def test_info_says_a_render_prim_is_deformed_from_its_guides_not_simulated(tmp_p
     assert curves["/World/Head/Offset/Hair"]["solver"] is None
     assert curves["/World/Head/Offset/Hair"]["guides"] == ["/World/Head/Guides"]
     assert (curves["/World/Head/Guides"]["solver"], curves["/World/Head/Guides"]["guides"]) == ("dftl", [])
+
+
+def test_info_counts_a_render_prim_as_its_binding_not_as_simulated_strands(tmp_path):
+    """Memory: the render prim adds its binding to the guides (16 n + 40 B a strand of n vertices,
+    docs/guides.md), not a simulation of its strands."""
+    from dftl_warp.commands.info import describe
+    from dftl_warp.usd.read import read_scene
+
+    src = tmp_path / "g.usda"
+    groom_stage(src)
+    both = describe(read_scene(str(src)))
+    guides = describe(read_scene(str(src), prims=["/World/Head/Guides"]))
+    binding = 16 * 40 * N + 40 * 40
+    for p in ("float32", "float64"):
+        assert both["device_bytes"][p] - guides["device_bytes"][p] == binding, (p, both["device_bytes"],
+                                                                                guides["device_bytes"])

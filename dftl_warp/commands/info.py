@@ -64,6 +64,11 @@ def device_bytes(scene, precision: str, correction: str = "prior") -> int:
     defaults = SimulationOptions()
     plain, total = [], 0
     for i, c in enumerate(scene.curves):
+        if c.guides:
+            # a render prim is not simulated: its binding to the guides (docs/guides.md, "Memory":
+            # 16 n + 40 B a strand of n vertices, the default blended frames and k <= 4 guides)
+            total += 16 * c.num_points + 40 * c.num_strands
+            continue
         if group_settings(scene, defaults, i).solver != "elastic":
             plain.append(c)
             continue
@@ -96,6 +101,8 @@ def feature_summary(scene, precision: str = "float32") -> dict:
 
     groups: dict = {}
     for c in scene.curves:
+        if c.guides:   # a render prim is not simulated: its guides carry the features
+            continue
         groups.setdefault(c.root_mesh.path if c.root_mesh is not None else None, []).append(c)
     flags, per_strand, fixed, bound = set(), 0.0, 0, 0
     hair_hair = []
@@ -280,7 +287,8 @@ def run(args) -> int:
     per = d["device_bytes_per_strand"]
     print(f"  memory      {_bytes(per['float32'])} per strand in float32, {_bytes(per['float64'])} in float64 "
           f"(total {_bytes(d['device_bytes']['float32'])} / {_bytes(d['device_bytes']['float64'])}, "
-          f"features included, with each prim's solver)")
+          f"features included, with each prim's solver"
+          + (", render prims as their guide bindings)" if any(c["guides"] for c in d["curves"]) else ")"))
     print(f"  curves      {len(d['curves'])} prim(s)")
     for c in d["curves"]:
         kind = c["type"] + (f" {c['basis']}" if c["basis"] else "") + f", {c['wrap']}"
