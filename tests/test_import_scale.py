@@ -85,3 +85,25 @@ def test_a_head_in_other_units_than_the_hair_is_named(tmp_path, capsys):
     assert lines[0].startswith(expected), lines[0]
     # --up-axis X turns the hair and the head alike before they are compared
     assert notes(src, tmp_path / "r.usda", head=cube(tmp_path / "head.obj", 50.0), up_axis="X") == []
+
+
+def test_strands_far_shorter_than_the_rest_are_named(tmp_path):
+    """A strand of 1e-3 the others' length (an artefact: a public TressFX groom has one of 7.5 um
+    with 32 points) is one warning naming the shortest; the groom is written as read."""
+    roots = np.array([[x, 50.0, 0.0] for x in (-20.0, 0.0, 20.0, 40.0)])
+    pts = [r + np.arange(10)[:, None] * SEGMENT * np.array([0.0, -1.0, 0.0]) for r in roots[:3]]
+    pts.append(roots[3] + np.arange(10)[:, None] * 1e-3 * SEGMENT * np.array([0.0, -1.0, 0.0]))
+    src = write_ply(tmp_path / "g.ply", np.concatenate(pts), [10] * 4)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        import_groom(src, tmp_path / "g.usda")
+    found = [str(w.message) for w in caught if "shorter than" in str(w.message)]
+    assert len(found) == 1, [str(w.message) for w in caught]
+    assert found[0].startswith(f"{src}: 1 of 4 strands are shorter than 1% of the median strand (90 units)")
+    assert "strand 3, is 0.09 units long with 10 points" in found[0], found[0]
+    assert (tmp_path / "g.usda").exists()
+    src, _ = groom(tmp_path)       # strands of one length: nothing to say
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        import_groom(src, tmp_path / "h.usda")
+    assert not [w for w in caught if "shorter than" in str(w.message)]

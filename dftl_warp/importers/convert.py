@@ -13,7 +13,7 @@ from ..errors import UserError
 from ..options import OPTIONS, BadValue, OptionError
 from . import Groom, GroomImportWarning, read_groom, reader_for
 from ._binary import check_finite
-from .scale import head_note, units_note
+from .scale import head_note, short_note, units_note
 
 #: metres per unit of the names ``--units`` accepts
 UNITS = {"m": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001, "um": 1e-6, "in": 0.0254, "ft": 0.3048}
@@ -260,6 +260,7 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
     coincident = coincident_note(source, groom, segments is not None)
     roots = groom.points[np.concatenate([[0], np.cumsum(groom.counts)[:-1]])]
     for note in (coincident, units_note(source, groom.points, groom.counts, mpu, units is not None),
+                 short_note(source, groom.points, groom.counts),
                  None if mesh is None else head_note(os.fspath(head), mesh.points, roots)):
         if note:
             notes.append(note)

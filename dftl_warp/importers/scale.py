@@ -10,6 +10,8 @@ import numpy as np
 #: median strand length (m) outside which --units is questioned: shorter than stubble, longer
 #: than floor-length hair
 HAIR_LENGTHS_M = (2e-3, 3.0)
+#: strands shorter than this fraction of the median strand are named (data artefacts, most often)
+SHORT_FRACTION = 0.01
 #: the units named in the advice, metres per unit
 UNIT_NAMES = {1.0: "m", 0.01: "cm", 0.001: "mm"}
 
@@ -44,6 +46,23 @@ def units_note(source: str, points: np.ndarray, counts: np.ndarray, mpu: float, 
     origin = "--units" if given else "the format's default unit"
     return (f"{source}: the strands' median length is {median:.3g} units = {metres:.3g} m at {mpu:g} m per unit "
             f"({origin}), not a hair's ({low * 1e3:g} mm to {high:g} m){advice}")
+
+
+def short_note(source: str, points: np.ndarray, counts: np.ndarray) -> str | None:
+    """One warning when strands are shorter than :data:`SHORT_FRACTION` of the median strand (a
+    7.5 um strand of 32 points in a public TressFX groom: its segments are a few float32 steps at
+    its coordinates), naming how many and the shortest; None otherwise. They are written as read."""
+    lengths = strand_lengths(points, counts)
+    if lengths.size == 0:
+        return None
+    median = float(np.median(lengths))
+    short = lengths < SHORT_FRACTION * median
+    if median <= 0 or not short.any():
+        return None
+    i = int(np.argmin(np.where(short, lengths, np.inf)))
+    return (f"{source}: {int(short.sum())} of {lengths.size} strands are shorter than {SHORT_FRACTION:.0%} of the "
+            f"median strand ({median:.3g} units); the shortest, strand {i}, is {lengths[i]:.3g} units long with "
+            f"{int(counts[i])} points. They are written as read: remove them if they are not hair")
 
 
 def head_note(head: str, mesh_points: np.ndarray, roots: np.ndarray, share: float = 0.5) -> str | None:
