@@ -179,7 +179,7 @@ def test_info_prints_the_grid_simulate_sets_up(tmp_path, capsys):
     from usd_stages import add_curves, chain, new_stage
 
     from dftl_warp import cli
-    from dftl_warp.features.hair_hair import group_rest_density
+    from dftl_warp.features.hair_hair import group_rest_statistics
 
     path = tmp_path / "hh.usda"
     stage = new_stage(path, start=1, end=4, meters_per_unit=0.01)
@@ -190,7 +190,7 @@ def test_info_prints_the_grid_simulate_sets_up(tmp_path, capsys):
     assert cli.main(["info", str(path)]) == 0
     lines = [line for line in capsys.readouterr().out.splitlines() if line.strip().startswith("hair-hair")]
     assert len(lines) == 1, lines
-    want = group_rest_density(F.HairHair(cell_size=4.0, hair_width=0.008), pts, [10] * 20, 0.008)
+    want, _ = group_rest_statistics(F.HairHair(cell_size=4.0, hair_width=0.008), pts, [10] * 20, 0.008)
     assert "/World/Hair: cell 4 units, repulsion 500 units/s^2 (5 m/s^2)" in lines[0], lines
     assert f"rest volume fraction {want:.3g}" in lines[0] and 1e-5 < want < 1e-4, (lines, want)
     assert "densest node at rest " in lines[0] and "threshold 0)" in lines[0], lines

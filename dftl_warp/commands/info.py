@@ -97,7 +97,7 @@ def feature_summary(scene, precision: str = "float32") -> dict:
     from ..errors import UserError
     from ..usd.scene import transform_points
     from ..features import HairHair, feature_names, find, group_features, memory_estimate
-    from ..features.hair_hair import group_rest_density, rest_peak, volume_fractions
+    from ..features.hair_hair import with_rest_density
 
     groups: dict = {}
     for c in scene.curves:
@@ -111,7 +111,8 @@ def feature_summary(scene, precision: str = "float32") -> dict:
         feats, widths = group_features(scene, curves, time)
         points = np.concatenate([transform_points(c.transform(time), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
-        try:   # as simulate refuses them: a hair-hair grid of too many nodes, say
+        try:   # as simulate sets them up and refuses them: a hair-hair grid of too many nodes, say
+            feats, peak = with_rest_density(feats, points, counts, widths)
             model = Model.from_strands(points, counts, device="cpu", precision=precision, widths=widths,
                                        features=feats)
         except ValueError as exc:
@@ -123,14 +124,11 @@ def feature_summary(scene, precision: str = "float32") -> dict:
         if mesh is not None:
             bound += model.num_strands
         hh = find(feats, HairHair)
-        if hh is not None:   # as simulate sets it up (its rest density from the group's points)
+        if hh is not None:
             hair_hair.append({"prims": [c.path for c in curves], "cell": float(hh.cell_size),
                               "repulsion": float(hh.repulsion), "friction": float(hh.friction),
-                              "splat_interval": int(hh.splat_interval),
-                              "rest_volume_fraction": group_rest_density(hh, points, counts, widths),
-                              "threshold": float(hh.threshold),
-                              "rest_peak": rest_peak(points, volume_fractions(points, counts, widths, hh.cell_size,
-                                                                              hh.hair_width), hh.cell_size),
+                              "splat_interval": int(hh.splat_interval), "rest_volume_fraction": hh.rest_density,
+                              "threshold": float(hh.threshold), "rest_peak": peak,
                               "grid_nodes": [int(n) for n in model.feature_data.grid_shape]})
     strands = max(sum(c.num_strands for c in scene.curves), 1)
     return {"flags": sorted(flags), "names": feature_names(flags), "bound_roots": bound,

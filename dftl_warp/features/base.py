@@ -63,6 +63,14 @@ def nonnegative(value, what: str) -> float:
     return value
 
 
+def positive(value, what: str, unit: str) -> float:
+    """``value`` as a float; ValueError naming ``what`` unless it is a finite number > 0 (not a bool)."""
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating))
+            or not (np.isfinite(value) and value > 0)):
+        raise ValueError(f"{what} must be a finite number > 0 ({unit}), got {value!r}")
+    return float(value)
+
+
 def per_strand(value, num_strands: int, what: str) -> np.ndarray:
     """One value, or one per strand (input order), as ``num_strands`` float64 values."""
     a = np.asarray(value, dtype=np.float64)

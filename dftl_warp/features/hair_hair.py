@@ -10,7 +10,7 @@ momentum (relative density x m/s per node), rebuilt every
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import warp as wp
@@ -19,7 +19,7 @@ from ..core.layout import strand_offsets
 from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
 from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
 from ..core.model import DEFAULT_HAIR_WIDTH
-from .base import authored, find, nonnegative, vector
+from .base import authored, find, nonnegative, positive, vector
 
 #: default repulsion (m/s^2 per unit relative density across a cell): the hair at a groom's edge at
 #: rest is pushed out at about half of g
@@ -33,8 +33,8 @@ ATTRIBUTES = {
     "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit difference of the hair's "
                                "density relative to its rest density, across a cell"),
     "dftl:hairHairSplatInterval": (int, "scene", "substeps between rebuilds of the grid (1: every substep)"),
-    "dftl:hairHairThreshold": (float, "scene", "relative density below which the hair exerts no repulsion (0: all of it; "
-                               "the densest node at rest, which info prints: a groom at rest is not pushed)"),
+    "dftl:hairHairThreshold": (float, "scene", "relative density below which the hair exerts no repulsion (0: all "
+                               "of it; the densest node at rest, which info prints: a groom at rest is not pushed)"),
 }
 
 #: CUDA threads per block of the per-strand splat: 160 registers a thread, so one block of 256 per
@@ -62,8 +62,9 @@ class HairHair:
     about ``repulsion`` (default :data:`DEFAULT_REPULSION`). ``threshold``: the relative density
     below which the hair exerts no repulsion, the push following ``max(rho - threshold, 0)`` (0,
     the default: all of it; at least the densest node at rest, :func:`rest_peak`, which ``info``
-    prints: a groom at rest is not pushed, only hair packed denser than anywhere at rest). ``hair_width`` (m): the diameter of
-    hair without widths (default human hair's). ``extent`` (3,), m: the grid's size,
+    prints: a groom at rest is not pushed, only hair packed denser than anywhere at rest).
+    ``hair_width`` (m): the diameter of hair without widths (default human hair's). ``extent``
+    (3,), m: the grid's size,
     by default the rest bounds of the hair plus twice the longest strand on each axis, capped
     at ``max_cells`` nodes (particles outside the grid feel nothing).
 
@@ -107,15 +108,9 @@ class HairHair:
         nonnegative(self.friction, "hair-hair friction")
         nonnegative(self.repulsion, "hair-hair repulsion")
         nonnegative(self.threshold, "hair-hair threshold")
-        width = self.hair_width
-        if isinstance(width, (bool, np.bool_)) or not isinstance(width, (int, float, np.integer, np.floating)) \
-                or not (np.isfinite(width) and width > 0):
-            raise ValueError(f"hair-hair hair_width must be a finite number > 0 (m), got {width!r}")
-        typical = self.rest_density
-        if typical is not None and not (isinstance(typical, (int, float, np.integer, np.floating))
-                                        and not isinstance(typical, (bool, np.bool_))
-                                        and np.isfinite(typical) and typical > 0):
-            raise ValueError(f"hair-hair rest_density must be a finite number > 0 (volume fraction), got {typical!r}")
+        positive(self.hair_width, "hair-hair hair_width", "m")
+        if self.rest_density is not None:
+            positive(self.rest_density, "hair-hair rest_density", "volume fraction")
         k = self.splat_interval
         if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or k < 1:
             raise ValueError(f"hair-hair splat_interval must be an integer >= 1 (substeps), got {k!r}")
@@ -186,35 +181,54 @@ def splat_nodes(points, weights, cell: float, shape=None) -> np.ndarray:
     return rho.reshape(shape)
 
 
-def rest_density(points, fractions, cell: float, shape=None) -> float:
-    """The hair's typical volume fraction at ``points`` (N, 3): its trilinear splat on a grid of
-    ``cell`` (m) averaged over the hair, ``sum rho^2 / sum rho`` over the nodes (the density a
-    particle sits in); 1 where there is no hair volume. ``shape``: the device grid's node counts
-    (only the hair inside it counts; see :func:`splat_nodes`)."""
+def rest_statistics(points, fractions, cell: float, shape=None) -> tuple[float, float]:
+    """(typical volume fraction, densest node relative to it) of the hair at ``points`` (N, 3), from
+    one trilinear splat on a grid of ``cell`` (m): the typical value is ``sum rho^2 / sum rho`` over
+    the nodes (the density a particle sits in; 1 where there is no hair volume), and a
+    ``threshold`` at least the densest node leaves the hair at rest without repulsion (0 where there
+    is no hair volume). ``shape``: the device grid's node counts (only the hair inside it counts;
+    see :func:`splat_nodes`)."""
     fractions = np.asarray(fractions, dtype=np.float64).reshape(-1)
     if not len(fractions) or fractions.sum() <= 0.0:
-        return 1.0
+        return 1.0, 0.0
     rho = splat_nodes(points, fractions, cell, shape)
     total = np.sum(rho)
-    return float(np.sum(rho ** 2) / total) if total > 0.0 else 1.0
+    if total <= 0.0:
+        return 1.0, 0.0
+    typical = float(np.sum(rho ** 2) / total)
+    return typical, float(rho.max()) / typical
 
 
-def rest_peak(points, fractions, cell: float) -> float:
-    """The densest node of the hair at ``points`` relative to its :func:`rest_density`: a
-    ``threshold`` at least this leaves the hair at rest without repulsion."""
-    fractions = np.asarray(fractions, dtype=np.float64).reshape(-1)
-    if not len(fractions) or fractions.sum() <= 0.0:
-        return 0.0
-    rho = splat_nodes(points, fractions, cell)
-    return float(rho.max() * np.sum(rho) / np.sum(rho ** 2))
+def rest_density(points, fractions, cell: float, shape=None) -> float:
+    """The hair's typical volume fraction at ``points`` (:func:`rest_statistics`)."""
+    return rest_statistics(points, fractions, cell, shape)[0]
 
 
-def group_rest_density(hh: HairHair, points, counts, widths) -> float:
-    """:func:`rest_density` of strands ``points`` (N, 3) / ``counts`` with ``widths`` (one, one per
-    point or None) on ``hh``'s grid (:func:`grid_dimensions`: a ValueError where it has too many
+def rest_peak(points, fractions, cell: float, shape=None) -> float:
+    """The densest node of the hair at ``points`` relative to its :func:`rest_density`
+    (:func:`rest_statistics`)."""
+    return rest_statistics(points, fractions, cell, shape)[1]
+
+
+def group_rest_statistics(hh: HairHair, points, counts, widths) -> tuple[float, float]:
+    """:func:`rest_statistics` of strands ``points`` (N, 3) / ``counts`` with ``widths`` (one, one
+    per point or None) on ``hh``'s grid (:func:`grid_dimensions`: a ValueError where it has too many
     nodes, before any is allocated): what the parts of a groom split across devices share."""
     shape, cell = grid_dimensions(hh, points, counts)
-    return rest_density(points, volume_fractions(points, counts, widths, cell, hh.hair_width), cell, shape)
+    return rest_statistics(points, volume_fractions(points, counts, widths, cell, hh.hair_width), cell, shape)
+
+
+def with_rest_density(features, points, counts, widths) -> tuple[list, float | None]:
+    """``features`` with their :class:`HairHair` (if any, and without one) given the rest density of
+    strands ``points`` / ``counts`` / ``widths`` (:func:`group_rest_statistics`), and the densest
+    node at rest relative to it (None without hair-hair). ValueError for a grid of too many nodes."""
+    hh = find(features, HairHair)
+    if hh is None:
+        return list(features), None
+    typical, peak = group_rest_statistics(hh, points, counts, widths)
+    if hh.rest_density is not None:
+        return list(features), peak * typical / hh.rest_density
+    return [replace(f, rest_density=typical) if f is hh else f for f in features], peak
 
 
 def grid_weights(model, hh: HairHair, cell: float, shape=None) -> np.ndarray:

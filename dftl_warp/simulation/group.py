@@ -12,15 +12,13 @@ computed exactly as on one device.
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
-
 import numpy as np
 
 from ..core.layout import strand_offsets
 from ..core.model import Model, _world_origin
 from ..errors import UserError
 from ..features import HairHair, Wind, find, group_features, hair_hair_extent
-from ..features.hair_hair import group_rest_density
+from ..features.hair_hair import with_rest_density
 from ..solvers import carries_corrections, make_solver
 from ..usd.scene import transform_points
 from .multi_device import (
@@ -61,16 +59,13 @@ class Group:
         starts = strand_offsets(counts, with_end=True)
         self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
         origin = grid_extent = None
+        # the hair-hair grid's rest density from the group's points (a split group's parts all weigh
+        # against the whole group's, and on one device or several alike)
+        try:   # a grid of too many nodes is refused before the rest density allocates it
+            features, _ = with_rest_density(features, points, counts, widths)
+        except ValueError as exc:
+            raise UserError(f"{scene.source}: {exc}") from None
         hair_hair = find(features, HairHair)
-        if hair_hair is not None and hair_hair.rest_density is None:
-            # the hair-hair grid's rest density from the group's points (a split group's parts all
-            # weigh against the whole group's, and on one device or several alike)
-            try:   # a grid of too many nodes is refused before the rest density allocates it
-                typical = group_rest_density(hair_hair, points, counts, widths)
-            except ValueError as exc:
-                raise UserError(f"{scene.source}: {exc}") from None
-            features = [replace(f, rest_density=typical) if f is hair_hair else f for f in features]
-            hair_hair = find(features, HairHair)
         if split:
             # every part shares the group's origin and (hair-hair) grid
             origin = _world_origin(points)
@@ -117,12 +112,7 @@ class Group:
                 warnings.simplefilter("always")
                 self.solver = SplitSolver(solvers)
             for w in caught:   # a splat interval a split groom cannot keep: one line naming file and prims
-                message = f"{scene.source}: {', '.join(c.path for c in curves)}: {w.message}"
-                notes = getattr(scene, "warnings", None)
-                if notes is None:
-                    warnings.warn(message, w.category, stacklevel=2)
-                elif message not in notes:
-                    notes.append(message)
+                note(scene, f"{scene.source}: {', '.join(c.path for c in curves)}: {w.message}", w.category)
             self.state = SplitState(states, models)
             self.control = SplitControl(controls, ranges)
         else:
@@ -134,11 +124,8 @@ class Group:
         if options.monitor and sources:
             # the monitor's account holds kinetic and gravitational energy only: a strand that
             # gains energy from these is not unstable, and it would say so (every hair-hair run did)
-            note = (f"{scene.source}: {', '.join(c.path for c in curves)}: no energy check ({' and '.join(sources)} "
-                    "add energy the check cannot tell from an unstable setting)")
-            notes = getattr(scene, "warnings", None)
-            if notes is not None and note not in notes:
-                notes.append(note)
+            note(scene, f"{scene.source}: {', '.join(c.path for c in curves)}: no energy check "
+                        f"({' and '.join(sources)} add energy the check cannot tell from an unstable setting)")
         elif options.monitor:
             from .monitor import EnergyMonitor
 
@@ -190,6 +177,16 @@ class Group:
             return self._sample_buffers[0].fetch(owned)
         gathered = [buffers.fetch(owned=False) for buffers in self._sample_buffers]
         return np.concatenate([p for p, _ in gathered]), np.concatenate([v for _, v in gathered])
+
+
+def note(scene, message: str, category=UserWarning) -> None:
+    """``message`` once among the scene's one-line notes (``scene.warnings``, printed with the run's
+    other warnings), or as a Python warning where the scene keeps none."""
+    notes = getattr(scene, "warnings", None)
+    if notes is None:
+        warnings.warn(message, category, stacklevel=3)
+    elif message not in notes:
+        notes.append(message)
 
 
 def energy_sources(features) -> list[str]:
