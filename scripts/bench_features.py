@@ -161,6 +161,10 @@ def scenarios(pts, counts, roots):
          "noise + drag", [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
                           F.HairHair(cell_size=0.01), F.Drag(1.0),
                           F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], deform),
+        ("production scene, hair-hair threshold 0 (all the density pushes; the default: the densest node at rest)",
+         [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
+          F.HairHair(cell_size=0.01, threshold=0.0), F.Drag(1.0),
+          F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)], deform),
         ("production scene, hair-hair grid rebuilt every 5 substeps (splat_interval=5)",
          [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
           F.HairHair(cell_size=0.01, splat_interval=5), F.Drag(1.0),
@@ -170,6 +174,10 @@ def scenarios(pts, counts, roots):
          "field) + hair-hair + wind with curl noise + drag",
          [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
           F.HairHair(cell_size=0.01), F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)],
+         dict(deform, **ELASTIC)),
+        ("production scene with elastic strands, hair-hair threshold 0",
+         [F.Colliders([F.TriangleMesh(points=frames[0], indices=body_tris, sdf=True)]),
+          F.HairHair(cell_size=0.01, threshold=0.0), F.Drag(1.0), F.Wind(velocity=(1.0, 0, 0), noise_amplitude=0.5)],
          dict(deform, **ELASTIC)),
     ]
 

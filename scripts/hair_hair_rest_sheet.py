@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """A groom at rest with hair-hair interaction: does it keep its shape? Simulates a groom USD as
-authored, with ``dftl:hairHair`` on (the default threshold 0), and with the threshold at the densest
-node at rest (what ``dftl-warp info`` prints), each with ``dftl-warp simulate``'s defaults; prints
+authored, with ``dftl:hairHair`` on and ``dftl:hairHairThreshold`` 0 (all the density pushes), and
+with ``dftl:hairHair`` alone (the default threshold: the densest node at rest, which ``dftl-warp
+info`` prints), each with ``dftl-warp simulate``'s defaults; prints
 each run's median tip displacement from the first frame to the last (stage units) and renders the
 first and last frames side by side into ``--out``/hair-hair-rest-sheet.png (rows: the runs).
 
@@ -24,17 +25,18 @@ from dftl_warp.commands.info import describe
 from dftl_warp.usd.read import read_scene
 
 
-def variant(src: Path, out: Path, threshold: float | None) -> Path:
-    """A copy of ``src`` with hair-hair on the scene's holder prim (and ``threshold``), or as is."""
+def variant(src: Path, out: Path, hair_hair: bool, threshold: float | None = None) -> Path:
+    """A copy of ``src``, with hair-hair on the scene's holder prim (and ``threshold`` where not None)."""
     stage = Usd.Stage.Open(str(src))
     stage.GetRootLayer().Export(str(out))
-    if threshold is None:
+    if not hair_hair:
         return out
     stage = Usd.Stage.Open(str(out))
     scenes = [p for p in stage.Traverse() if p.GetTypeName() == "PhysicsScene"]
     holder = scenes[0] if scenes else stage.GetDefaultPrim()
     holder.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
-    holder.CreateAttribute("dftl:hairHairThreshold", Sdf.ValueTypeNames.Float, custom=True).Set(float(threshold))
+    if threshold is not None:
+        holder.CreateAttribute("dftl:hairHairThreshold", Sdf.ValueTypeNames.Float, custom=True).Set(float(threshold))
     stage.Save()
     return out
 
@@ -59,13 +61,13 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     src = Path(args.groom)
     work = Path(tempfile.mkdtemp(prefix="hh_rest_"))
-    hh = variant(src, work / "hh.usda", 0.0)
+    hh = variant(src, work / "hh.usda", True)
     peak = describe(read_scene(str(hh)))["hair_hair"][0]["rest_peak"]
-    runs = [("no hair-hair", None), ("hair-hair, threshold 0 (the default)", 0.0),
-            (f"hair-hair, threshold {peak:.3g} (the densest node at rest)", peak)]
+    runs = [("no hair-hair", False, None), ("hair-hair, threshold 0", True, 0.0),
+            (f"hair-hair, default threshold {peak:.3g} (the densest node at rest)", True, None)]
     panels, size = [], 400
-    for k, (label, threshold) in enumerate(runs):
-        stage = variant(src, work / f"run{k}.usda", threshold)
+    for k, (label, hair_hair, threshold) in enumerate(runs):
+        stage = variant(src, work / f"run{k}.usda", hair_hair, threshold)
         out = work / f"run{k}.usdc"
         assert cli.main(["simulate", str(stage), "-o", str(out), "-q"]) == 0
         st = Usd.Stage.Open(str(out))

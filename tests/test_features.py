@@ -260,6 +260,7 @@ def test_drag_damps_a_swinging_strand():
 
 
 def test_repulsion_makes_a_dense_bundle_occupy_more_volume():
+    """A bundle at rest swells under the repulsion of all its density (threshold 0)."""
     rng = np.random.default_rng(0)
     n, side, spacing = 20, 7, 0.002
     strands = []
@@ -273,7 +274,8 @@ def test_repulsion_makes_a_dense_bundle_occupy_more_volume():
     # node of the grid's first form (2.5 particles per node at rest)
     for repulsion in (0.0, 50.0):
         model = dw.Model.from_strands(pts, counts,
-                                      features=[F.HairHair(cell_size=0.005, friction=2.0, repulsion=repulsion)])
+                                      features=[F.HairHair(cell_size=0.005, friction=2.0, repulsion=repulsion,
+                                                           threshold=0.0)])
         _, state = run_frames(model, 48, 10)
         x = model.points_from_device(state.positions)
         volume[repulsion] = np.sqrt(np.linalg.det(np.cov(x.T)))  # ~ the bundle's volume

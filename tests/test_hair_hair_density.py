@@ -33,10 +33,10 @@ def slab(copies: int, width: float, side: int = 30, spacing: float = 0.002):
 
 def push(pts, counts, width, repulsion=5.0, splat="strands"):
     """The free particles' acceleration (m/s^2) in one substep without gravity or friction: the
-    repulsion alone, and their x positions."""
+    repulsion alone (of all the density: threshold 0), and their x positions."""
     model = dw.Model.from_strands(pts, counts, precision="float64", widths=width,
                                   features=[F.HairHair(cell_size=CELL, friction=0.0, repulsion=repulsion,
-                                                       splat=splat)])
+                                                       splat=splat, threshold=0.0)])
     solver = dw.DFTLSolver(model, gravity=(0.0, 0.0, 0.0), fused=False)
     state, control = solver.state(), model.control()
     dt = 1e-4
@@ -108,7 +108,8 @@ def test_usd_defaults_are_si_values_in_stage_units():
 
 
 def test_hair_outside_a_smaller_grid_is_left_out_of_the_rest_density():
-    """A grid ``extent`` smaller than the hair: the hair outside it is neither splatted nor pushed,
+    """A grid ``extent`` smaller than the hair (threshold 0, so the slab at rest is pushed): the hair
+    outside it is neither splatted nor pushed,
     so the rest density is the hair's inside it, and the slab inside is pushed as it is alone. The
     rest density's numpy splat spanned the whole hair (a slab and its copy 1 km away: 10^15 nodes,
     a MemoryError); now it is no larger than the device grid."""
@@ -120,7 +121,8 @@ def test_hair_outside_a_smaller_grid_is_left_out_of_the_rest_density():
 
     def accelerations(points, n):
         model = dw.Model.from_strands(points, np.full(n, 2), precision="float64", widths=width,
-                                      features=[F.HairHair(cell_size=CELL, friction=0.0, extent=extent)])
+                                      features=[F.HairHair(cell_size=CELL, friction=0.0, extent=extent,
+                                                           threshold=0.0)])
         solver = dw.DFTLSolver(model, gravity=(0.0, 0.0, 0.0), fused=False)
         state = solver.state()
         solver.step(state, state, model.control(), 1e-4, 1.0)
@@ -193,14 +195,23 @@ def test_info_prints_the_grid_simulate_sets_up(tmp_path, capsys):
     want, _ = group_rest_statistics(F.HairHair(cell_size=4.0, hair_width=0.008), pts, [10] * 20, 0.008)
     assert "/World/Hair: cell 4 units, repulsion 500 units/s^2 (5 m/s^2)" in lines[0], lines
     assert f"rest volume fraction {want:.3g}" in lines[0] and 1e-5 < want < 1e-4, (lines, want)
-    assert "densest node at rest " in lines[0] and "threshold 0)" in lines[0], lines
+    # the threshold, not authored, is the densest node at rest (the hair at rest is not pushed)
+    _, peak = group_rest_statistics(F.HairHair(cell_size=4.0, hair_width=0.008), pts, [10] * 20, 0.008)
+    assert f"densest node at rest {peak:.3g}; threshold {peak:.3g}, the densest node at rest by default)" in lines[0]
+    stage.GetPrimAtPath("/World").CreateAttribute("dftl:hairHairThreshold", Sdf.ValueTypeNames.Float,
+                                                  custom=True).Set(0.0)
+    stage.Save()
+    assert cli.main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert f"densest node at rest {peak:.3g}; threshold 0)" in out, out
 
 
 def test_a_threshold_at_the_rest_peak_leaves_a_groom_at_rest_alone_and_pushes_compressed_hair():
     """Only hair packed denser than ``threshold`` pushes. The uniform slab at rest is pushed out at
     its edge by about the repulsion with threshold 0, and not at all with the threshold at its
     densest node at rest (1.42 times its typical density); the same slab squeezed to half its
-    spacing (4 times as dense) is pushed with it."""
+    spacing (4 times as dense) is pushed with it, as with the default threshold (None: the model's
+    densest node at rest)."""
     pts, counts, width = slab(1, 80e-6)
     typical = rest_density(pts, volume_fractions(pts, counts, width, CELL), CELL)
     peak = rest_peak(pts, volume_fractions(pts, counts, width, CELL), CELL)
@@ -217,9 +228,12 @@ def test_a_threshold_at_the_rest_peak_leaves_a_groom_at_rest_alone_and_pushes_co
 
     free, held = largest(pts, 0.0), largest(pts, peak)
     assert free > 1.0 and held < 1e-6 * free, (free, held)
+    assert largest(pts, None) < 1e-6 * free     # the default threshold: the densest node at rest
     centre = pts.reshape(-1, 2, 3)[:, :1].mean(0)
     squeezed = centre + (pts - centre) * np.array([0.5, 1.0, 0.5])
     assert largest(squeezed, peak) > 0.5 * free
+    # the squeezed slab's own densest node is its rest: the default measures the model's rest
+    assert largest(squeezed, None) < 1e-6 * free
 
 
 def test_a_negative_threshold_is_one_line_naming_the_attribute(tmp_path, capsys):

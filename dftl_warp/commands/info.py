@@ -111,6 +111,7 @@ def feature_summary(scene, precision: str = "float32") -> dict:
         feats, widths = group_features(scene, curves, time)
         points = np.concatenate([transform_points(c.transform(time), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
+        authored_threshold = getattr(find(feats, HairHair), "threshold", None) is not None
         try:   # as simulate sets them up and refuses them: a hair-hair grid of too many nodes, say
             feats, peak = with_rest_density(feats, points, counts, widths)
             model = Model.from_strands(points, counts, device="cpu", precision=precision, widths=widths,
@@ -129,6 +130,7 @@ def feature_summary(scene, precision: str = "float32") -> dict:
                               "repulsion": float(hh.repulsion), "friction": float(hh.friction),
                               "splat_interval": int(hh.splat_interval), "rest_volume_fraction": hh.rest_density,
                               "threshold": float(hh.threshold), "rest_peak": peak,
+                              "threshold_authored": authored_threshold,
                               "grid_nodes": [int(n) for n in model.feature_data.grid_shape]})
     strands = max(sum(c.num_strands for c in scene.curves), 1)
     return {"flags": sorted(flags), "names": feature_names(flags), "bound_roots": bound,
@@ -229,6 +231,11 @@ def describe(scene) -> dict:
     }
 
 
+def _threshold(h: dict) -> str:
+    """The hair-hair threshold as info prints it: its value, and where it was not authored, whence."""
+    return f"{h['threshold']:.3g}" + ("" if h["threshold_authored"] else ", the densest node at rest by default")
+
+
 def _bytes(n: float) -> str:
     for unit in ("B", "KiB", "MiB", "GiB"):
         if n < 1024 or unit == "GiB":
@@ -273,7 +280,7 @@ def run(args) -> int:
             print(f"  hair-hair   {', '.join(h['prims'])}: cell {h['cell']:g} units, repulsion {h['repulsion']:g} "
                   f"units/s^2 ({h['repulsion'] * mpu:g} m/s^2) per unit density relative to the rest volume "
                   f"fraction {h['rest_volume_fraction']:.3g} (densest node at rest {h['rest_peak']:.3g}; threshold "
-                  f"{h['threshold']:g}), friction {h['friction']:g}/s, grid {nodes} nodes, "
+                  f"{_threshold(h)}), friction {h['friction']:g}/s, grid {nodes} nodes, "
                   f"rebuilt every {h['splat_interval']} substep(s)")
     else:
         # the bare step is DFTL's only where every prim runs DFTL

@@ -33,8 +33,8 @@ ATTRIBUTES = {
     "dftl:hairHairRepulsion": (float, "scene", "acceleration (stage units/s^2) per unit difference of the hair's "
                                "density relative to its rest density, across a cell"),
     "dftl:hairHairSplatInterval": (int, "scene", "substeps between rebuilds of the grid (1: every substep)"),
-    "dftl:hairHairThreshold": (float, "scene", "relative density below which the hair exerts no repulsion (0: all "
-                               "of it; the densest node at rest, which info prints: a groom at rest is not pushed)"),
+    "dftl:hairHairThreshold": (float, "scene", "relative density below which the hair exerts no repulsion; default "
+                               "the densest node at rest (info prints it): a groom at rest is not pushed. 0: all of it"),
 }
 
 #: CUDA threads per block of the per-strand splat: 160 registers a thread, so one block of 256 per
@@ -60,9 +60,11 @@ class HairHair:
     does not depend on how many strands or vertices represent the hair (it grew with them: 10 times
     the strands pushed 10 times harder), and hair at the edge of a groom at rest is pushed out at
     about ``repulsion`` (default :data:`DEFAULT_REPULSION`). ``threshold``: the relative density
-    below which the hair exerts no repulsion, the push following ``max(rho - threshold, 0)`` (0,
-    the default: all of it; at least the densest node at rest, :func:`rest_peak`, which ``info``
-    prints: a groom at rest is not pushed, only hair packed denser than anywhere at rest).
+    below which the hair exerts no repulsion, the push following ``max(rho - threshold, 0)``. None
+    (the default): the densest node of the hair at rest (:func:`rest_peak`, which ``info`` prints),
+    so a groom at rest is not pushed and the authored shape stays its equilibrium, while hair packed
+    denser than anywhere at rest is; 0: all of the density pushes, and a groom at rest swells at its
+    edges (the Bangs groom's tips lifted 3.6 mm off the head in 2 s, docs/features.md).
     ``hair_width`` (m): the diameter of hair without widths (default human hair's). ``extent``
     (3,), m: the grid's size,
     by default the rest bounds of the hair plus twice the longest strand on each axis, capped
@@ -82,7 +84,7 @@ class HairHair:
     repulsion: float = DEFAULT_REPULSION
     hair_width: float = DEFAULT_HAIR_WIDTH
     rest_density: float | None = None
-    threshold: float = 0.0
+    threshold: float | None = None
     extent: np.ndarray | None = None
     max_cells: int = 1 << 24
     splat_interval: int = 1
@@ -107,7 +109,8 @@ class HairHair:
             raise ValueError(f"hair-hair max_cells must be an integer >= 1, got {n!r}")
         nonnegative(self.friction, "hair-hair friction")
         nonnegative(self.repulsion, "hair-hair repulsion")
-        nonnegative(self.threshold, "hair-hair threshold")
+        if self.threshold is not None:
+            nonnegative(self.threshold, "hair-hair threshold")
         positive(self.hair_width, "hair-hair hair_width", "m")
         if self.rest_density is not None:
             positive(self.rest_density, "hair-hair rest_density", "volume fraction")
@@ -220,32 +223,43 @@ def group_rest_statistics(hh: HairHair, points, counts, widths) -> tuple[float, 
 
 def with_rest_density(features, points, counts, widths) -> tuple[list, float | None]:
     """``features`` with their :class:`HairHair` (if any, and without one) given the rest density of
-    strands ``points`` / ``counts`` / ``widths`` (:func:`group_rest_statistics`), and the densest
-    node at rest relative to it (None without hair-hair). ValueError for a grid of too many nodes."""
+    strands ``points`` / ``counts`` / ``widths`` (:func:`group_rest_statistics`) and, where it is
+    None, the threshold at the densest node at rest; and that node relative to the rest density
+    (None without hair-hair). ValueError for a grid of too many nodes."""
     hh = find(features, HairHair)
     if hh is None:
         return list(features), None
     typical, peak = group_rest_statistics(hh, points, counts, widths)
-    if hh.rest_density is not None:
-        return list(features), peak * typical / hh.rest_density
-    return [replace(f, rest_density=typical) if f is hh else f for f in features], peak
+    changes = {}
+    if hh.rest_density is None:
+        changes["rest_density"] = typical
+    else:
+        peak = peak * typical / hh.rest_density
+    if hh.threshold is None:
+        changes["threshold"] = peak
+    return [replace(f, **changes) if f is hh else f for f in features], peak
 
 
-def grid_weights(model, hh: HairHair, cell: float, shape=None) -> np.ndarray:
+def grid_weights(model, hh: HairHair, cell: float, shape=None) -> tuple[np.ndarray, float]:
     """What each particle splats (one per slot, 0 in unused slots): its hair volume fraction
     (:func:`volume_fractions`) over the groom's rest density (``hh.rest_density``, else
     :func:`rest_density` of this model's rest positions on the grid of node counts ``shape``), so
     the grid's density is 1 where the hair is as dense as it typically is at rest, whatever strands
-    and vertices represent it."""
+    and vertices represent it; and the threshold (``hh.threshold``, else the densest node of those
+    rest positions relative to that density: :func:`rest_peak`)."""
     lay = model.layout
     if lay.slot_of_point is None or model.rest_positions is None:
         raise ValueError("hair-hair interaction needs a model with host rest positions")
     points = model.rest_positions[lay.slot_of_point]
     fractions = volume_fractions(points, model.counts, model.widths, cell, hh.hair_width)
-    typical = hh.rest_density if hh.rest_density is not None else rest_density(points, fractions, cell, shape)
+    typical, threshold = hh.rest_density, hh.threshold
+    if typical is None or threshold is None:
+        rest, peak = rest_statistics(points, fractions, cell, shape)
+        typical = rest if typical is None else typical
+        threshold = peak * rest / typical if threshold is None else threshold
     out = np.zeros(lay.num_slots)
     out[lay.slot_of_point] = fractions / typical
-    return out
+    return out, float(threshold)
 
 
 def grid_dimensions(hh: HairHair, points, counts) -> tuple[tuple[int, int, int], float]:
@@ -281,10 +295,12 @@ class Grid:
         self.centred = True
         self._last_alpha = None
         self._substep = 0
+        # what each particle splats (its hair volume fraction over the rest density's) and the
+        # relative density below which it does not push
+        weights, self.threshold = grid_weights(model, hh if hh is not None else HairHair(self.cell), self.cell,
+                                               self.shape)
         self.arrays = {
-            # what each particle splats: its hair volume fraction over the rest density's
-            "weights": wp.array(grid_weights(model, hh if hh is not None else HairHair(self.cell), self.cell,
-                                             self.shape), dtype=model.scalar, device=model.device),
+            "weights": wp.array(weights, dtype=model.scalar, device=model.device),
             "lower": wp.zeros(3, dtype=model.scalar, device=model.device),
             "density": wp.zeros(self.shape, dtype=model.scalar, device=model.device),
             "momentum": wp.zeros(self.shape, dtype=model.vec3, device=model.device),
@@ -389,7 +405,7 @@ class Grid:
         st.grid_mass = g["mass"]
         st.grid_friction = float(hh.friction)
         st.grid_repulsion = float(hh.repulsion)
-        st.grid_threshold = float(hh.threshold)
+        st.grid_threshold = self.threshold
 
 
 def from_attributes(scene: dict, where: str, mean_segment: float, meters_per_unit: float = 1.0) -> list:
@@ -408,4 +424,4 @@ def from_attributes(scene: dict, where: str, mean_segment: float, meters_per_uni
                      repulsion=authored(scene, "dftl:hairHairRepulsion", where, float,
                                         DEFAULT_REPULSION / meters_per_unit),  # m/s^2 in stage units
                      hair_width=DEFAULT_HAIR_WIDTH / meters_per_unit, splat_interval=interval,
-                     threshold=authored(scene, "dftl:hairHairThreshold", where, float, 0.0))]
+                     threshold=authored(scene, "dftl:hairHairThreshold", where, float, None))]
