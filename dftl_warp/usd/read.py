@@ -217,6 +217,11 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
 
     widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where)
+    stretch = np.linalg.svd(m[:3, :3], compute_uv=False)
+    if widths is not None and stretch[0] > stretch[-1] * (1.0 + 1e-6):
+        warnings.append(f"{where}: widths under the non-uniform scale {tuple(float(f'{v:.4g}') for v in stretch)} "
+                        f"(the transform's principal scales): simulated as round hair of the widths times the mean "
+                        f"scale {float(np.prod(stretch)) ** (1 / 3):.4g}")
     material = read_curve_material(prim, where, file, warnings, set() if materials_seen is None else materials_seen)
     rest_points = read_rest_points(prim, code, points.shape[0], where, warnings)
     bend_scale = read_bend_scale(prim, code, counts, points.shape[0], ctype, basis, wrap, where)

@@ -1,0 +1,41 @@
+"""Valid-but-unusual USD as a pipeline TD authors it: scaled grooms, other curve schemas, animated
+collider sizes, referenced layers in other units, cubic roots, inactive selections."""
+
+import numpy as np
+from pxr import Gf, UsdGeom
+from usd_stages import add_curves, chain, new_stage
+
+from dftl_warp.commands.info import describe
+from dftl_warp.features.scene import group_features
+from dftl_warp.usd.read import read_scene
+
+
+def _scaled_groom(path, scale, widths):
+    """A 5-point strand 4 cm long in the world, authored under a uniform ``scale``."""
+    stage = new_stage(path, meters_per_unit=1.0, start=1, end=3)
+    UsdGeom.Xform(stage.GetPrimAtPath("/World")).AddScaleOp().Set(Gf.Vec3d(scale, scale, scale))
+    add_curves(stage, "/World/Hair", chain(5, spacing=0.01 / scale), [5], widths=widths, bending=True)
+    stage.Save()
+    return read_scene(path)
+
+
+def test_widths_are_scaled_by_the_transform_like_the_points(tmp_path):
+    # 80 um hair authored in centimetres under a 0.01 scale, and the same hair authored in metres
+    scaled = _scaled_groom(tmp_path / "scaled.usda", 0.01, 0.008)
+    plain = _scaled_groom(tmp_path / "plain.usda", 1.0, 0.00008)
+    for scene in (scaled, plain):
+        _, widths = group_features(scene, scene.curves, 1)
+        np.testing.assert_allclose(widths, 0.00008, rtol=1e-6)
+        np.testing.assert_allclose(describe(scene)["curves"][0]["material"]["radius"], 0.00004, rtol=1e-6)
+
+
+def test_widths_under_a_non_uniform_scale_get_one_warning(tmp_path):
+    stage = new_stage(tmp_path / "in.usda", meters_per_unit=1.0, start=1, end=3)
+    UsdGeom.Xform(stage.GetPrimAtPath("/World")).AddScaleOp().Set(Gf.Vec3d(1.0, 2.0, 4.0))
+    add_curves(stage, "/World/Hair", chain(5, spacing=0.01), [5], widths=0.0001, bending=True)
+    add_curves(stage, "/World/Bald", chain(5, spacing=0.01, origin=(0, 1, 0)), [5])
+    stage.Save()
+    scene = read_scene(tmp_path / "in.usda")
+    notes = [w for w in scene.warnings if "non-uniform scale" in w]
+    assert len(notes) == 1 and "in.usda: /World/Hair: " in notes[0] and "mean scale 2" in notes[0], notes
+    np.testing.assert_allclose(group_features(scene, scene.curves[:1], 1)[1], 0.0002, rtol=1e-6)
