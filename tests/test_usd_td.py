@@ -2,10 +2,12 @@
 collider sizes, referenced layers in other units, cubic roots, inactive selections."""
 
 import numpy as np
+import pytest
 from pxr import Gf, UsdGeom
 from usd_stages import add_curves, chain, new_stage
 
 from dftl_warp.commands.info import describe
+from dftl_warp.errors import UserError
 from dftl_warp.features.scene import group_features
 from dftl_warp.usd.read import read_scene
 
@@ -39,3 +41,33 @@ def test_widths_under_a_non_uniform_scale_get_one_warning(tmp_path):
     notes = [w for w in scene.warnings if "non-uniform scale" in w]
     assert len(notes) == 1 and "in.usda: /World/Hair: " in notes[0] and "mean scale 2" in notes[0], notes
     np.testing.assert_allclose(group_features(scene, scene.curves[:1], 1)[1], 0.0002, rtol=1e-6)
+
+
+def _other_curves(stage):
+    nurbs = UsdGeom.NurbsCurves.Define(stage, "/World/Nurbs")
+    nurbs.CreateCurveVertexCountsAttr([4])
+    nurbs.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 0, 0)])
+    herm = UsdGeom.HermiteCurves.Define(stage, "/World/Herm")
+    herm.CreateCurveVertexCountsAttr([2])
+    herm.CreatePointsAttr([(0, 0, 0), (1, 0, 0)])
+
+
+def test_nurbs_and_hermite_curves_are_skipped_with_one_warning(tmp_path):
+    stage = new_stage(tmp_path / "in.usda")
+    add_curves(stage, "/World/Hair", chain(3), [3])
+    _other_curves(stage)
+    stage.Save()
+    scene = read_scene(tmp_path / "in.usda")
+    assert [c.path for c in scene.curves] == ["/World/Hair"]
+    notes = [w for w in scene.warnings if "NurbsCurves" in w]
+    assert notes == [f"{tmp_path / 'in.usda'}: 1 NurbsCurves prim (/World/Nurbs); 1 HermiteCurves prim (/World/Herm): "
+                     "not simulated (only BasisCurves are); skipped"]
+
+
+def test_a_stage_of_only_nurbs_curves_says_so(tmp_path):
+    stage = new_stage(tmp_path / "in.usda")
+    _other_curves(stage)
+    stage.Save()
+    with pytest.raises(UserError, match=r"no BasisCurves prims \(no hair to simulate\) \(1 NurbsCurves prim "
+                                        r"\(/World/Nurbs\); 1 HermiteCurves prim \(/World/Herm\): only BasisCurves"):
+        read_scene(tmp_path / "in.usda")

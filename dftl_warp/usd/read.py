@@ -303,12 +303,15 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: {text}: inside the instanceable prim {instance.GetPath()}: the output cannot "
                             f"override instance proxies; set instanceable = false on it to simulate this groom")
         roots.append((text, prim))
-    found, seen, instances = [], set(), []
+    found, seen, instances, others = [], set(), [], {}
     for text, root in roots:
         under = []
         for p in Usd.PrimRange(root):
             if p.IsA(UsdGeom.BasisCurves):
                 under.append(p)
+            elif p.IsA(UsdGeom.Curves) and p.GetPath() not in seen:   # NurbsCurves, HermiteCurves
+                seen.add(p.GetPath())
+                others.setdefault(str(p.GetTypeName()), []).append(str(p.GetPath()))
             if p.IsInstance() and p.GetPath() not in seen:
                 proxy = _instanced_curves(p)
                 if proxy is not None:
@@ -322,6 +325,10 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
                 found.append(p)
     for instance, proxy in instances:
         warnings.append(_instance_warning(file, instance, proxy))
+    skipped = "; ".join(f"{len(paths)} {kind} prim{'s' if len(paths) > 1 else ''} ({', '.join(paths[:3])}"
+                        f"{' ...' if len(paths) > 3 else ''})" for kind, paths in others.items())
+    if skipped:
+        warnings.append(f"{file}: {skipped}: not simulated (only BasisCurves are); skipped")
     if not found:
         if instances:
             raise UserError(f"{file}: every BasisCurves prim is under an instanceable prim ({instances[0][0].GetPath()}"
@@ -330,6 +337,7 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             # a layer that did not load (a cache whose input moved) is the likely reason: say so
             missing = next((w for w in warnings or () if "Could not" in w and "layer" in w), None)
             because = f" (USD: {missing.removeprefix(file + ': ')})" if missing else ""
+            because = because or (f" ({skipped}: only BasisCurves are simulated)" if skipped else "")
             raise UserError(f"{file}: the stage has no BasisCurves prims (no hair to simulate){because}")
     return found
 
