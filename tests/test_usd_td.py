@@ -71,3 +71,49 @@ def test_a_stage_of_only_nurbs_curves_says_so(tmp_path):
     with pytest.raises(UserError, match=r"no BasisCurves prims \(no hair to simulate\) \(1 NurbsCurves prim "
                                         r"\(/World/Nurbs\); 1 HermiteCurves prim \(/World/Herm\): only BasisCurves"):
         read_scene(tmp_path / "in.usda")
+
+
+def _collider_stage(path):
+    from pxr import UsdPhysics
+
+    stage = new_stage(path, start=1, end=5)
+    add_curves(stage, "/World/Hair", chain(3, spacing=0.1, origin=(0, 1, 0)), [3])
+    rig = UsdGeom.Xform.Define(stage, "/World/Rig")
+    op = rig.AddScaleOp()
+    op.Set(Gf.Vec3d(1, 1, 1), 1.0)
+    op.Set(Gf.Vec3d(2, 2, 2), 5.0)
+    ball = UsdGeom.Sphere.Define(stage, "/World/Rig/Ball")        # grows with its parent's scale
+    ball.CreateRadiusAttr(0.2)
+    box = UsdGeom.Cube.Define(stage, "/World/Box")                 # its size is time-sampled
+    box.CreateSizeAttr().Set(0.5, 1.0)
+    box.GetSizeAttr().Set(1.0, 5.0)
+    box.AddTranslateOp().Set(Gf.Vec3d(3, 0, 0))
+    still = UsdGeom.Sphere.Define(stage, "/World/Still")           # moves, keeps its size: no warning
+    still.CreateRadiusAttr(0.2)
+    move = still.AddTranslateOp()
+    move.Set(Gf.Vec3d(0, -1, 0), 1.0)
+    move.Set(Gf.Vec3d(0, -2, 0), 5.0)
+    for prim in (ball, box, still):
+        UsdPhysics.CollisionAPI.Apply(prim.GetPrim())
+    stage.Save()
+
+
+def test_animated_collider_sizes_are_warned_about_once_each(tmp_path):
+    _collider_stage(tmp_path / "in.usda")
+    scene = read_scene(tmp_path / "in.usda")
+    assert [c.path for c in scene.colliders] == ["/World/Rig/Ball", "/World/Box", "/World/Still"]
+    notes = [w for w in scene.warnings if "/World/Rig/Ball" in w or "/World/Box" in w or "/World/Still" in w]
+    assert len(notes) == 2, notes
+    assert "/World/Rig/Ball: its scale changes over time (up to 2x its scale at time 1)" in notes[0]
+    assert "/World/Box: size is time-sampled" in notes[1] and "keeps its size at time 1;" in notes[1]
+
+
+def test_a_groom_under_an_animated_scale_gets_one_warning(tmp_path):
+    _collider_stage(tmp_path / "in.usda")
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(tmp_path / "in.usda"))
+    add_curves(stage, "/World/Rig/Fur", chain(3, spacing=0.1, origin=(0, 1, 0)), [3])
+    stage.Save()
+    notes = [w for w in read_scene(tmp_path / "in.usda").warnings if "/World/Rig/Fur" in w]
+    assert len(notes) == 1 and "its transform's scale changes over time (up to 2x its scale at time 1)" in notes[0]

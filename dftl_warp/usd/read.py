@@ -36,7 +36,7 @@ from .colliders import fmt_point as _fmt_point
 from .colliders import read_collider_prim, read_root_mesh
 from .guides import check_guides, read_guide_paths
 from .material import read_bend_scale, read_curve_material, read_rest_points
-from .sampling import TransformReader
+from .sampling import TransformReader, scale_growth
 from .scene import CurveSettings, CurvesPrim, Scene
 from .stage import STANDARD_GRAVITY, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
 
@@ -211,6 +211,11 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
 
     transform, animated = transforms.sampler(prim, time)
     m = transform(time)
+    growth = scale_growth(transform, time)
+    if growth > 1.0 + 1e-6:
+        at = "the default time" if time is None else f"time {float(time):g}"
+        warnings.append(f"{where}: its transform's scale changes over time (up to {growth:.4g}x its scale at {at}): "
+                        f"the roots follow it, the strands keep their lengths and widths at {at}")
     world = points @ m[:3, :3] + m[3, :3]
     bad = _first_bad_row(world)
     if bad is not None:
