@@ -117,3 +117,20 @@ def test_a_groom_under_an_animated_scale_gets_one_warning(tmp_path):
     stage.Save()
     notes = [w for w in read_scene(tmp_path / "in.usda").warnings if "/World/Rig/Fur" in w]
     assert len(notes) == 1 and "its transform's scale changes over time (up to 2x its scale at time 1)" in notes[0]
+
+
+def test_a_groom_referenced_from_a_layer_in_other_units_gets_one_warning(tmp_path):
+    groom = new_stage(tmp_path / "groom.usda", up="Z", meters_per_unit=0.01, start=None, end=None)
+    add_curves(groom, "/World/Hair", chain(3), [3])
+    groom.Save()
+    shot = new_stage(tmp_path / "shot.usda", up="Y", meters_per_unit=1.0)
+    shot.DefinePrim("/World/Char").GetReferences().AddReference("./groom.usda")
+    shot.DefinePrim("/World/Char2").GetReferences().AddReference("./groom.usda")
+    shot.Save()
+    scene = read_scene(tmp_path / "shot.usda")
+    assert len(scene.curves) == 2
+    notes = [w for w in scene.warnings if "groom.usda" in w]
+    assert len(notes) == 1, notes
+    assert "metersPerUnit 0.01 and upAxis Z, but the stage's are 1 and Y" in notes[0]
+    assert not [w for w in read_scene(tmp_path / "groom.usda").warnings if "metersPerUnit" in w]
+

@@ -38,7 +38,7 @@ from .guides import check_guides, read_guide_paths
 from .material import read_bend_scale, read_curve_material, read_rest_points
 from .sampling import TransformReader, scale_growth
 from .scene import CurveSettings, CurvesPrim, Scene
-from .stage import STANDARD_GRAVITY, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
+from .stage import STANDARD_GRAVITY, layer_unit_warnings, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
 
 #: old private name of :func:`dftl_warp.usd.stage.tf_message`
 _tf_message = tf_message
@@ -410,6 +410,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
         file = os.fspath(source)
         stage, warnings = open_stage(file)
     info = read_stage_info(stage, file)
+    warnings += layer_unit_warnings(stage, info, file)
     if time is None and info.start_time_code is not None:
         time = info.start_time_code
     gravity = read_gravity(stage, info, file, warnings)

@@ -3,6 +3,7 @@
 - :func:`read_stage_info`: ``upAxis``, ``metersPerUnit``, ``timeCodesPerSecond`` ... (USD's
   fallbacks applied); a zero, negative or non-finite ``timeCodesPerSecond`` or ``metersPerUnit``
   raises :class:`~dftl_warp.errors.UserError` naming the file;
+- :func:`layer_unit_warnings`: composed layers authored in other units or another up axis;
 - :func:`read_gravity`: from the first ``UsdPhysics.Scene`` prim, else 9.81 m/s^2 along -upAxis;
 - :func:`tf_message`: the first message of a ``Tf.ErrorException`` on one line (the reader's and
   the writer's error messages).
@@ -72,6 +73,32 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
         default_prim=str(root.defaultPrim or ""),
         authored=authored,
     )
+
+
+def layer_unit_warnings(stage, info: StageInfo, file: str) -> list[str]:
+    """One line per layer the stage uses (sublayered, referenced, payloaded) whose authored
+    ``metersPerUnit`` or ``upAxis`` differs from the stage's: USD composes such layers without
+    converting them, so their prims are read in the stage's units and axes."""
+    out = []
+    skip = {stage.GetRootLayer().identifier, stage.GetSessionLayer().identifier}
+    for layer in stage.GetUsedLayers():
+        if layer.identifier in skip:
+            continue
+        root, ours, theirs = layer.pseudoRoot, [], []
+        if root.HasInfo("metersPerUnit"):
+            value = float(root.GetInfo("metersPerUnit"))
+            if not math.isclose(value, info.meters_per_unit, rel_tol=1e-9):
+                ours.append(f"{info.meters_per_unit:g}")
+                theirs.append(f"metersPerUnit {value:g}")
+        if root.HasInfo("upAxis") and str(root.GetInfo("upAxis")) != info.up_axis:
+            ours.append(info.up_axis)
+            theirs.append(f"upAxis {root.GetInfo('upAxis')}")
+        if theirs:
+            out.append(f"{file}: layer {layer.identifier} has {' and '.join(theirs)}, but the stage's "
+                       f"{'are' if len(ours) > 1 else 'is'} {' and '.join(ours)}: USD does not convert the layers a "
+                       f"stage composes, so its prims are read in the stage's units and axes (scale or rotate the "
+                       f"prim that brings it in)")
+    return out
 
 
 def up_vector(up_axis: str) -> np.ndarray:
