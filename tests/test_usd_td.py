@@ -134,3 +134,17 @@ def test_a_groom_referenced_from_a_layer_in_other_units_gets_one_warning(tmp_pat
     assert "metersPerUnit 0.01 and upAxis Z, but the stage's are 1 and Y" in notes[0]
     assert not [w for w in read_scene(tmp_path / "groom.usda").warnings if "metersPerUnit" in w]
 
+
+def test_nonperiodic_bspline_and_catmull_rom_roots_are_warned_about(tmp_path):
+    stage = new_stage(tmp_path / "in.usda")
+    pts = chain(7, spacing=0.01)
+    add_curves(stage, "/World/Cr", pts, [7], curve_type="cubic", basis="catmullRom")
+    add_curves(stage, "/World/Bsp", pts, [7], curve_type="cubic", basis="bspline", wrap="nonperiodic")
+    add_curves(stage, "/World/Pinned", pts, [7], curve_type="cubic", basis="catmullRom", wrap="pinned")
+    add_curves(stage, "/World/Bez", pts, [7], curve_type="cubic", basis="bezier")
+    stage.Save()
+    notes = [w for w in read_scene(tmp_path / "in.usda").warnings if "first control point" in w]
+    assert [n.split(": ")[1] for n in notes] == ["/World/Cr", "/World/Bsp"], notes
+    assert 'nonperiodic cubic catmullRom curves do not pass through their first control point' in notes[0]
+    assert 'wrap = "pinned"' in notes[0]
+

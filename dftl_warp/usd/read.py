@@ -175,6 +175,10 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     if ctype == "cubic" and basis not in ("bezier", "bspline", "catmullRom"):
         raise UserError(f"{where}: basis = {basis!r}: expected bezier, bspline or catmullRom")
 
+    if ctype == "cubic" and wrap == "nonperiodic" and basis in ("bspline", "catmullRom"):
+        warnings.append(f"{where}: nonperiodic cubic {basis} curves do not pass through their first control point "
+                        f"(vertex 0, the root the simulation pins): the drawn root is another point, free to move as "
+                        f"the strand swings; author wrap = \"pinned\" to draw each curve from its root")
     points_attr = curves.GetPointsAttr()
     raw_counts = curves.GetCurveVertexCountsAttr().Get(code)
     raw_points = points_attr.Get(code)
