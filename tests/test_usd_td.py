@@ -148,3 +148,18 @@ def test_nonperiodic_bspline_and_catmull_rom_roots_are_warned_about(tmp_path):
     assert 'nonperiodic cubic catmullRom curves do not pass through their first control point' in notes[0]
     assert 'wrap = "pinned"' in notes[0]
 
+
+def test_selecting_an_inactive_prim_says_it_is_inactive(tmp_path):
+    stage = new_stage(tmp_path / "in.usda")
+    add_curves(stage, "/World/Hair", chain(3), [3])
+    add_curves(stage, "/World/Off/Hair", chain(3), [3])
+    add_curves(stage, "/World/Bald", chain(3), [3]).GetPrim().SetActive(False)
+    stage.GetPrimAtPath("/World/Off").SetActive(False)
+    stage.Save()
+    with pytest.raises(UserError, match=r"in.usda: /World/Bald: the prim is inactive \(active = false\)"):
+        read_scene(tmp_path / "in.usda", prims=["/World/Bald"])
+    with pytest.raises(UserError, match=r"in.usda: /World/Off/Hair: under the inactive prim /World/Off "
+                                        r"\(active = false\)"):
+        read_scene(tmp_path / "in.usda", prims=["/World/Off/Hair"])
+    with pytest.raises(UserError, match=r"in.usda: /World/Nope: no such prim"):
+        read_scene(tmp_path / "in.usda", prims=["/World/Nope"])

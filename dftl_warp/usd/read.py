@@ -296,7 +296,7 @@ def _instance_warning(file: str, instance, proxy) -> str:
 def _select_prims(stage, file: str, selection, warnings: list | None = None):
     """BasisCurves prims of the whole stage, or at/below each selected path. Grooms under
     instanceable prims are not simulated: a warning names each such instance (a selected path
-    inside one is refused)."""
+    inside one, or an inactive one, is refused)."""
     from pxr import Sdf, Usd, UsdGeom
 
     warnings = [] if warnings is None else warnings
@@ -306,7 +306,14 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: {text}: not an absolute prim path")
         prim = stage.GetPrimAtPath(str(text))
         if not prim:
+            above = Sdf.Path(str(text)).GetParentPath()
+            while above != Sdf.Path.absoluteRootPath and not stage.GetPrimAtPath(above):
+                above = above.GetParentPath()
+            if above != Sdf.Path.absoluteRootPath and not stage.GetPrimAtPath(above).IsActive():
+                raise UserError(f"{file}: {text}: under the inactive prim {above} (active = false): not composed")
             raise UserError(f"{file}: {text}: no such prim")
+        if not prim.IsActive():
+            raise UserError(f"{file}: {text}: the prim is inactive (active = false): its hair is not simulated")
         if prim.IsInstanceProxy():
             instance = _instance_root(prim)
             raise UserError(f"{file}: {text}: inside the instanceable prim {instance.GetPath()}: the output cannot "
