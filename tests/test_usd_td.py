@@ -163,3 +163,28 @@ def test_selecting_an_inactive_prim_says_it_is_inactive(tmp_path):
         read_scene(tmp_path / "in.usda", prims=["/World/Off/Hair"])
     with pytest.raises(UserError, match=r"in.usda: /World/Nope: no such prim"):
         read_scene(tmp_path / "in.usda", prims=["/World/Nope"])
+
+
+def _instancer_stage(path, *, loose_hair=True):
+    stage = new_stage(path)
+    if loose_hair:
+        add_curves(stage, "/World/Hair", chain(3), [3])
+    fur = UsdGeom.PointInstancer.Define(stage, "/World/Fur")
+    add_curves(stage, "/World/Fur/Protos/Clump", chain(3), [3])
+    fur.CreatePrototypesRel().SetTargets(["/World/Fur/Protos/Clump"])
+    fur.CreateProtoIndicesAttr([0, 0])
+    fur.CreatePositionsAttr([(1, 0, 0), (2, 0, 0)])
+    stage.Save()
+
+
+def test_curves_in_point_instancer_prototypes_are_skipped_with_one_warning(tmp_path):
+    _instancer_stage(tmp_path / "in.usda")
+    scene = read_scene(tmp_path / "in.usda")
+    assert [c.path for c in scene.curves] == ["/World/Hair"]
+    notes = [w for w in scene.warnings if "PointInstancer" in w]
+    assert len(notes) == 1 and notes[0].startswith(f"{tmp_path / 'in.usda'}: /World/Fur: BasisCurves in the "
+                                                   f"prototypes of a PointInstancer (such as /World/Fur/Protos/Clump)")
+    _instancer_stage(tmp_path / "only.usda", loose_hair=False)
+    with pytest.raises(UserError, match=r"only.usda: every BasisCurves prim is in the prototypes of a PointInstancer "
+                                        r"\(/World/Fur\)"):
+        read_scene(tmp_path / "only.usda")

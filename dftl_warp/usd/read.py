@@ -287,6 +287,18 @@ def _instance_root(prim):
     return p
 
 
+def _point_instancer(prim):
+    """The PointInstancer ``prim`` lies under (in its prototypes), or None."""
+    from pxr import UsdGeom
+
+    p = prim.GetParent()
+    while p and not p.IsPseudoRoot():
+        if p.IsA(UsdGeom.PointInstancer):
+            return p
+        p = p.GetParent()
+    return None
+
+
 def _instance_warning(file: str, instance, proxy) -> str:
     return (f"{file}: {instance.GetPath()}: BasisCurves under an instanceable prim (such as {proxy.GetPath()}) are "
             f"not simulated: the output cannot override instance proxies; set instanceable = false on "
@@ -295,8 +307,8 @@ def _instance_warning(file: str, instance, proxy) -> str:
 
 def _select_prims(stage, file: str, selection, warnings: list | None = None):
     """BasisCurves prims of the whole stage, or at/below each selected path. Grooms under
-    instanceable prims are not simulated: a warning names each such instance (a selected path
-    inside one, or an inactive one, is refused)."""
+    instanceable prims or in a PointInstancer's prototypes are not simulated: a warning names each
+    such instance or instancer (a selected path inside an instance, or an inactive one, is refused)."""
     from pxr import Sdf, Usd, UsdGeom
 
     warnings = [] if warnings is None else warnings
@@ -319,7 +331,7 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: {text}: inside the instanceable prim {instance.GetPath()}: the output cannot "
                             f"override instance proxies; set instanceable = false on it to simulate this groom")
         roots.append((text, prim))
-    found, seen, instances, others = [], set(), [], {}
+    found, seen, instances, others, prototypes = [], set(), [], {}, {}
     for text, root in roots:
         under = []
         for p in Usd.PrimRange(root):
@@ -338,14 +350,25 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
         for p in under:
             if p.GetPath() not in seen:
                 seen.add(p.GetPath())
-                found.append(p)
+                instancer = _point_instancer(p)
+                if instancer is None:
+                    found.append(p)
+                else:
+                    prototypes.setdefault(str(instancer.GetPath()), str(p.GetPath()))
     for instance, proxy in instances:
         warnings.append(_instance_warning(file, instance, proxy))
+    for instancer, example in prototypes.items():
+        warnings.append(f"{file}: {instancer}: BasisCurves in the prototypes of a PointInstancer (such as {example}) "
+                        f"are not simulated: one simulation in the prototype's space cannot move each instance in "
+                        f"its own place; move the groom out of the PointInstancer to simulate it")
     skipped = "; ".join(f"{len(paths)} {kind} prim{'s' if len(paths) > 1 else ''} ({', '.join(paths[:3])}"
                         f"{' ...' if len(paths) > 3 else ''})" for kind, paths in others.items())
     if skipped:
         warnings.append(f"{file}: {skipped}: not simulated (only BasisCurves are); skipped")
     if not found:
+        if prototypes:
+            raise UserError(f"{file}: every BasisCurves prim is in the prototypes of a PointInstancer "
+                            f"({', '.join(prototypes)}): move the groom out of it to simulate it")
         if instances:
             raise UserError(f"{file}: every BasisCurves prim is under an instanceable prim ({instances[0][0].GetPath()}"
                             f"{' ...' if len(instances) > 1 else ''}): set instanceable = false to simulate them")
