@@ -188,3 +188,13 @@ def test_curves_in_point_instancer_prototypes_are_skipped_with_one_warning(tmp_p
     with pytest.raises(UserError, match=r"only.usda: every BasisCurves prim is in the prototypes of a PointInstancer "
                                         r"\(/World/Fur\)"):
         read_scene(tmp_path / "only.usda")
+
+
+@pytest.mark.parametrize("axis", ["z", "X"])
+def test_an_up_axis_other_than_y_or_z_is_refused(tmp_path, axis):
+    stage = new_stage(tmp_path / "in.usda", up="Y")
+    add_curves(stage, "/World/Hair", chain(3), [3])
+    stage.GetRootLayer().pseudoRoot.SetInfo("upAxis", axis)
+    stage.Save()
+    with pytest.raises(UserError, match=rf"in.usda: upAxis = '{axis}': must be \"Y\" or \"Z\""):
+        read_scene(tmp_path / "in.usda")

@@ -1,8 +1,8 @@
 """A stage's metadata and gravity, and USD's error messages on one line.
 
 - :func:`read_stage_info`: ``upAxis``, ``metersPerUnit``, ``timeCodesPerSecond`` ... (USD's
-  fallbacks applied); a zero, negative or non-finite ``timeCodesPerSecond`` or ``metersPerUnit``
-  raises :class:`~dftl_warp.errors.UserError` naming the file;
+  fallbacks applied); a zero, negative or non-finite ``timeCodesPerSecond`` or ``metersPerUnit``,
+  or an ``upAxis`` other than "Y" and "Z", raises :class:`~dftl_warp.errors.UserError` naming the file;
 - :func:`layer_unit_warnings`: composed layers authored in other units or another up axis;
 - :func:`read_gravity`: from the first ``UsdPhysics.Scene`` prim, else 9.81 m/s^2 along -upAxis;
 - :func:`tf_message`: the first message of a ``Tf.ErrorException`` on one line (the reader's and
@@ -53,6 +53,9 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
                         ("metersPerUnit", UsdGeom.GetStageMetersPerUnit(stage))):
         if not (math.isfinite(value) and value > 0):
             raise UserError(f"{file}: {name} = {value:g}: must be a positive number")
+    up_axis = str(UsdGeom.GetStageUpAxis(stage))
+    if up_axis not in ("Y", "Z"):
+        raise UserError(f"{file}: upAxis = {up_axis!r}: must be \"Y\" or \"Z\" (USD's only up axes)")
     if has_range:
         for name, value in (("startTimeCode", stage.GetStartTimeCode()), ("endTimeCode", stage.GetEndTimeCode())):
             if not math.isfinite(value):
@@ -63,7 +66,7 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
     if not (math.isfinite(kpu) and kpu > 0):
         raise UserError(f"{file}: kilogramsPerUnit = {kpu:g}: must be a positive number")
     return StageInfo(
-        up_axis=str(UsdGeom.GetStageUpAxis(stage)),
+        up_axis=up_axis,
         meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
         kilograms_per_unit=kpu,
         time_codes_per_second=float(stage.GetTimeCodesPerSecond()),
