@@ -148,7 +148,7 @@ def material_summary(scene, curve) -> dict:
 
     info = scene.stage
     mat = stage_material(curve.material, info.meters_per_unit, info.kilograms_per_unit)
-    w = widths_per_point(curve)
+    w = widths_per_point(curve, scene.read_time)
     radius = float(np.mean(0.5 * w[w > 0])) if w is not None and np.any(w > 0) else default_radius(info.meters_per_unit)
     lb = mat.bending_length(radius, float(np.linalg.norm(scene.gravity)))
     return {"source": mat.source, "youngs_modulus": mat.youngs_modulus, "density": mat.density,

@@ -41,17 +41,26 @@ def features_from_attributes(scene: dict, curves: list, counts: list, *, mean_se
             + hair_hair.from_attributes(scene, where, mean_segment, meters_per_unit))
 
 
-def widths_per_point(curve) -> np.ndarray | None:
-    """Hair widths (stage units) per point of a curves prim, or None when not authored."""
+def width_scale(matrix) -> float:
+    """How a 4x4 row-vector transform scales hair widths: its mean scale |det L|^(1/3) (exact for
+    a uniform scale; the renderer's rule, :mod:`dftl_warp.render.usd_scene`)."""
+    return float(abs(np.linalg.det(np.asarray(matrix, dtype=np.float64)[:3, :3])) ** (1.0 / 3.0))
+
+
+def widths_per_point(curve, frame=None) -> np.ndarray | None:
+    """Hair widths (stage units, in the world: the authored local widths times the mean scale of
+    the prim's transform at ``frame``, as its points are transformed) per point of a curves prim,
+    or None when not authored."""
     w = curve.widths
     if w is None or w.size == 0:
         return None
+    w = np.asarray(w, dtype=np.float64) * width_scale(curve.transform(frame))
     if w.size == 1:
         return np.full(curve.num_points, float(w[0]))
     if w.size == curve.num_points:
-        return w.astype(np.float64)
+        return w
     if w.size == curve.num_strands:
-        return np.repeat(w, curve.counts).astype(np.float64)
+        return np.repeat(w, curve.counts)
     return np.full(curve.num_points, float(np.mean(w)))  # e.g. varying widths of cubic curves
 
 
@@ -76,7 +85,7 @@ def group_features(scene, curves, frame) -> tuple[list, np.ndarray | None]:
     except ValueError as exc:
         raise UserError(str(exc)) from None
     feats += binding.from_scene(curves, frame)
-    widths = [widths_per_point(c) for c in curves]
+    widths = [widths_per_point(c, frame) for c in curves]
     if all(w is None for w in widths):
         return feats, None
     return feats, np.concatenate([np.zeros(c.num_points) if w is None else w for c, w in zip(curves, widths)])

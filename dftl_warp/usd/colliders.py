@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import UserError
 from .attributes import read_values
-from .sampling import TransformReader, points_sampler
+from .sampling import TransformReader, points_sampler, scale_growth
 from .scene import ColliderPrim, MeshSource
 
 
@@ -229,4 +229,24 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
     if c.kind == "mesh":  # the collider-scope dftl: attributes its shape reads (dftl:collisionSdf, ...)
         c.attributes.update({k: v for k, v in read_values(prim, where, "collider", 24.0).items() if k != "dftl:friction"})
     c.transform, c.animated = transforms.sampler(prim, time)
+    _note_size_animation(prim, c, where, time, warnings)
     return c
+
+
+#: the size attributes of the built-in collider types, read once at the start frame
+SIZE_ATTRIBUTES = {"sphere": ("radius",), "capsule": ("radius", "height"), "box": ("size",)}
+
+
+def _note_size_animation(prim, c, where: str, time, warnings: list) -> None:
+    """One warning when a collider's size changes over time while it keeps the size it has at
+    ``time``: a time-sampled size attribute, or a scale that changes (a deforming mesh is re-read
+    with its current scale every frame: not it)."""
+    at = "the default time" if time is None else f"time {float(time):g}"
+    parts = [f"{name} is time-sampled" for name in SIZE_ATTRIBUTES.get(c.kind, ())
+             if prim.GetAttribute(name).ValueMightBeTimeVarying()]
+    growth = scale_growth(c.transform, time)
+    if growth > 1.0 + 1e-6 and c.points_sampler is None:
+        parts.append(f"its scale changes over time (up to {growth:.4g}x its scale at {at})")
+    if parts:
+        warnings.append(f"{where}: {' and '.join(parts)}: the collider keeps its size at {at}; "
+                        f"only its rotation and translation animate")

@@ -36,9 +36,9 @@ from .colliders import fmt_point as _fmt_point
 from .colliders import read_collider_prim, read_root_mesh
 from .guides import check_guides, read_guide_paths
 from .material import read_bend_scale, read_curve_material, read_rest_points
-from .sampling import TransformReader
+from .sampling import TransformReader, scale_growth
 from .scene import CurveSettings, CurvesPrim, Scene
-from .stage import STANDARD_GRAVITY, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
+from .stage import STANDARD_GRAVITY, layer_unit_warnings, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
 
 #: old private name of :func:`dftl_warp.usd.stage.tf_message`
 _tf_message = tf_message
@@ -175,6 +175,10 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     if ctype == "cubic" and basis not in ("bezier", "bspline", "catmullRom"):
         raise UserError(f"{where}: basis = {basis!r}: expected bezier, bspline or catmullRom")
 
+    if ctype == "cubic" and wrap == "nonperiodic" and basis in ("bspline", "catmullRom"):
+        warnings.append(f"{where}: nonperiodic cubic {basis} curves do not pass through their first control point "
+                        f"(vertex 0, the root the simulation pins): the drawn root is another point, free to move as "
+                        f"the strand swings; author wrap = \"pinned\" to draw each curve from its root")
     points_attr = curves.GetPointsAttr()
     raw_counts = curves.GetCurveVertexCountsAttr().Get(code)
     raw_points = points_attr.Get(code)
@@ -211,12 +215,22 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
 
     transform, animated = transforms.sampler(prim, time)
     m = transform(time)
+    growth = scale_growth(transform, time)
+    if growth > 1.0 + 1e-6:
+        at = "the default time" if time is None else f"time {float(time):g}"
+        warnings.append(f"{where}: its transform's scale changes over time (up to {growth:.4g}x its scale at {at}): "
+                        f"the roots follow it, the strands keep their lengths and widths at {at}")
     world = points @ m[:3, :3] + m[3, :3]
     bad = _first_bad_row(world)
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
 
     widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where)
+    stretch = np.linalg.svd(m[:3, :3], compute_uv=False)
+    if widths is not None and stretch[0] > stretch[-1] * (1.0 + 1e-6):
+        warnings.append(f"{where}: widths under the non-uniform scale {tuple(float(f'{v:.4g}') for v in stretch)} "
+                        f"(the transform's principal scales): simulated as round hair of the widths times the mean "
+                        f"scale {float(np.prod(stretch)) ** (1 / 3):.4g}")
     material = read_curve_material(prim, where, file, warnings, set() if materials_seen is None else materials_seen)
     rest_points = read_rest_points(prim, code, points.shape[0], where, warnings)
     bend_scale = read_bend_scale(prim, code, counts, points.shape[0], ctype, basis, wrap, where)
@@ -273,6 +287,18 @@ def _instance_root(prim):
     return p
 
 
+def _point_instancer(prim):
+    """The PointInstancer ``prim`` lies under (in its prototypes), or None."""
+    from pxr import UsdGeom
+
+    p = prim.GetParent()
+    while p and not p.IsPseudoRoot():
+        if p.IsA(UsdGeom.PointInstancer):
+            return p
+        p = p.GetParent()
+    return None
+
+
 def _instance_warning(file: str, instance, proxy) -> str:
     return (f"{file}: {instance.GetPath()}: BasisCurves under an instanceable prim (such as {proxy.GetPath()}) are "
             f"not simulated: the output cannot override instance proxies; set instanceable = false on "
@@ -281,8 +307,8 @@ def _instance_warning(file: str, instance, proxy) -> str:
 
 def _select_prims(stage, file: str, selection, warnings: list | None = None):
     """BasisCurves prims of the whole stage, or at/below each selected path. Grooms under
-    instanceable prims are not simulated: a warning names each such instance (a selected path
-    inside one is refused)."""
+    instanceable prims or in a PointInstancer's prototypes are not simulated: a warning names each
+    such instance or instancer (a selected path inside an instance, or an inactive one, is refused)."""
     from pxr import Sdf, Usd, UsdGeom
 
     warnings = [] if warnings is None else warnings
@@ -292,18 +318,28 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: {text}: not an absolute prim path")
         prim = stage.GetPrimAtPath(str(text))
         if not prim:
+            above = Sdf.Path(str(text)).GetParentPath()
+            while above != Sdf.Path.absoluteRootPath and not stage.GetPrimAtPath(above):
+                above = above.GetParentPath()
+            if above != Sdf.Path.absoluteRootPath and not stage.GetPrimAtPath(above).IsActive():
+                raise UserError(f"{file}: {text}: under the inactive prim {above} (active = false): not composed")
             raise UserError(f"{file}: {text}: no such prim")
+        if not prim.IsActive():
+            raise UserError(f"{file}: {text}: the prim is inactive (active = false): its hair is not simulated")
         if prim.IsInstanceProxy():
             instance = _instance_root(prim)
             raise UserError(f"{file}: {text}: inside the instanceable prim {instance.GetPath()}: the output cannot "
                             f"override instance proxies; set instanceable = false on it to simulate this groom")
         roots.append((text, prim))
-    found, seen, instances = [], set(), []
+    found, seen, instances, others, prototypes = [], set(), [], {}, {}
     for text, root in roots:
         under = []
         for p in Usd.PrimRange(root):
             if p.IsA(UsdGeom.BasisCurves):
                 under.append(p)
+            elif p.IsA(UsdGeom.Curves) and p.GetPath() not in seen:   # NurbsCurves, HermiteCurves
+                seen.add(p.GetPath())
+                others.setdefault(str(p.GetTypeName()), []).append(str(p.GetPath()))
             if p.IsInstance() and p.GetPath() not in seen:
                 proxy = _instanced_curves(p)
                 if proxy is not None:
@@ -314,10 +350,25 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
         for p in under:
             if p.GetPath() not in seen:
                 seen.add(p.GetPath())
-                found.append(p)
+                instancer = _point_instancer(p)
+                if instancer is None:
+                    found.append(p)
+                else:
+                    prototypes.setdefault(str(instancer.GetPath()), str(p.GetPath()))
     for instance, proxy in instances:
         warnings.append(_instance_warning(file, instance, proxy))
+    for instancer, example in prototypes.items():
+        warnings.append(f"{file}: {instancer}: BasisCurves in the prototypes of a PointInstancer (such as {example}) "
+                        f"are not simulated: one simulation in the prototype's space cannot move each instance in "
+                        f"its own place; move the groom out of the PointInstancer to simulate it")
+    skipped = "; ".join(f"{len(paths)} {kind} prim{'s' if len(paths) > 1 else ''} ({', '.join(paths[:3])}"
+                        f"{' ...' if len(paths) > 3 else ''})" for kind, paths in others.items())
+    if skipped:
+        warnings.append(f"{file}: {skipped}: not simulated (only BasisCurves are); skipped")
     if not found:
+        if prototypes:
+            raise UserError(f"{file}: every BasisCurves prim is in the prototypes of a PointInstancer "
+                            f"({', '.join(prototypes)}): move the groom out of it to simulate it")
         if instances:
             raise UserError(f"{file}: every BasisCurves prim is under an instanceable prim ({instances[0][0].GetPath()}"
                             f"{' ...' if len(instances) > 1 else ''}): set instanceable = false to simulate them")
@@ -325,6 +376,7 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             # a layer that did not load (a cache whose input moved) is the likely reason: say so
             missing = next((w for w in warnings or () if "Could not" in w and "layer" in w), None)
             because = f" (USD: {missing.removeprefix(file + ': ')})" if missing else ""
+            because = because or (f" ({skipped}: only BasisCurves are simulated)" if skipped else "")
             raise UserError(f"{file}: the stage has no BasisCurves prims (no hair to simulate){because}")
     return found
 
@@ -392,6 +444,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
         file = os.fspath(source)
         stage, warnings = open_stage(file)
     info = read_stage_info(stage, file)
+    warnings += layer_unit_warnings(stage, info, file)
     if time is None and info.start_time_code is not None:
         time = info.start_time_code
     gravity = read_gravity(stage, info, file, warnings)

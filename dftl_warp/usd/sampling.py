@@ -115,6 +115,18 @@ class TransformReader:
         return Samples(times, matrices, held=self.held), True
 
 
+def scale_growth(sampler, read_time) -> float:
+    """How far the scale of a transform ``sampler`` (:meth:`TransformReader.sampler`) strays from
+    its scale at ``read_time``: the largest ratio (>= 1) of the length of a local axis in the world
+    at a sample to its length at ``read_time``, either way; 1 for a static transform."""
+    values = getattr(sampler, "values", None)
+    if values is None:
+        return 1.0
+    axes = np.linalg.norm(values[:, :3, :3], axis=2)
+    ratio = axes / np.linalg.norm(sampler(read_time)[:3, :3], axis=1)
+    return float(np.maximum(ratio, 1.0 / ratio).max())
+
+
 def points_sampler(attr, count: int, where: str, read_time, static_points: np.ndarray):
     """``(sampler, animated)`` for a mesh's local points: every authored time sample when they
     change over time (each checked: ``count`` finite points), else the points read at ``read_time``."""

@@ -1,8 +1,9 @@
 """A stage's metadata and gravity, and USD's error messages on one line.
 
 - :func:`read_stage_info`: ``upAxis``, ``metersPerUnit``, ``timeCodesPerSecond`` ... (USD's
-  fallbacks applied); a zero, negative or non-finite ``timeCodesPerSecond`` or ``metersPerUnit``
-  raises :class:`~dftl_warp.errors.UserError` naming the file;
+  fallbacks applied); a zero, negative or non-finite ``timeCodesPerSecond`` or ``metersPerUnit``,
+  or an ``upAxis`` other than "Y" and "Z", raises :class:`~dftl_warp.errors.UserError` naming the file;
+- :func:`layer_unit_warnings`: composed layers authored in other units or another up axis;
 - :func:`read_gravity`: from the first ``UsdPhysics.Scene`` prim, else 9.81 m/s^2 along -upAxis;
 - :func:`tf_message`: the first message of a ``Tf.ErrorException`` on one line (the reader's and
   the writer's error messages).
@@ -52,6 +53,9 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
                         ("metersPerUnit", UsdGeom.GetStageMetersPerUnit(stage))):
         if not (math.isfinite(value) and value > 0):
             raise UserError(f"{file}: {name} = {value:g}: must be a positive number")
+    up_axis = str(UsdGeom.GetStageUpAxis(stage))
+    if up_axis not in ("Y", "Z"):
+        raise UserError(f"{file}: upAxis = {up_axis!r}: must be \"Y\" or \"Z\" (USD's only up axes)")
     if has_range:
         for name, value in (("startTimeCode", stage.GetStartTimeCode()), ("endTimeCode", stage.GetEndTimeCode())):
             if not math.isfinite(value):
@@ -62,7 +66,7 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
     if not (math.isfinite(kpu) and kpu > 0):
         raise UserError(f"{file}: kilogramsPerUnit = {kpu:g}: must be a positive number")
     return StageInfo(
-        up_axis=str(UsdGeom.GetStageUpAxis(stage)),
+        up_axis=up_axis,
         meters_per_unit=float(UsdGeom.GetStageMetersPerUnit(stage)),
         kilograms_per_unit=kpu,
         time_codes_per_second=float(stage.GetTimeCodesPerSecond()),
@@ -72,6 +76,32 @@ def read_stage_info(stage, file: str | None = None) -> StageInfo:
         default_prim=str(root.defaultPrim or ""),
         authored=authored,
     )
+
+
+def layer_unit_warnings(stage, info: StageInfo, file: str) -> list[str]:
+    """One line per layer the stage uses (sublayered, referenced, payloaded) whose authored
+    ``metersPerUnit`` or ``upAxis`` differs from the stage's: USD composes such layers without
+    converting them, so their prims are read in the stage's units and axes."""
+    out = []
+    skip = {stage.GetRootLayer().identifier, stage.GetSessionLayer().identifier}
+    for layer in stage.GetUsedLayers():
+        if layer.identifier in skip:
+            continue
+        root, ours, theirs = layer.pseudoRoot, [], []
+        if root.HasInfo("metersPerUnit"):
+            value = float(root.GetInfo("metersPerUnit"))
+            if not math.isclose(value, info.meters_per_unit, rel_tol=1e-9):
+                ours.append(f"{info.meters_per_unit:g}")
+                theirs.append(f"metersPerUnit {value:g}")
+        if root.HasInfo("upAxis") and str(root.GetInfo("upAxis")) != info.up_axis:
+            ours.append(info.up_axis)
+            theirs.append(f"upAxis {root.GetInfo('upAxis')}")
+        if theirs:
+            out.append(f"{file}: layer {layer.identifier} has {' and '.join(theirs)}, but the stage's "
+                       f"{'are' if len(ours) > 1 else 'is'} {' and '.join(ours)}: USD does not convert the layers a "
+                       f"stage composes, so its prims are read in the stage's units and axes (scale or rotate the "
+                       f"prim that brings it in)")
+    return out
 
 
 def up_vector(up_axis: str) -> np.ndarray:
