@@ -33,14 +33,14 @@ def _stage(path: Path, *, up: str, meters_per_unit: float, start: int, end: int,
 
 
 def _curves(stage, path: str, strands: list[np.ndarray], *, width: float, curve_type="linear",
-            basis=None, colors=None):
+            basis=None, colors=None, wrap=UsdGeom.Tokens.nonperiodic):
     """A BasisCurves prim from a list of (n_i, 3) strands (root first)."""
     curves = UsdGeom.BasisCurves.Define(stage, path)
     points = np.concatenate(strands).round(4)
     curves.CreateTypeAttr(curve_type)
     if basis:
         curves.CreateBasisAttr(basis)
-    curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+    curves.CreateWrapAttr(wrap)
     curves.CreateCurveVertexCountsAttr(Vt.IntArray([int(len(s)) for s in strands]))
     curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.astype(np.float32)))
     curves.CreateWidthsAttr(Vt.FloatArray([width]))
@@ -165,7 +165,8 @@ def make_ponytail(path: Path, *, strands=600, vertices=20, seed=3):
     ]
     colors = np.array([0.75, 0.55, 0.25]) * rng.uniform(0.8, 1.2, size=(strands, 1))
     curves = _curves(stage, "/World/Head/Ponytail", tail, width=0.0015, curve_type="cubic",
-                     basis="catmullRom", colors=colors.clip(0, 1))
+                     basis="catmullRom", colors=colors.clip(0, 1),
+                     wrap=UsdGeom.Tokens.pinned)  # drawn from the root the simulation pins
     _set(curves.GetPrim(), "dftl:damping", Sdf.ValueTypeNames.Float, 0.9)
 
     skull = UsdGeom.Sphere.Define(stage, "/World/Head/Skull")
