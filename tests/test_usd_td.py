@@ -198,3 +198,14 @@ def test_an_up_axis_other_than_y_or_z_is_refused(tmp_path, axis):
     stage.Save()
     with pytest.raises(UserError, match=rf"in.usda: upAxis = '{axis}': must be \"Y\" or \"Z\""):
         read_scene(tmp_path / "in.usda")
+
+
+def test_points_of_the_wrong_type_name_the_type(tmp_path):
+    """``float[] points`` authored in a .usda (a flat list, not 3-vectors) is one line naming the prim
+    and the type, not a count of entries that cannot match."""
+    path = tmp_path / "flat.usda"
+    path.write_text('#usda 1.0\n(\n    defaultPrim = "World"\n)\n\ndef Xform "World"\n{\n'
+                    '    def BasisCurves "Hair"\n    {\n        int[] curveVertexCounts = [2]\n'
+                    '        float[] points = [0, 0, 0, 0, -0.01, 0]\n    }\n}\n')
+    with pytest.raises(UserError, match=r"/World/Hair: points is float\[\]: expected point3f\[\]"):
+        read_scene(path)

@@ -183,7 +183,12 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     raw_counts = curves.GetCurveVertexCountsAttr().Get(code)
     raw_points = points_attr.Get(code)
     counts = np.array(raw_counts if raw_counts is not None else [], dtype=np.int64).reshape(-1)
-    points = np.array(raw_points if raw_points is not None else [], dtype=np.float64).reshape(-1, 3)
+    points = np.array(raw_points if raw_points is not None else [], dtype=np.float64)
+    if points.size and (points.ndim != 2 or points.shape[1] != 3):
+        specs = points_attr.GetPropertyStack(code)
+        authored_type = specs[0].typeName if specs else points_attr.GetTypeName()
+        raise UserError(f"{where}: points is {authored_type}: expected point3f[] (3 coordinates a point)")
+    points = points.reshape(-1, 3)
     if counts.size == 0 and points.shape[0] == 0:
         return None
     if counts.size == 0:
