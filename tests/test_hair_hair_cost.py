@@ -184,26 +184,3 @@ def test_bad_splat_interval_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "/World/Physics: dftl:hairHairSplatInterval = 0: must be >= 1" in err[0], err
     assert not out.exists()
-
-
-def test_a_split_groom_warns_that_it_rebuilds_every_substep(tmp_path):
-    from pxr import Sdf
-    from usd_stages import add_curves, chain, new_stage
-
-    from dftl_warp.simulation.simulate import Simulation, SimulationOptions
-    from dftl_warp.usd.read import read_scene
-
-    stage = new_stage(tmp_path / "in.usda")
-    world = stage.GetPrimAtPath("/World")
-    world.CreateAttribute("dftl:hairHair", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
-    world.CreateAttribute("dftl:hairHairSplatInterval", Sdf.ValueTypeNames.Int, custom=True).Set(4)
-    add_curves(stage, "/World/Hair", np.concatenate([chain(5, 0.01, origin=(0.01 * i, 0, 0)) for i in range(4)]),
-               [5] * 4)
-    stage.Save()
-    scene = read_scene(str(tmp_path / "in.usda"))
-    Simulation(scene, SimulationOptions(device="cpu,cpu"), 1)
-    # the scene's notes, as its other warnings (simulate prints them: tests/test_multi_device.py),
-    # naming the file and prims
-    assert [w for w in scene.warnings if "split across devices rebuilds its grid every substep" in w] == [
-        f"{tmp_path / 'in.usda'}: /World/Hair: hair-hair: a groom split across devices rebuilds its grid every "
-        "substep (dftl:hairHairSplatInterval > 1 applies on one device only)"]

@@ -325,11 +325,10 @@ class Grid:
             ks.append(self._splat_kernel(False, density_only=True))
         return ks
 
-    def unify(self) -> None:
-        """Every substep a full rebuild, the momentum's density the repulsion's (a groom split across
-        devices exchanges its parts' density and momentum every substep)."""
-        self.interval = 1
-        self.arrays["mass"] = wp.zeros((0, 0, 0), dtype=self.model.scalar, device=self.model.device)
+    def lead(self, dt: float) -> float:
+        """How far ahead (s) a rebuild splats the particles along their velocities: ``(interval - 1)
+        dt / 2``, centred on the substeps that use it (0 when not :attr:`centred`)."""
+        return 0.5 * (self.interval - 1) * float(dt) if self.centred else 0.0
 
     def due(self, root_alpha: float) -> bool:
         """Whether the substep ending at root fraction ``root_alpha`` rebuilds the grid: the first
@@ -353,7 +352,7 @@ class Grid:
                 self.splat_density(positions)
             return False
         self.bounds(positions)
-        self.splat(positions, velocities, 0.5 * (self.interval - 1) * float(dt) if self.centred else 0.0)
+        self.splat(positions, velocities, self.lead(dt))
         if self.interval > 1:
             self.splat_density(positions)
         return True

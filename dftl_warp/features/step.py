@@ -329,10 +329,23 @@ class FeatureStep:
         if grid and self._grid is not None:
             self._grid.bounds(state_in.positions)
 
-    def splat(self, state_in) -> None:
-        """Density and momentum of this model's particles onto the grid (from ``lower``)."""
+    def grid_due(self, root_alpha) -> bool:
+        """Whether the substep ending at root fraction ``root_alpha`` rebuilds the hair-hair grid
+        (counts the substep: call it once a substep; :meth:`Grid.due`)."""
+        return self._grid is not None and self._grid.due(root_alpha)
+
+    def splat(self, state_in, dt: float = 0.0) -> None:
+        """Density and momentum of this model's particles onto the grid (from ``lower``), each
+        particle the rebuild's lead ahead along its velocity for substeps of ``dt`` (s) (into the
+        grid's ``mass`` where it keeps one: :meth:`splat_density` writes ``density``)."""
         if self._grid is not None:
-            self._grid.splat(state_in.positions, state_in.velocities)
+            self._grid.splat(state_in.positions, state_in.velocities, self._grid.lead(dt))
+
+    def splat_density(self, state_in) -> None:
+        """The density alone of this model's particles onto ``density``, in the substeps of a grid
+        rebuilt every few (``splat_interval`` > 1; nothing otherwise)."""
+        if self._grid is not None and self._grid.interval > 1:
+            self._grid.splat_density(state_in.positions)
 
     def velocity_pass(self, state_in, control, dt, root_alpha, drag: float = 0.0) -> None:
         """Hair-hair, drag and wind of every free particle of ``state_in`` into :attr:`pass_output`

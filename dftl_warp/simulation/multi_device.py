@@ -174,7 +174,7 @@ class GridExchange:
     def __init__(self, steps):
         import warp as wp
 
-        from ..kernels.features.grid import grid_add_kernel, grid_min_kernel
+        from ..kernels.features.grid import grid_add_density_kernel, grid_add_kernel, grid_min_kernel
 
         self.steps = list(steps)
         first = self.steps[0]
@@ -184,6 +184,10 @@ class GridExchange:
         self.scratch = {name: wp.empty_like(a) for name, a in first.grid.items()}
         self._min = grid_min_kernel(first.model.scalar)
         self._add = grid_add_kernel(first.model.scalar)
+        self._add_density = grid_add_density_kernel(first.model.scalar)
+        #: the density the momentum was splatted with: "mass" where the grid keeps one (rebuilt every
+        #: few substeps, its "density" splatted again every substep), else "density"
+        self.mass = "mass" if first.grid["mass"].shape[0] else "density"
 
     def _combine(self, names, launch) -> None:
         first = self.steps[0]
@@ -204,18 +208,28 @@ class GridExchange:
                                                     inputs=[self.scratch["lower"]], outputs=[g["lower"]]))
 
     def combine_splats(self) -> None:
-        """Every part's density and momentum <- the sum over the parts."""
+        """Every part's momentum and the density splatted with it <- the sum over the parts."""
+        import warp as wp
+
+        g, device, mass = self.steps[0].grid, self.steps[0].model.device, self.mass
+        self._combine((mass, "momentum"), lambda: wp.launch(
+            self._add, dim=g[mass].shape, device=device,
+            inputs=[self.scratch[mass], self.scratch["momentum"]], outputs=[g[mass], g["momentum"]]))
+
+    def combine_density(self) -> None:
+        """Every part's density (splatted alone, between rebuilds) <- the sum over the parts."""
         import warp as wp
 
         g, device = self.steps[0].grid, self.steps[0].model.device
-        self._combine(("density", "momentum"), lambda: wp.launch(
-            self._add, dim=g["density"].shape, device=device,
-            inputs=[self.scratch["density"], self.scratch["momentum"]], outputs=[g["density"], g["momentum"]]))
+        self._combine(("density",), lambda: wp.launch(
+            self._add_density, dim=g["density"].shape, device=device,
+            inputs=[self.scratch["density"]], outputs=[g["density"]]))
 
 
 class SplitSolver:
     """Advances every part on its own device; all parts are launched before any is waited for.
-    With hair-hair interaction the parts step in lockstep, exchanging their grid every substep."""
+    With hair-hair interaction the parts step in lockstep, exchanging their grid: the whole of it at
+    each rebuild (every ``splat_interval`` substeps), the density alone in between."""
 
     def __init__(self, solvers):
         self.parts = list(solvers)
@@ -223,13 +237,6 @@ class SplitSolver:
         steps = [getattr(s, "_features", None) for s in self.parts]
         self.exchange = None
         if all(step is not None and step.grid is not None for step in steps):
-            if any(step._grid.interval > 1 for step in steps):
-                import warnings
-
-                warnings.warn("hair-hair: a groom split across devices rebuilds its grid every substep "
-                              "(dftl:hairHairSplatInterval > 1 applies on one device only)", stacklevel=2)
-                for step in steps:
-                    step._grid.unify()
             self.exchange = GridExchange(steps)
 
     @property
@@ -248,22 +255,28 @@ class SplitSolver:
 
     def _advance_exchanging(self, state: SplitState, control: SplitControl, dt: float, substeps: int) -> None:
         """As ``DFTLSolver.advance`` substep by substep, every part's grid made the whole groom's
-        (:class:`GridExchange`) between the bounds, splat and sweep phases."""
+        (:class:`GridExchange`) between the bounds, splat and sweep phases: at a rebuild the bounds,
+        then the momentum and its density; in every substep of a grid rebuilt every few, the density."""
         if sum(s.model.num_strands for s in self.parts) == 0:
             return
         parts = [(solver, solver._features, s, c) for solver, s, c in zip(self.parts, state.parts, control.parts)]
         real = np.dtype(self.parts[0].model.precision).type  # alpha rounded as on one device
         for k in range(substeps):
             alpha = float(real(k + 1) / real(substeps))
+            due = [step.grid_due(alpha) for _, step, _, _ in parts]   # alike: the parts count the same substeps
             for _, step, s, c in parts:
-                step.pose_and_bounds(s, c, alpha)
-            self.exchange.combine_bounds()
-            for _, step, s, _ in parts:
-                step.splat(s)
-            self.exchange.combine_splats()
+                step.pose_and_bounds(s, c, alpha, grid=due[0])
+            if due[0]:
+                self.exchange.combine_bounds()
+                for _, step, s, _ in parts:
+                    step.splat(s, dt)
+                self.exchange.combine_splats()
+            if self.exchange.mass == "mass":
+                for _, step, s, _ in parts:
+                    step.splat_density(s)
+                self.exchange.combine_density()
             for solver, step, s, c in parts:
                 step.sweep(s, s, c, solver.feature_head(c, dt, alpha))
-
 
 class SplitMonitor:
     """One energy monitor per part (dftl_warp.simulation.monitor); warns once, for the first part that does."""

@@ -95,6 +95,21 @@ def grid_add_kernel(scalar):
 
 
 @functools.cache
+def grid_add_density_kernel(scalar):
+    """Kernel (one thread per node): adds another splat's density to this grid's."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def grid_add_density(
+        other_density: wp.array3d(dtype=scalar),
+        density: wp.array3d(dtype=scalar),
+    ):
+        i, j, k = wp.tid()
+        density[i, j, k] = density[i, j, k] + other_density[i, j, k]
+
+    return grid_add_density
+
+
+@functools.cache
 def grid_cell_func(scalar):
     """``cell(x, lower, inv_h, nx, ny, nz) -> (ok, i, j, k, fx, fy, fz)``: the node cell of ``x``."""
     vec3 = wp.types.vector(3, scalar)
