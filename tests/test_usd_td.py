@@ -209,3 +209,24 @@ def test_points_of_the_wrong_type_name_the_type(tmp_path):
                     '        float[] points = [0, 0, 0, 0, -0.01, 0]\n    }\n}\n')
     with pytest.raises(UserError, match=r"/World/Hair: points is float\[\]: expected point3f\[\]"):
         read_scene(path)
+
+
+@pytest.mark.parametrize("basis, wrap, n, widths, want", [
+    # bezier: span ends at control points 0, 3, 6; the points between blend the two ends by index
+    ("bezier", "nonperiodic", 7, [3.0, 6.0, 0.0], [3.0, 4.0, 5.0, 6.0, 4.0, 2.0, 0.0]),
+    # catmullRom: span ends at control points 1 .. n - 2; the end points take the nearest end's value
+    ("catmullRom", "nonperiodic", 6, [1.0, 2.0, 3.0, 4.0], [1.0, 1.0, 2.0, 3.0, 4.0, 4.0]),
+    ("bspline", "pinned", 4, [1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0, 4.0]),   # a span end at every point
+])
+def test_varying_widths_of_cubic_curves_map_to_their_control_points(tmp_path, basis, wrap, n, widths, want):
+    """varying widths (one per span end) of cubic curves are the hair's thickness per control point
+    (they were averaged over the prim: a tapered strand simulated as one of uniform thickness)."""
+    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
+    curves = add_curves(stage, "/World/Hair", chain(n, 0.01, direction=(0, -1, 0)), [n], curve_type="cubic",
+                        basis=basis, wrap=wrap)
+    curves.CreateWidthsAttr([w * 1e-5 for w in widths])
+    curves.SetWidthsInterpolation("varying")
+    stage.Save()
+    scene = read_scene(tmp_path / "in.usda")
+    _, got = group_features(scene, scene.curves, 1)
+    np.testing.assert_allclose(got, np.array(want) * 1e-5, rtol=1e-6)

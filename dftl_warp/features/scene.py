@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
+from ..usd.curves import varying_per_vertex
 from . import air, binding, colliders, hair_hair
 
 #: every ``dftl:`` feature attribute: name -> (type, where: "scene", "curves" or "both", description)
@@ -55,13 +56,15 @@ def widths_per_point(curve, frame=None) -> np.ndarray | None:
     if w is None or w.size == 0:
         return None
     w = np.asarray(w, dtype=np.float64) * width_scale(curve.transform(frame))
+    if curve.widths_interpolation in ("varying", "faceVarying") and curve.type == "cubic":
+        return varying_per_vertex(w, curve.counts, curve.basis, curve.wrap)
     if w.size == 1:
         return np.full(curve.num_points, float(w[0]))
     if w.size == curve.num_points:
         return w
     if w.size == curve.num_strands:
         return np.repeat(w, curve.counts)
-    return np.full(curve.num_points, float(np.mean(w)))  # e.g. varying widths of cubic curves
+    raise ValueError(f"{curve.path}: {w.size} widths for {curve.num_points} points")
 
 
 def segment_lengths(curve, frame) -> np.ndarray:

@@ -44,6 +44,32 @@ def varying_count(counts, curve_type: str, basis: str, wrap: str) -> int:
     return int((spans + (0 if wrap == "periodic" else 1)).sum())
 
 
+def varying_per_vertex(values, counts, basis: str, wrap: str) -> np.ndarray:
+    """A ``varying`` primvar of nonperiodic or pinned cubic curves (one value per span end) per
+    control point: the span ends of a bezier curve are its control points 0, 3, 6, ... (the points
+    between take the straight-line blend of the two ends by index); a nonperiodic bspline or
+    catmullRom curve's span ends lie at its control points 1 .. n - 2 (the end points take the
+    nearest end's value); a pinned one has a span end at every control point."""
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    counts = np.asarray(counts, dtype=np.int64)
+    out, at = [], 0
+    for n in counts:
+        n = int(n)
+        if basis == "bezier":
+            ends = (n - 1) // 3 + 1
+            v = values[at:at + ends]
+            out.append(np.interp(np.arange(n), 3 * np.arange(ends), v))
+        elif wrap == "pinned":
+            ends = n
+            out.append(values[at:at + n])
+        else:
+            ends = n - 2
+            v = values[at:at + ends]
+            out.append(np.concatenate([v[:1], v, v[-1:]]))
+        at += ends
+    return np.concatenate(out) if out else np.zeros(0)
+
+
 def primvar_count(interpolation: str, counts, num_points: int, curve_type: str, basis: str, wrap: str):
     """Values a primvar of ``interpolation`` needs on these curves (None: unknown interpolation)."""
     n_curves = int(np.asarray(counts).shape[0])
