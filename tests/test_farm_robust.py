@@ -34,3 +34,13 @@ def test_two_jobs_writing_one_file_through_a_symlinked_folder_are_refused(tmp_pa
     assert jobs[0].error is None
     assert jobs[1].error is not None and "link/a.usdc is also the output of job 1" in jobs[1].error
 
+
+def test_an_output_folder_that_is_a_file_fails_the_job_in_one_line(tmp_path, stage):
+    """``output = "afile/x.usdc"`` where ``afile`` is a file: the job fails with the one line
+    simulate gives, not an internal error."""
+    (tmp_path / "afile").write_text("")
+    job = Job(index=1, name="x", input=str(stage), output=str(tmp_path / "afile" / "x.usdc"), options={"end": 2})
+    result = run_job(job, "cpu")
+    assert result.status == "failed"
+    assert "internal error" not in result.error, result.error
+    assert "cannot write" in result.error and "afile" in result.error, result.error

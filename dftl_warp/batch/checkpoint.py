@@ -289,8 +289,11 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
         result.error = job.error
         return result
     try:
+        from ..output import check_output_path, ensure_folder
+
         files = JobFiles(Path(job.output))
-        Path(job.output).parent.mkdir(parents=True, exist_ok=True)
+        check_output_path(job.output)   # a folder that is a file, ...: simulate's one line, not an OSError
+        ensure_folder(job.output)
         with job_lock(files.lock):
             _run(job, device, policy, files, result, emit)
     except UserError as exc:
