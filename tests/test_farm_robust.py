@@ -44,3 +44,24 @@ def test_an_output_folder_that_is_a_file_fails_the_job_in_one_line(tmp_path, sta
     assert result.status == "failed"
     assert "internal error" not in result.error, result.error
     assert "cannot write" in result.error and "afile" in result.error, result.error
+
+
+def test_simulate_removes_the_partial_files_of_runs_killed_before_it(tmp_path, stage):
+    """A simulate killed with SIGKILL leaves its hidden partial file (nothing can remove it then);
+    the next run of that output, holding its lock, removes such leftovers (its own, a batch job's
+    partial file, USD's text export) and leaves the batch's checkpoint, which a rerun resumes from."""
+    from dftl_warp.output.usd import UsdWriter
+    from dftl_warp.simulation.simulate import simulate_usd
+    from dftl_warp.usd.read import read_scene
+
+    out = tmp_path / "o.usdc"
+    killed = UsdWriter.create(out, read_scene(str(stage)), frames=(1, 2))   # a run that never ended
+    killed.write_frame(1, [(c.points, c.points * 0) for c in read_scene(str(stage)).curves])
+    killed.flush()
+    assert killed.partial.stat().st_size > 0
+    (tmp_path / ".o.usdc.dftl-partial.usdc").write_bytes(b"batch")            # a batch job's, killed
+    (tmp_path / ".o.usdc.dftl-partial.k3j9x2ab.usda").write_bytes(b"text")   # a .usda export, killed
+    (tmp_path / ".o.usdc.dftl-checkpoint.npz").write_bytes(b"kept")          # a batch's checkpoint
+    simulate_usd(str(stage), str(out), end=2)
+    assert out.is_file()
+    assert hidden_files(tmp_path) == [".o.usdc.dftl-checkpoint.npz"]
