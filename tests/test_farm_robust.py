@@ -19,7 +19,7 @@ from dftl_warp.batch.jobs import Job, load_jobs
 
 @pytest.fixture(scope="module")
 def stage(tmp_path_factory):
-    return groom_stage(tmp_path_factory.mktemp("in") / "groom.usda", strands=8, vertices=6, end=4)
+    return groom_stage(tmp_path_factory.mktemp("in") / "groom.usda", strands=8, vertices=6, end=8)
 
 
 def test_two_jobs_writing_one_file_through_a_symlinked_folder_are_refused(tmp_path, stage):
@@ -65,3 +65,23 @@ def test_simulate_removes_the_partial_files_of_runs_killed_before_it(tmp_path, s
     simulate_usd(str(stage), str(out), end=2)
     assert out.is_file()
     assert hidden_files(tmp_path) == [".o.usdc.dftl-checkpoint.npz"]
+
+
+def test_a_frame_step_that_leaves_out_the_last_frames_warns_once(tmp_path, stage, capsys):
+    """``--frame-step 3`` over frames 1..8 writes 1, 4, 7: frame 8 is neither simulated nor
+    written. simulate and a batch job say so in one warning each; a range the step divides says nothing."""
+    from dftl_warp import cli
+
+    out = tmp_path / "step.usdc"
+    assert cli.main(["simulate", str(stage), "-o", str(out), "--end", "8", "--frame-step", "3", "--device", "cpu"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if line.startswith("dftl-warp: warning:")]
+    assert len(warnings) == 1 and "--frame-step 3" in warnings[0] and "ends at frame 7" in warnings[0], warnings
+    assert "frame 8" in warnings[0]
+    job = Job(index=1, name="s", input=str(stage), output=str(tmp_path / "job.usdc"),
+              options={"end": 8, "frame_step": 3})
+    result = run_job(job, "cpu")
+    assert result.status == "done" and result.total_frames == 7
+    assert len(result.warnings) == 1 and "frame_step 3" in result.warnings[0] and "frame 8" in result.warnings[0]
+    divides = run_job(Job(index=2, name="d", input=str(stage), output=str(tmp_path / "d.usdc"),
+                          options={"end": 7, "frame_step": 3}), "cpu")
+    assert divides.status == "done" and divides.warnings == []
