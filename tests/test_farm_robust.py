@@ -85,3 +85,18 @@ def test_a_frame_step_that_leaves_out_the_last_frames_warns_once(tmp_path, stage
     divides = run_job(Job(index=2, name="d", input=str(stage), output=str(tmp_path / "d.usdc"),
                           options={"end": 7, "frame_step": 3}), "cpu")
     assert divides.status == "done" and divides.warnings == []
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir() or not hasattr(signal, "SIGHUP"), reason="needs /proc and SIGHUP")
+def test_the_batchs_resource_tracker_survives_a_sighup_to_the_process_group():
+    """multiprocessing's resource tracker ignores SIGINT and SIGTERM, not SIGHUP: a SIGHUP to the
+    batch's process group (a closed SSH session) killed it, and the batch ended with its KeyError
+    tracebacks after "stopped by SIGHUP". The batch starts it with SIGHUP blocked."""
+    code = ("from multiprocessing import resource_tracker as r\n"
+            "from dftl_warp.batch.scheduler import start_resource_tracker\n"
+            "start_resource_tracker()\n"
+            "print(open(f'/proc/{r._resource_tracker._pid}/status').read())\n")
+    status = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True).stdout
+    masks = {line.split(":")[0]: int(line.split()[1], 16) for line in status.splitlines()
+             if line.startswith(("SigBlk:", "SigIgn:"))}
+    assert (masks["SigBlk"] | masks["SigIgn"]) >> (signal.SIGHUP - 1) & 1, status

@@ -150,6 +150,7 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
         picker = DevicePicker(devices)
         count = workers or default_workers(len(pending), devices)
         ctx = mp.get_context("spawn")
+        start_resource_tracker()
         outbox = ctx.Queue()
         pool = [_Worker(ctx, outbox) for _ in range(min(count, len(pending)))]
         by_index = {job.index: job for job in jobs}
@@ -173,6 +174,25 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
                 if w.task is not None:
                     clean_interrupted(w.task[0].output)
     return [results[job.index] for job in jobs]
+
+
+def start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (the queues' semaphores register with it) with
+    SIGHUP blocked. It ignores SIGINT and SIGTERM itself but not SIGHUP, so a SIGHUP to the
+    batch's process group (a closed terminal or SSH session, a farm's kill) killed it and the
+    batch's last lines were its KeyError tracebacks. The batch process keeps its own SIGHUP
+    handling (a SIGHUP that comes meanwhile is delivered once the mask is restored)."""
+    from multiprocessing import resource_tracker
+
+    hup = getattr(signal, "SIGHUP", None)
+    if hup is None or not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        resource_tracker.ensure_running()
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {hup})
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _dispatch(pool, pending, picker, policy, outbox, by_index, results, reporter, ctx) -> None:
