@@ -100,3 +100,22 @@ def test_the_batchs_resource_tracker_survives_a_sighup_to_the_process_group():
     masks = {line.split(":")[0]: int(line.split()[1], 16) for line in status.splitlines()
              if line.startswith(("SigBlk:", "SigIgn:"))}
     assert (masks["SigBlk"] | masks["SigIgn"]) >> (signal.SIGHUP - 1) & 1, status
+
+
+def test_ctrl_c_does_not_reach_the_clip_writer_processes():
+    """Ctrl-C in a terminal sends SIGINT to the whole foreground process group: during
+    ``simulate --clips`` each writer process printed a KeyboardInterrupt traceback before the one
+    line "stopped by SIGINT". The writers run in a session of their own; their parent ends them."""
+    code = ("import os, signal, time\n"
+            "signal.signal(signal.SIGINT, lambda *a: None)\n"   # the parent: the CLI's handler
+            "from dftl_warp.output.clip_pool import _Worker\n"
+            "w = _Worker()\n"
+            "time.sleep(0.5)\n"
+            "os.killpg(0, signal.SIGINT)\n"                       # what the terminal does
+            "w.close()\n"
+            "print(w.process.wait(timeout=60))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=90,
+                          start_new_session=True)
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr, done.stderr
+    assert done.stdout.strip() == "0", done.stdout
