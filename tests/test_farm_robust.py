@@ -119,3 +119,24 @@ def test_ctrl_c_does_not_reach_the_clip_writer_processes():
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr, done.stderr
     assert done.stdout.strip() == "0", done.stdout
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc")
+def test_batch_workers_start_deaf_to_ctrl_c():
+    """Ctrl-C in the first second or two of a batch (SIGINT to the process group while the spawned
+    workers were still importing, before they ignore SIGINT) printed their KeyboardInterrupt
+    tracebacks before "stopped by SIGINT". Workers start with SIGINT blocked."""
+    import multiprocessing as mp
+
+    from dftl_warp.batch.scheduler import _Worker
+
+    ctx = mp.get_context("spawn")
+    worker = _Worker(ctx, ctx.Queue())
+    try:
+        status = Path(f"/proc/{worker.process.pid}/status").read_text()
+    finally:
+        worker.process.kill()
+        worker.process.join()
+    masks = {line.split(":")[0]: int(line.split()[1], 16) for line in status.splitlines()
+             if line.startswith(("SigBlk:", "SigIgn:"))}
+    assert (masks["SigBlk"] | masks["SigIgn"]) >> (signal.SIGINT - 1) & 1, status

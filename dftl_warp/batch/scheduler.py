@@ -11,6 +11,7 @@ job it was running. :mod:`dftl_warp.batch.ray_cluster` runs the same jobs on a R
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import signal
@@ -118,7 +119,8 @@ class _Worker:
     def __init__(self, ctx, outbox):
         self.inbox = ctx.Queue()
         self.process = ctx.Process(target=_worker_main, args=(self.inbox, outbox, os.getpid()), daemon=True)
-        self.process.start()
+        with _blocked("SIGINT"):   # Ctrl-C is the batch's: not even while the worker imports
+            self.process.start()
         #: (job, device) being run, or None
         self.task = None
 
@@ -184,13 +186,22 @@ def start_resource_tracker() -> None:
     handling (a SIGHUP that comes meanwhile is delivered once the mask is restored)."""
     from multiprocessing import resource_tracker
 
-    hup = getattr(signal, "SIGHUP", None)
-    if hup is None or not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+    with _blocked("SIGHUP"):
         resource_tracker.ensure_running()
+
+
+@contextlib.contextmanager
+def _blocked(*names):
+    """The signals ``names`` blocked in this thread meanwhile: a process started meanwhile inherits
+    the mask (a signal sent to it stays pending); this one gets any that came once they are
+    unblocked."""
+    signums = {getattr(signal, n) for n in names if hasattr(signal, n)}
+    if not signums or not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {hup})
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, signums)
     try:
-        resource_tracker.ensure_running()
+        yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
