@@ -140,3 +140,40 @@ def test_batch_workers_start_deaf_to_ctrl_c():
     masks = {line.split(":")[0]: int(line.split()[1], 16) for line in status.splitlines()
              if line.startswith(("SigBlk:", "SigIgn:"))}
     assert (masks["SigBlk"] | masks["SigIgn"]) >> (signal.SIGINT - 1) & 1, status
+
+
+def test_a_signal_during_an_import_that_swallows_it_still_stops_the_run(tmp_path, monkeypatch):
+    """USD's module loader (``Tf.PreparePythonModule``) turns any exception raised while it imports
+    into a warning: a Ctrl-C in the first second of a batch, while ``pxr`` loaded, printed USD
+    tracebacks and the batch then ran every job to the end, exit status 0 (the handler had set
+    every later signal to be ignored). A signal that comes during an import now waits for it."""
+    import importlib
+    import textwrap
+
+    from dftl_warp import cli
+
+    (tmp_path / "slow_inner.py").write_text(textwrap.dedent("""
+        import os, signal, time
+        os.kill(os.getpid(), signal.SIGTERM)   # arrives while this module is being imported
+        time.sleep(0.2)
+    """))
+    (tmp_path / "swallowing_loader.py").write_text(textwrap.dedent("""
+        try:                       # what USD's _LoadLibModules does with an import's exception
+            import slow_inner
+        except BaseException:
+            swallowed = True
+    """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    previous = cli.install_signal_handlers()
+    try:
+        with pytest.raises(cli.Terminated) as stopped:
+            importlib.import_module("swallowing_loader")
+            for _ in range(100):   # the run goes on: the deferred signal stops it here
+                time.sleep(0.01)
+        assert stopped.value.signum == signal.SIGTERM
+        assert not hasattr(sys.modules["swallowing_loader"], "swallowed")   # the import was whole
+    finally:
+        cli.restore_signal_handlers(previous)
+        sys.modules.pop("slow_inner", None)
+        sys.modules.pop("swallowing_loader", None)
+
