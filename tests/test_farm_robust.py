@@ -177,3 +177,33 @@ def test_a_signal_during_an_import_that_swallows_it_still_stops_the_run(tmp_path
         sys.modules.pop("slow_inner", None)
         sys.modules.pop("swallowing_loader", None)
 
+
+def test_a_signal_while_a_batch_worker_starts_waits_until_it_has_started():
+    """SIGINT to the batch while ``Process.start`` was between the worker's fork and sending it its
+    start-up data: the batch stopped there and the half-started worker printed "EOFError: Ran out
+    of input". The batch's handler now runs once the worker has started, and that worker is ended."""
+    import multiprocessing as mp
+
+    from dftl_warp import cli
+    from dftl_warp.batch import scheduler
+
+    ctx = mp.get_context("spawn")
+    started = []
+    real_start = ctx.Process.start
+
+    def start(process):   # the signal comes in the middle of the start
+        os.kill(os.getpid(), signal.SIGINT)
+        real_start(process)
+        started.append(process)
+
+    previous = cli.install_signal_handlers()
+    try:
+        ctx.Process.start = start
+        with pytest.raises(cli.Terminated):
+            scheduler._Worker(ctx, ctx.Queue())
+    finally:
+        ctx.Process.start = real_start
+        cli.restore_signal_handlers(previous)
+    assert len(started) == 1
+    started[0].join(30)
+    assert started[0].exitcode == -signal.SIGKILL   # ended by the batch, not by an EOFError

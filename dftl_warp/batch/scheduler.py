@@ -119,8 +119,15 @@ class _Worker:
     def __init__(self, ctx, outbox):
         self.inbox = ctx.Queue()
         self.process = ctx.Process(target=_worker_main, args=(self.inbox, outbox, os.getpid()), daemon=True)
-        with _blocked("SIGINT"):   # Ctrl-C is the batch's: not even while the worker imports
-            self.process.start()
+        # Ctrl-C is the batch's, not even the worker's while it imports (it inherits the mask); a
+        # signal to the batch waits until the worker has its start-up data (else: its EOFError)
+        try:
+            with _signals_deferred(), _blocked("SIGINT"):
+                self.process.start()
+        except BaseException:  # a signal that came meanwhile: this worker goes too
+            if self.process.is_alive():
+                self.process.kill()
+            raise
         #: (job, device) being run, or None
         self.task = None
 
@@ -154,9 +161,11 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
         ctx = mp.get_context("spawn")
         start_resource_tracker()
         outbox = ctx.Queue()
-        pool = [_Worker(ctx, outbox) for _ in range(min(count, len(pending)))]
+        pool = []
         by_index = {job.index: job for job in jobs}
         try:
+            for _ in range(min(count, len(pending))):   # one by one: a signal meanwhile stops those started
+                pool.append(_Worker(ctx, outbox))
             _dispatch(pool, pending, picker, policy, outbox, by_index, results, reporter, ctx)
         except BaseException:  # Ctrl-C, SIGTERM, SIGHUP: stop the workers now; their checkpoints stay
             for w in pool:
@@ -188,6 +197,27 @@ def start_resource_tracker() -> None:
 
     with _blocked("SIGHUP"):
         resource_tracker.ensure_running()
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """SIGINT, SIGTERM and SIGHUP that come meanwhile are handled (by the handlers in place, such
+    as the CLI's) once the block is left. Only in the main thread (elsewhere it does nothing)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came, previous = [], {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signum = getattr(signal, name)
+            previous[signum] = signal.signal(signum, lambda number, frame: came.append(number))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if came:
+            signal.raise_signal(came[0])
 
 
 @contextlib.contextmanager
