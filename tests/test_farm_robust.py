@@ -207,3 +207,15 @@ def test_a_signal_while_a_batch_worker_starts_waits_until_it_has_started():
     assert len(started) == 1
     started[0].join(30)
     assert started[0].exitcode == -signal.SIGKILL   # ended by the batch, not by an EOFError
+
+
+def test_clips_and_no_clips_in_one_job_are_refused_when_the_file_is_read(tmp_path, stage):
+    """``clips = 3`` with ``no_clips = true`` (here through [defaults]) was found only once the job
+    ran, after its input was read, in a line naming the output; it is now refused with the other
+    bad values, in a line naming the job file and both keys."""
+    path = tmp_path / "jobs.toml"
+    path.write_text(f'[defaults]\nno_clips = true\n[[job]]\ninput = "{stage}"\noutput = "a.usdc"\nclips = 3\n'
+                    f'[[job]]\ninput = "{stage}"\noutput = "b.usdc"\nclips = 3\nno_clips = false\n')
+    jobs = load_jobs(path)
+    assert jobs[0].error == f"{path}: clips and no_clips contradict each other: keep one", jobs[0].error
+    assert jobs[1].error is None

@@ -217,6 +217,8 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
             raise ValueError(f"output {table['output']} must end in {', '.join(output_extensions())}")
         if os.path.normcase(job.output) == os.path.normcase(job.input):
             raise ValueError("the output would overwrite the input")
+        if options.get("no_clips") and options.get("clips") is not None:   # as simulate --clips --no-clips
+            raise ValueError("clips and no_clips contradict each other: keep one")
         start, end = options.get("start"), options.get("end")
         if start is not None and end is not None and end < start:
             raise ValueError(f"frame range {start}..{end} is empty (end before start)")
