@@ -219,3 +219,13 @@ def test_clips_and_no_clips_in_one_job_are_refused_when_the_file_is_read(tmp_pat
     jobs = load_jobs(path)
     assert jobs[0].error == f"{path}: clips and no_clips contradict each other: keep one", jobs[0].error
     assert jobs[1].error is None
+
+
+def test_an_infinite_preroll_is_refused_for_what_it_breaks():
+    """``preroll = inf`` said "preroll must be >= 0, got inf" (inf is >= 0); the bound it breaks is 60 s."""
+    from dftl_warp.options import check_toml
+
+    with pytest.raises(ValueError, match=r"^preroll must be at most 60, got inf$"):
+        check_toml("preroll", float("inf"))
+    with pytest.raises(ValueError, match=r"^preroll must be >= 0, got -inf$"):
+        check_toml("preroll", float("-inf"))
