@@ -73,7 +73,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: how long a signal that came during an import waits before it is sent again, s
+IMPORT_RETRY_SECONDS = 0.05
+
+
+def _inside_import(frame) -> bool:
+    """Whether ``frame`` (the main thread's, where a handler runs) is inside Python's import machinery."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _raise_terminated(signum, frame):
+    if _inside_import(frame):
+        # USD's module loader (pxr's Tf.PreparePythonModule) turns an exception raised while it
+        # imports into a warning and goes on: the signal is sent again once the import is over
+        import threading
+
+        timer = threading.Timer(IMPORT_RETRY_SECONDS, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
     for other in HANDLED_SIGNALS:  # let the clean-up finish: later signals are ignored
         signal.signal(other, signal.SIG_IGN)
     raise Terminated(signum)

@@ -151,6 +151,8 @@ class Option:
                 raise BadValue(self, value, "type", self._type_text())
             value = float(value)
             if not math.isfinite(value):
+                if value > 0 and self.limit is not None and self.high is None:   # inf breaks the limit, not >= low
+                    raise BadValue(self, value, "range", f"at most {_num(self.limit)}")
                 if self.range_text:
                     raise BadValue(self, value, "range", self.range_text)
                 raise BadValue(self, value, "type", "a finite number")

@@ -289,8 +289,11 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
         result.error = job.error
         return result
     try:
+        from ..output import check_output_path, ensure_folder
+
         files = JobFiles(Path(job.output))
-        Path(job.output).parent.mkdir(parents=True, exist_ok=True)
+        check_output_path(job.output)   # a folder that is a file, ...: simulate's one line, not an OSError
+        ensure_folder(job.output)
         with job_lock(files.lock):
             _run(job, device, policy, files, result, emit)
     except UserError as exc:
@@ -307,7 +310,7 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
 
 def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     from ..simulation.simulate import Simulation, SimulationOptions, resolve_frames, run_frames
-    from ..simulation.settings import frame_range_note
+    from ..simulation.settings import frame_range_note, last_written_frame
     from ..usd.read import read_scene
     from ..output import check_output_path, writer_for
     from ..output.paths import check_not_a_dependency
@@ -336,9 +339,9 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     scene = read_scene(job.input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
     frame_range_note(scene, first, last)   # frames outside the stage's animated range (as simulate)
+    last = last_written_frame(scene, first, last, step, "frame_step")  # the last frame written
     for text in scene.warnings:   # unknown attributes, ...: what simulate prints as warnings
         warn(text)
-    last = first + (last - first) // step * step  # the last frame written
     if out_opts["no_clips"] and out_opts["clips"] is not None:
         raise UserError(f"{job.output}: clips and no_clips contradict each other")
     if out_opts["clips"] is None and not out_opts["no_clips"]:  # large outputs: clips (docs/caches.md)

@@ -141,7 +141,7 @@ def load_jobs(path) -> list[Job]:
     for k, table in enumerate(tables, start=1):
         job = _make_job(k, table, defaults, folder)
         if job.error is None:
-            key = os.path.normcase(job.output)
+            key = os.path.normcase(os.path.realpath(job.output))   # one file, however the path reaches it
             # shot.usdc and shot.usd write their value clips (asked for or automatic) into one shot_clips/
             clips = _clips_folder_of(job)
             if key in outputs:
@@ -168,7 +168,7 @@ def _clips_folder_of(job: Job) -> str | None:
     output = Path(job.output)
     if output.suffix.lower() not in (".usdc", ".usd") or job.options.get("no_clips"):
         return None
-    return os.path.normcase(clips_folder(output))
+    return os.path.normcase(os.path.realpath(clips_folder(output)))
 
 
 def _check_inputs_survive(jobs: list, tables: list) -> None:
@@ -217,6 +217,8 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
             raise ValueError(f"output {table['output']} must end in {', '.join(output_extensions())}")
         if os.path.normcase(job.output) == os.path.normcase(job.input):
             raise ValueError("the output would overwrite the input")
+        if options.get("no_clips") and options.get("clips") is not None:   # as simulate --clips --no-clips
+            raise ValueError("clips and no_clips contradict each other: keep one")
         start, end = options.get("start"), options.get("end")
         if start is not None and end is not None and end < start:
             raise ValueError(f"frame range {start}..{end} is empty (end before start)")

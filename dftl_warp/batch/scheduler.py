@@ -11,6 +11,7 @@ job it was running. :mod:`dftl_warp.batch.ray_cluster` runs the same jobs on a R
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import signal
@@ -118,7 +119,15 @@ class _Worker:
     def __init__(self, ctx, outbox):
         self.inbox = ctx.Queue()
         self.process = ctx.Process(target=_worker_main, args=(self.inbox, outbox, os.getpid()), daemon=True)
-        self.process.start()
+        # Ctrl-C is the batch's, not even the worker's while it imports (it inherits the mask); a
+        # signal to the batch waits until the worker has its start-up data (else: its EOFError)
+        try:
+            with _signals_deferred(), _blocked("SIGINT"):
+                self.process.start()
+        except BaseException:  # a signal that came meanwhile: this worker goes too
+            if self.process.is_alive():
+                self.process.kill()
+            raise
         #: (job, device) being run, or None
         self.task = None
 
@@ -150,10 +159,13 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
         picker = DevicePicker(devices)
         count = workers or default_workers(len(pending), devices)
         ctx = mp.get_context("spawn")
+        start_resource_tracker()
         outbox = ctx.Queue()
-        pool = [_Worker(ctx, outbox) for _ in range(min(count, len(pending)))]
+        pool = []
         by_index = {job.index: job for job in jobs}
         try:
+            for _ in range(min(count, len(pending))):   # one by one: a signal meanwhile stops those started
+                pool.append(_Worker(ctx, outbox))
             _dispatch(pool, pending, picker, policy, outbox, by_index, results, reporter, ctx)
         except BaseException:  # Ctrl-C, SIGTERM, SIGHUP: stop the workers now; their checkpoints stay
             for w in pool:
@@ -173,6 +185,55 @@ def run_local(jobs: list[Job], *, workers: int | None = None, policy: Checkpoint
                 if w.task is not None:
                     clean_interrupted(w.task[0].output)
     return [results[job.index] for job in jobs]
+
+
+def start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (the queues' semaphores register with it) with
+    SIGHUP blocked. It ignores SIGINT and SIGTERM itself but not SIGHUP, so a SIGHUP to the
+    batch's process group (a closed terminal or SSH session, a farm's kill) killed it and the
+    batch's last lines were its KeyError tracebacks. The batch process keeps its own SIGHUP
+    handling (a SIGHUP that comes meanwhile is delivered once the mask is restored)."""
+    from multiprocessing import resource_tracker
+
+    with _blocked("SIGHUP"):
+        resource_tracker.ensure_running()
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """SIGINT, SIGTERM and SIGHUP that come meanwhile are handled (by the handlers in place, such
+    as the CLI's) once the block is left. Only in the main thread (elsewhere it does nothing)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came, previous = [], {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        if hasattr(signal, name):
+            signum = getattr(signal, name)
+            previous[signum] = signal.signal(signum, lambda number, frame: came.append(number))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if came:
+            signal.raise_signal(came[0])
+
+
+@contextlib.contextmanager
+def _blocked(*names):
+    """The signals ``names`` blocked in this thread meanwhile: a process started meanwhile inherits
+    the mask (a signal sent to it stays pending); this one gets any that came once they are
+    unblocked."""
+    signums = {getattr(signal, n) for n in names if hasattr(signal, n)}
+    if not signums or not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, signums)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _dispatch(pool, pending, picker, policy, outbox, by_index, results, reporter, ctx) -> None:

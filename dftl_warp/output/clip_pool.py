@@ -95,7 +95,8 @@ class _Worker:
         try:
             self.process = subprocess.Popen([sys.executable, "-c", BOOT, root, str(theirs.fileno()), str(os.getpid())],
                                             pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
-                                            stdout=subprocess.DEVNULL, env={**MALLOC, **os.environ})
+                                            stdout=subprocess.DEVNULL, env={**MALLOC, **os.environ},
+                                            start_new_session=True)   # a terminal's Ctrl-C is the parent's
         except BaseException:
             mine.close()
             raise

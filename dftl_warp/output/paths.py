@@ -109,7 +109,8 @@ def check_not_a_dependency(output, input_path) -> None:
 @contextlib.contextmanager
 def output_place(output):
     """Where ``simulate`` writes ``output``: its missing folders created (and removed again,
-    when empty, if the run fails), the output lock held (:mod:`.lock`)."""
+    when empty, if the run fails), the output lock held (:mod:`.lock`), and the partial files
+    of killed runs removed (:func:`remove_stale_partials`)."""
     from .lock import lock_path, output_lock
 
     output = Path(os.fspath(output))
@@ -129,10 +130,26 @@ def output_place(output):
         created.insert(0, f)
     try:
         with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
+            remove_stale_partials(output)
             yield
     except BaseException:
         _remove_empty(created)
         raise
+
+
+def remove_stale_partials(output) -> None:
+    """Remove the partial files of ``output`` (``.NAME.dftl-partial*``: a run's own, a batch job's,
+    USD's text export) that runs killed with SIGKILL left behind. Called with the output's lock
+    held, when no live run writes any of them; a batch's checkpoint files stay (it resumes from
+    them, never from a partial file)."""
+    import glob
+
+    output = Path(os.fspath(output))
+    folder = output.parent if str(output.parent) else Path(".")
+    for path in folder.glob(glob.escape(f".{output.name}.dftl-partial") + "*"):
+        if path.is_file() or path.is_symlink():
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
 
 
 def _remove_empty(folders) -> None:

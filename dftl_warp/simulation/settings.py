@@ -112,6 +112,19 @@ def frame_range_note(scene, first: int, last: int) -> None:
                           f"first or last pose")
 
 
+def last_written_frame(scene, first: int, last: int, step: int, flag: str = "--frame-step") -> int:
+    """The last frame ``first + k * step`` within ``first..last`` (what a run with that frame step
+    writes and simulates up to). Frames after it are left out: one warning in ``scene.warnings``
+    names them (``flag``: how the option is spelt, ``--frame-step`` or ``frame_step``)."""
+    step = max(1, int(step))
+    written = first + (last - first) // step * step
+    if written < last:
+        left = f"frame {last} is" if last == written + 1 else f"frames {written + 1}..{last} are"
+        scene.warnings.append(f"{flag} {step}: frames {first}..{last} end between written frames: the output "
+                              f"ends at frame {written}, and {left} neither simulated nor written")
+    return written
+
+
 def automatic_solver(scene: Scene, options: SimulationOptions, index: int, tolerance: bool = False) -> str:
     """The solver of ``scene.curves[index]`` where neither the command line nor the prim sets one:
     ``elastic`` for a prim with widths (hair of that thickness bends: docs/elastic.md) unless it

@@ -53,6 +53,7 @@ from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     describe_setting,
     group_settings,
     frame_range_note,
+    last_written_frame,
     resolve_frames,
 )
 
@@ -494,6 +495,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
     frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
+    step = out_opts["frame_step"] or 1
+    last_written = last_written_frame(scene, first, last, step, "--frame-step" if command else "frame_step")
     check_guides_output(scene, guides, cli=command is not None)   # --guides-output with no guides
     if not out_opts["no_clips"]:  # clips: their writer processes start while the simulation sets up
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
@@ -515,8 +518,6 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
                                f"the presets are measured on chains, docs/accuracy-h200/front.md)")
     if sim.guides is not None and sim.guides.output == "binding" and out_opts["clips"] is not None:
         raise UserError(f"{output}: --guides-output binding cannot be written as --clips")
-    step = out_opts["frame_step"] or 1
-    last_written = first + (last - first) // step * step
     if out_opts["no_clips"] and out_opts["clips"] is not None:
         raise UserError(f"{output}: --clips and --no-clips contradict each other")
     if out_opts["clips"] is None and not out_opts["no_clips"] and (sim.guides is None or sim.guides.output != "binding"):
