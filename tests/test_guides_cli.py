@@ -10,6 +10,7 @@ from usd_stages import add_curves, animated_xform, composed_samples, local_to_wo
 
 from dftl_warp import cli
 from dftl_warp.guides import bind, deform_reference
+from dftl_warp.guides.binding import pin_roots
 from dftl_warp.usd.scene import transform_points
 
 N = 8  # vertices per strand
@@ -90,7 +91,8 @@ def test_render_prim_follows_its_guides_and_guides_equal_a_plain_simulation(tmp_
     assert np.abs(guides[float(FRAMES)] - guides[1.0]).max() > 1e-3  # the guides did move
 
     # the render strands follow the rigid turn of the head exactly: bound in the head's frame, the
-    # reference deformation of the guides' (head-local) output is the render prim's output there
+    # reference deformation of the guides' (head-local) output, each strand's root pinned where the
+    # head holds it (pin_roots), is the render prim's output there
     head = {t: local_to_world(src, "/World/Head", t) for t in render}
     hair = {t: local_to_world(src, "/World/Head/Offset/Hair", t) for t in render}
     inp = Usd.Stage.Open(str(src))
@@ -99,7 +101,7 @@ def test_render_prim_follows_its_guides_and_guides_equal_a_plain_simulation(tmp_
     rest_r = transform_points(hair[1.0] @ np.linalg.inv(head[1.0]), r0)
     b = bind(g0, [N] * 8, rest_r, [N] * 40, k=4)
     for t in render:
-        expected_head = deform_reference(b, guides[t])          # guides' local space is the head's
+        expected_head = pin_roots(deform_reference(b, guides[t]), b, rest_r[::N])   # guides' space: the head's
         got_head = transform_points(hair[t] @ np.linalg.inv(head[t]), render[t])
         np.testing.assert_allclose(got_head, expected_head, atol=2e-6)
     np.testing.assert_allclose(render[1.0], r0, atol=2e-6)
@@ -232,3 +234,22 @@ def test_info_counts_a_render_prim_as_its_binding_not_as_simulated_strands(tmp_p
     for p in ("float32", "float64"):
         assert both["device_bytes"][p] - guides["device_bytes"][p] == binding, (p, both["device_bytes"],
                                                                                 guides["device_bytes"])
+
+
+@pytest.mark.parametrize("guides", ["1", "3"])
+def test_render_roots_stay_where_the_groom_puts_them(tmp_path, guides):
+    """The guides' first segments swing as they fall; the render strands' roots are pinned to the
+    scalp (their prim), not carried around the guides' roots by the swinging root frames."""
+    src = tmp_path / "dense.usda"
+    stage = new_stage(src, start=1, end=4)
+    rp, rc = strands(RENDER_ANGLES, curl=0.01)
+    add_curves(stage, "/World/Hair", rp, rc)
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    assert run([src, "-o", out, "--guides", guides]) == 0
+    got = composed_samples(out, "/World/Hair")
+    roots = np.arange(40) * N
+    for t in got:
+        np.testing.assert_allclose(got[t][roots], rp[roots], atol=2e-6)
+    tips = (got[4.0] - got[1.0]).reshape(40, N, 3)[:, -1]
+    assert np.linalg.norm(tips, axis=1).min() > 1e-3  # every strand moved
