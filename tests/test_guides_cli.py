@@ -253,3 +253,19 @@ def test_render_roots_stay_where_the_groom_puts_them(tmp_path, guides):
         np.testing.assert_allclose(got[t][roots], rp[roots], atol=2e-6)
     tips = (got[4.0] - got[1.0]).reshape(40, N, 3)[:, -1]
     assert np.linalg.norm(tips, axis=1).min() > 1e-3  # every strand moved
+
+
+def test_guides_output_binding_refuses_to_overwrite_a_prim_named_like_its_guides(tmp_path, capsys):
+    """--guides-output binding writes the guides picked from /World/Hair to /World/Hair_guides: a prim
+    already there (here another groom) would be overwritten in the composed output."""
+    src = tmp_path / "clash.usda"
+    stage = new_stage(src, start=1, end=3)
+    rp, rc = strands(RENDER_ANGLES)
+    add_curves(stage, "/World/Hair", rp, rc)
+    gp, gc = strands(GUIDE_ANGLES, radius=0.2)
+    add_curves(stage, "/World/Hair_guides", gp, gc)
+    stage.Save()
+    out = tmp_path / "out.usda"
+    err = _error([src, "-o", out, "--guides", "5", "--guides-output", "binding"], capsys)
+    assert str(src) in err and "/World/Hair_guides" in err and "--guides-output binding" in err, err
+    assert not out.exists()

@@ -141,6 +141,8 @@ class GuideSet:
             picked[i] = (len(sim), np.asarray(chosen, dtype=np.int64))
             sim_index[c.path] = len(sim)
             sim.append(_subset(c, chosen, path))
+        if output == "binding" and picked:
+            _check_free(file, [sim[s].path for s, _ in picked.values()])
         self.sim_scene = replace(scene, curves=sim)
         self.renders: list[_Render] = []
         for i, c in enumerate(scene.curves):
@@ -284,6 +286,18 @@ def _attr(spec, name, type_name, value, uniform: bool = False):
                                                          Sdf.VariabilityUniform if uniform else Sdf.VariabilityVarying)
     a.default = value
     return a
+
+
+def _check_free(file: str, paths: list) -> None:
+    """``--guides-output binding`` defines a prim ``<prim>_guides`` for the guides picked from each
+    dense prim: one already on the stage (any type) would be overwritten; refused, naming it."""
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(file), Usd.Stage.LoadNone)
+    for path in paths:
+        if stage.GetPrimAtPath(path):
+            raise UserError(f"{file}: {path}: already exists; --guides-output binding writes the guides picked from "
+                            f"{path.removesuffix(GUIDES_SUFFIX)} there: rename or remove it")
 
 
 def _local_roots(scene: Scene, c: CurvesPrim):
