@@ -5,7 +5,7 @@ import shutil
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
 from usd_stages import add_curves, animated_xform, composed_samples, local_to_world, new_stage, set_attr
 
 from dftl_warp import cli
@@ -269,3 +269,22 @@ def test_guides_output_binding_refuses_to_overwrite_a_prim_named_like_its_guides
     err = _error([src, "-o", out, "--guides", "5", "--guides-output", "binding"], capsys)
     assert str(src) in err and "/World/Hair_guides" in err and "--guides-output binding" in err, err
     assert not out.exists()
+
+
+def test_what_the_render_strands_approximate_is_said(tmp_path, capsys):
+    """Render strands are not collided (they may end inside a collider) and a lone guide has nothing
+    to fix its twist: each is one warning naming the prim, not a silent approximation."""
+    src = tmp_path / "head.usda"
+    stage = new_stage(src, start=1, end=2)
+    rp, rc = strands(RENDER_ANGLES)
+    add_curves(stage, "/World/Hair", rp, rc)
+    skull = UsdGeom.Sphere.Define(stage, "/World/Skull")
+    skull.CreateRadiusAttr(0.09)   # under the roots, at 0.1
+    UsdPhysics.CollisionAPI.Apply(skull.GetPrim())
+    stage.Save()
+    for guides, lone in (("1", True), ("4", False)):
+        argv = ["simulate", str(src), "-o", str(tmp_path / f"o{guides}.usdc"), "--device", "cpu", "--guides", guides]
+        assert cli.main(argv) == 0
+        warned = [w for w in capsys.readouterr().err.splitlines() if "warning" in w and "/World/Hair" in w]
+        assert sum("/World/Skull" in w and "not collided" in w for w in warned) == 1, warned
+        assert sum("one guide" in w for w in warned) == lone, warned
