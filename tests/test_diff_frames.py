@@ -122,3 +122,26 @@ def test_json_is_strict_where_points_are_not_finite(tmp_path, capsys):
     frame2 = next(r for r in rows["/World/Hair"] if r["time"] == 2.0)
     assert frame2["max"] is None and frame2["max_relative"] is None
     assert json.loads(out)["first_beyond"]["time"] == 2.0
+
+
+def test_same_points_in_other_curves_are_bad_input(tmp_path, capsys):
+    """Equal points split into other curves are another groom: not 'within tolerance'."""
+    a = cache(tmp_path / "a.usda", range(1, 3))
+    b = cache(tmp_path / "b.usda", range(1, 3))
+    stage = Usd.Stage.Open(b)
+    UsdGeom.BasisCurves(stage.GetPrimAtPath("/World/Hair")).GetCurveVertexCountsAttr().Set([2, 6])
+    stage.Save()
+    code, out, err = diff(capsys, a, b)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "Traceback" not in err
+    assert a in err and b in err and "/World/Hair" in err and "curve 0" in err, err
+
+
+def test_prims_in_one_file_only_are_warned_about(tmp_path, capsys):
+    a = cache(tmp_path / "a.usda", range(1, 3))
+    b = cache(tmp_path / "b.usda", range(1, 3))
+    stage = Usd.Stage.Open(b)
+    add_curves(stage, "/World/Extra", chain(3, 0.1), [3])
+    stage.Save()
+    code, out, err = diff(capsys, a, b)
+    assert code == 0 and "within tolerance 0" in out
+    assert err.count("\n") == 1 and "/World/Extra" in err and f"only in {b}" in err, err

@@ -5,11 +5,12 @@ import shutil
 
 import numpy as np
 import pytest
-from pxr import Gf, Sdf, Usd, UsdGeom
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics
 from usd_stages import add_curves, animated_xform, composed_samples, local_to_world, new_stage, set_attr
 
 from dftl_warp import cli
 from dftl_warp.guides import bind, deform_reference
+from dftl_warp.guides.binding import pin_roots
 from dftl_warp.usd.scene import transform_points
 
 N = 8  # vertices per strand
@@ -90,7 +91,8 @@ def test_render_prim_follows_its_guides_and_guides_equal_a_plain_simulation(tmp_
     assert np.abs(guides[float(FRAMES)] - guides[1.0]).max() > 1e-3  # the guides did move
 
     # the render strands follow the rigid turn of the head exactly: bound in the head's frame, the
-    # reference deformation of the guides' (head-local) output is the render prim's output there
+    # reference deformation of the guides' (head-local) output, each strand's root pinned where the
+    # head holds it (pin_roots), is the render prim's output there
     head = {t: local_to_world(src, "/World/Head", t) for t in render}
     hair = {t: local_to_world(src, "/World/Head/Offset/Hair", t) for t in render}
     inp = Usd.Stage.Open(str(src))
@@ -99,7 +101,7 @@ def test_render_prim_follows_its_guides_and_guides_equal_a_plain_simulation(tmp_
     rest_r = transform_points(hair[1.0] @ np.linalg.inv(head[1.0]), r0)
     b = bind(g0, [N] * 8, rest_r, [N] * 40, k=4)
     for t in render:
-        expected_head = deform_reference(b, guides[t])          # guides' local space is the head's
+        expected_head = pin_roots(deform_reference(b, guides[t]), b, rest_r[::N])   # guides' space: the head's
         got_head = transform_points(hair[t] @ np.linalg.inv(head[t]), render[t])
         np.testing.assert_allclose(got_head, expected_head, atol=2e-6)
     np.testing.assert_allclose(render[1.0], r0, atol=2e-6)
@@ -232,3 +234,57 @@ def test_info_counts_a_render_prim_as_its_binding_not_as_simulated_strands(tmp_p
     for p in ("float32", "float64"):
         assert both["device_bytes"][p] - guides["device_bytes"][p] == binding, (p, both["device_bytes"],
                                                                                 guides["device_bytes"])
+
+
+@pytest.mark.parametrize("guides", ["1", "3"])
+def test_render_roots_stay_where_the_groom_puts_them(tmp_path, guides):
+    """The guides' first segments swing as they fall; the render strands' roots are pinned to the
+    scalp (their prim), not carried around the guides' roots by the swinging root frames."""
+    src = tmp_path / "dense.usda"
+    stage = new_stage(src, start=1, end=4)
+    rp, rc = strands(RENDER_ANGLES, curl=0.01)
+    add_curves(stage, "/World/Hair", rp, rc)
+    stage.Save()
+    out = tmp_path / "out.usdc"
+    assert run([src, "-o", out, "--guides", guides]) == 0
+    got = composed_samples(out, "/World/Hair")
+    roots = np.arange(40) * N
+    for t in got:
+        np.testing.assert_allclose(got[t][roots], rp[roots], atol=2e-6)
+    tips = (got[4.0] - got[1.0]).reshape(40, N, 3)[:, -1]
+    assert np.linalg.norm(tips, axis=1).min() > 1e-3  # every strand moved
+
+
+def test_guides_output_binding_refuses_to_overwrite_a_prim_named_like_its_guides(tmp_path, capsys):
+    """--guides-output binding writes the guides picked from /World/Hair to /World/Hair_guides: a prim
+    already there (here another groom) would be overwritten in the composed output."""
+    src = tmp_path / "clash.usda"
+    stage = new_stage(src, start=1, end=3)
+    rp, rc = strands(RENDER_ANGLES)
+    add_curves(stage, "/World/Hair", rp, rc)
+    gp, gc = strands(GUIDE_ANGLES, radius=0.2)
+    add_curves(stage, "/World/Hair_guides", gp, gc)
+    stage.Save()
+    out = tmp_path / "out.usda"
+    err = _error([src, "-o", out, "--guides", "5", "--guides-output", "binding"], capsys)
+    assert str(src) in err and "/World/Hair_guides" in err and "--guides-output binding" in err, err
+    assert not out.exists()
+
+
+def test_what_the_render_strands_approximate_is_said(tmp_path, capsys):
+    """Render strands are not collided (they may end inside a collider) and a lone guide has nothing
+    to fix its twist: each is one warning naming the prim, not a silent approximation."""
+    src = tmp_path / "head.usda"
+    stage = new_stage(src, start=1, end=2)
+    rp, rc = strands(RENDER_ANGLES)
+    add_curves(stage, "/World/Hair", rp, rc)
+    skull = UsdGeom.Sphere.Define(stage, "/World/Skull")
+    skull.CreateRadiusAttr(0.09)   # under the roots, at 0.1
+    UsdPhysics.CollisionAPI.Apply(skull.GetPrim())
+    stage.Save()
+    for guides, lone in (("1", True), ("4", False)):
+        argv = ["simulate", str(src), "-o", str(tmp_path / f"o{guides}.usdc"), "--device", "cpu", "--guides", guides]
+        assert cli.main(argv) == 0
+        warned = [w for w in capsys.readouterr().err.splitlines() if "warning" in w and "/World/Hair" in w]
+        assert sum("/World/Skull" in w and "not collided" in w for w in warned) == 1, warned
+        assert sum("one guide" in w for w in warned) == lone, warned

@@ -15,8 +15,9 @@ def run(args) -> int:
     from ..core.devices import default_device, init_warp
 
     init_warp()
+    default = default_device()   # a bad $DFTL_WARP_DEVICE: its one line (naming these devices), before any output
     for name in wp.get_devices():
         device = wp.get_device(name)
         print(f"{device.alias:10s} {device.name}")
-    print(f"default: {default_device()}")
+    print(f"default: {default}")
     return 0

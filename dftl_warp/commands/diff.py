@@ -6,9 +6,9 @@ relative to the length of the point's strand (in A at that frame). The first fra
 difference exceeds ``--tolerance`` (stage units; ``--relative``: a share of the strand length) is
 named. A prim's default-time points are compared only when neither file samples it in time; when
 one does and they share no time code that is bad input, and frames sampled in only one file are
-left out with one warning. Exit status 0 when every frame is within tolerance, 1 otherwise, 2 for
-bad input (missing or unreadable file, no shared prims or frames, different point counts: one
-line naming the files).
+left out with one warning, as are prims held by one file only. Exit status 0 when every frame is
+within tolerance, 1 otherwise, 2 for bad input (missing or unreadable file, no shared prims or
+frames, different point or curve vertex counts: one line naming the files).
 """
 
 from __future__ import annotations
@@ -99,6 +99,23 @@ def _common_times(path, a_path, b_path, ta, tb, only_a, only_b):
     return common
 
 
+def _check_curves(path, a_path, b_path, counts, other) -> None:
+    """Equal points split into other curves are another groom: bad input naming the first curve
+    whose vertex count differs (or the curve counts)."""
+    import numpy as np
+
+    from ..errors import UserError
+
+    other = np.asarray(other if other is not None else [], dtype=np.int64)
+    if np.array_equal(counts, other):
+        return
+    if counts.shape != other.shape:
+        raise UserError(f"{path}: {counts.size} curves in {a_path}, {other.size} in {b_path} (curveVertexCounts)")
+    i = int(np.flatnonzero(counts != other)[0])
+    raise UserError(f"{path}: curve {i} has {counts[i]} vertices in {a_path}, {other[i]} in {b_path} "
+                    "(curveVertexCounts differ)")
+
+
 def compare(a_path, b_path) -> dict:
     """Per prim and frame: ``max``, ``rms`` (stage units) and ``max_relative``, ``rms_relative``
     (per point, divided by its strand's length in A). ``frames_only_in_a``/``_b``: frames sampled
@@ -129,6 +146,8 @@ def compare(a_path, b_path) -> dict:
             xb = np.asarray(vb, dtype=np.float64).reshape(-1, 3)
             if xa.shape != xb.shape:
                 raise UserError(f"{path}: {xa.shape[0]} points in {a_path}, {xb.shape[0]} in {b_path} {when}")
+            if not rows:   # as many points: in the same curves?
+                _check_curves(path, a_path, b_path, counts, b[path].GetCurveVertexCountsAttr().Get())
             d = np.linalg.norm(xa - xb, axis=1) if xa.size else np.zeros(0)
             lengths = np.repeat(_strand_lengths(xa, counts), counts) if counts.sum() == len(xa) and len(xa) else \
                 np.ones(len(xa))
@@ -145,10 +164,19 @@ def compare(a_path, b_path) -> dict:
 
 
 def frames_warning(result: dict) -> str | None:
-    """One line naming the frames sampled in only one file (left out of the comparison), or None."""
+    """One line naming the frames sampled, and the prims held, in only one file (left out of the
+    comparison), or None."""
     parts = [f"{frames_text(result[f'frames_only_in_{x}'])} only in {result[x]}"
              for x in ("a", "b") if result[f"frames_only_in_{x}"]]
+    parts += [f"{_prims_text(result[f'only_in_{x}'])} only in {result[x]}"
+              for x in ("a", "b") if result[f"only_in_{x}"]]
     return f"{'; '.join(parts)}: not compared" if parts else None
+
+
+def _prims_text(paths: list) -> str:
+    """``paths`` as text: the first three named, then how many more."""
+    more = f" and {len(paths) - 3} more" if len(paths) > 3 else ""
+    return ("prim " if len(paths) == 1 else "prims ") + ", ".join(paths[:3]) + more
 
 
 def first_beyond(result: dict, tolerance: float, relative: bool = False):

@@ -30,7 +30,8 @@ def add_parser(sub):
         "into --out, with the quality presets re-derived from it. With --fast: a few settings (a CPU smoke run).")
     front.add_argument("--front", action="store_true", help="run the front at scale instead of the CPU sections")
     front.add_argument("--front-from", metavar="JSON", default=None,
-                       help="redraw front.md and front.png into --out from a front.json, without running")
+                       help="redraw front.md and front.png into --out from a front.json, without running (the run's "
+                            "flags do nothing, --docs is refused; a file that is not a front.json writes nothing)")
     front.add_argument("--strands", type=int, default=None,
                        help="strands of the front's groom (default 100000; 64 with --fast)")
     front.add_argument("--particles", type=int, default=32, help="particles per strand (default 32)")
@@ -103,6 +104,32 @@ def run_front(args, device, log) -> int:
     return 0
 
 
+def run_front_from(args, log) -> int:
+    """``--front-from``: redraw the front's report into ``--out`` from a front.json, running nothing.
+    A file that is not a front.json is one line and writes nothing; the flags that size or place a
+    run (``--docs`` refused, as with ``--front``; the others warned about) do nothing here."""
+    from ..study.front_report import load_front, write_front
+
+    if args.docs:
+        raise UserError("--docs: --front-from writes its report into --out (front.md); leave --docs out")
+    given = (("--front", args.front), ("--fast", args.fast), ("--device", args.device is not None),
+             ("--strands", args.strands is not None), ("--frames", args.frames is not None),
+             ("--particles", args.particles != args_default("particles")),
+             ("--reference-substeps", args.reference_substeps != args_default("reference_substeps")))
+    idle = [flag for flag, on in given if on]
+    if idle:
+        print(f"dftl-warp: warning: {', '.join(idle)} {'does' if len(idle) == 1 else 'do'} nothing with --front-from "
+              "(it redraws the report from the json, running nothing)", file=sys.stderr)
+    try:
+        result, meta = load_front(args.front_from)
+        written = write_front(result, meta, args.out)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
+        why = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise UserError(f"--front-from {args.front_from}: not a front.json ({why})") from None
+    log(f"study --front-from: wrote {', '.join(written)}")
+    return 0
+
+
 def run(args) -> int:
     import time
 
@@ -113,14 +140,7 @@ def run(args) -> int:
         raise UserError(f"--out {args.out}: exists and is not a folder")
     log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, flush=True))
     if args.front_from:
-        from ..study.front_report import load_front, write_front
-
-        try:
-            result, meta = load_front(args.front_from)
-        except (OSError, ValueError, KeyError) as exc:
-            raise UserError(f"--front-from {args.front_from}: not a front.json ({exc})") from None
-        log(f"study --front-from: wrote {', '.join(write_front(result, meta, args.out))}")
-        return 0
+        return run_front_from(args, log)
     if args.front:
         _check_front_args(args)
     else:

@@ -295,6 +295,18 @@ def guide_points_of(points, counts, guides) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([p[s[i]:s[i] + c[i]] for i in g]), c[g]
 
 
+def pin_roots(points: np.ndarray, binding: Binding, roots: np.ndarray) -> np.ndarray:
+    """``points`` (Vr, 3), render points deformed by ``binding``, with every render strand that is not
+    a guide translated so its root lands on ``roots[r]`` ((R, 3), same coordinates: where the scalp
+    holds it). The guides' root frames turn with their free first segments, which would carry the
+    render roots (rest offsets of up to a guide spacing) around the guides' roots; translating the
+    whole strand keeps its deformed shape. Guide strands (already exact) are left as they are."""
+    b = binding
+    shift = np.asarray(roots, dtype=points.dtype) - points[b.render_starts]
+    shift[b.render_guide >= 0] = 0.0
+    return points + np.repeat(shift, b.render_counts, axis=0)
+
+
 def blend_frame(t: np.ndarray, n: np.ndarray):
     """Orthonormal (T, N) from weighted sums of guide tangents and normals."""
     t = normalize(t)

@@ -187,15 +187,28 @@ def render_front(result: dict, meta: dict, front: list[int], picks: dict, image:
 
 def write_front(result: dict, meta: dict, out, targets=None) -> list[str]:
     """Write ``front.json``, ``front.md`` and ``front.png`` into ``out`` (created); returns the paths.
-    The json holds the result, the meta, the front (row indices) and the picked presets."""
+    The json holds the result, the meta, the front (row indices) and the picked presets. All three
+    are made first: a result they cannot be made from raises before anything is written."""
+    import os
+    import shutil
+    import tempfile
+
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     rows = result["rows"]
     front = pareto_front(rows)
     picks = pick_presets(rows, targets)
     data = {"meta": meta, "result": result, "front": front, "presets": picks}
     paths = [out / "front.json", out / "front.md", out / "front.png"]
-    paths[0].write_text(json.dumps(data, indent=1, default=float))
-    paths[1].write_text(render_front(result, meta, front, picks))
-    plot_front(result, front, picks, paths[2])
+    fd, image = tempfile.mkstemp(suffix=".png")   # everything made before anything is written into out
+    os.close(fd)
+    try:
+        text = json.dumps(data, indent=1, default=float), render_front(result, meta, front, picks)
+        plot_front(result, front, picks, Path(image))
+        out.mkdir(parents=True, exist_ok=True)
+        paths[0].write_text(text[0])
+        paths[1].write_text(text[1])
+        shutil.move(image, paths[2])
+    finally:
+        if os.path.exists(image):
+            os.unlink(image)
     return [str(p) for p in paths]

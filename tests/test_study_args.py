@@ -1,0 +1,42 @@
+"""``dftl-warp study`` with bad arguments (docs/accuracy.md): one line naming the option, exit 2,
+no traceback, nothing written; flags that do nothing are said, not ignored silently."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from dftl_warp.cli import main
+
+FRONT = Path(__file__).parents[1] / "docs" / "accuracy-h200" / "front.json"
+
+
+def one_error(capsys, argv) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.mark.parametrize("content", ["[1, 2]", '{"result": [], "meta": []}', '{"result": {}, "meta": {}}',
+                                     '{"result": {"rows": [1]}, "meta": {}}', '{"result": {"rows": []}, "meta": {}}'])
+def test_front_from_a_json_that_is_not_a_front_is_one_line_and_writes_nothing(tmp_path, capsys, content):
+    bad = tmp_path / "bad.json"
+    bad.write_text(content)
+    out = tmp_path / "out"
+    err = one_error(capsys, ["study", "--front-from", str(bad), "--out", str(out), "--quiet"])
+    assert err.startswith(f"dftl-warp: error: --front-from {bad}: not a front.json"), err
+    assert not out.exists()
+
+
+def test_front_from_says_which_flags_do_nothing(tmp_path, capsys):
+    err = one_error(capsys, ["study", "--front-from", str(FRONT), "--out", str(tmp_path / "a"),
+                             "--docs", str(tmp_path / "d")])
+    assert "--docs" in err and not (tmp_path / "a").exists()
+    assert main(["study", "--front-from", str(FRONT), "--out", str(tmp_path / "b"), "--fast", "--strands", "5",
+                 "--device", "cpu", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "--fast" in err and "--strands" in err and "--device" in err, err
+    assert "--front-from" in err
+    redrawn = json.loads((tmp_path / "b" / "front.json").read_text())
+    assert redrawn["presets"] == json.loads(FRONT.read_text())["presets"]
