@@ -129,6 +129,14 @@ def test_guides_fraction_on_a_dense_groom(tmp_path, capsys):
     np.testing.assert_allclose(got[1.0], rp, atol=2e-6)
     assert run([src, "-o", tmp_path / "k.usdc", "--guides", "6"]) == 0
     assert f" 6 strands, {6 * N} particles" in capsys.readouterr().out
+    # a fraction that rounds to no strand: 1 guide, and one line saying so (it was silent)
+    assert cli.main(["simulate", str(src), "-o", str(tmp_path / "tiny.usdc"), "--guides", "0.001",
+                     "--device", "cpu"]) == 0
+    captured = capsys.readouterr()
+    assert f" 1 strands, {N} particles" in captured.out
+    lines = [line for line in captured.err.splitlines() if "--guides 0.001" in line]
+    assert lines == [f"dftl-warp: warning: {src}: /World/Hair: --guides 0.001 of its 40 strands is 0.04 strands: "
+                     "1 guide simulated"], captured.err
 
 
 def test_guides_output_binding_writes_the_guides_and_the_binding(tmp_path, capsys):

@@ -137,6 +137,9 @@ class GuideSet:
                 chosen = select_guides(world, c.counts, count, method)
             except ValueError as exc:
                 raise UserError(f"{file}: {c.path}: --guides {guides}: {_why(exc, c)}") from None
+            if isinstance(count, float) and count * c.num_strands < 0.5:
+                scene.warnings.append(f"{file}: {c.path}: --guides {guides} of its {c.num_strands} strands is "
+                                      f"{count * c.num_strands:.3g} strands: 1 guide simulated")
             path = c.path + GUIDES_SUFFIX if output == "binding" else c.path
             picked[i] = (len(sim), np.asarray(chosen, dtype=np.int64))
             sim_index[c.path] = len(sim)
