@@ -418,11 +418,17 @@ last check where the root moved; both plus a floor of 1e-4 of the strand's weigh
 strand above its budget has created energy. It fired on every unstable setting of the map and
 the tests, and never on an s = 1 run (largest ratio {s1_ratio:.2f}, at most half the threshold).
 
+`simulate` runs it on every group of prims whose features add no energy of their own. Wind blows
+energy in, and hair-hair's repulsion turns compression energy (not in the account) into motion: a
+groom's edge at rest is pushed out. There the check would call a stable setting unstable (it did,
+on every hair-hair and wind scene, advising more substeps), so a group with wind or a repulsion
+above 0 runs without it and says so in one line ("no energy check", `tests/test_energy_warning.py`).
+
 ## Reproduce
 
     python scripts/study.py                       # full study on the CPU: docs/accuracy.md + docs/accuracy/
     dftl-warp study --fast --out /tmp/study       # the CI subset (tests/test_study.py)
-    python scripts/study.py --device cuda:0 --out docs/accuracy-h200   # on a GPU
+    python scripts/study.py --device cuda:0 --out docs/accuracy-h200 --docs docs/accuracy-h200/accuracy-h200.md   # on a GPU
 """
 
 
