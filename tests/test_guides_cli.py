@@ -60,6 +60,16 @@ def groom_stage(path, *, turn=None, static_turn=0.0, guides_rel=True, render_und
     return stage
 
 
+def dense_stage(tmp_path):
+    """(path, points) of a stage of 40 curled strands on a static head, frames 1..4."""
+    src = tmp_path / "dense.usda"
+    stage = new_stage(src, start=1, end=4)
+    rp, rc = strands(RENDER_ANGLES, curl=0.01)
+    add_curves(stage, "/World/Hair", rp, rc)
+    stage.Save()
+    return src, rp
+
+
 def run(argv, capsys=None):
     code = cli.main(["simulate", *map(str, argv), "--device", "cpu", "--quiet"])
     return code
@@ -114,11 +124,7 @@ def test_render_prim_follows_its_guides_and_guides_equal_a_plain_simulation(tmp_
 
 
 def test_guides_fraction_on_a_dense_groom(tmp_path, capsys):
-    src = tmp_path / "dense.usda"
-    stage = new_stage(src, start=1, end=4)
-    rp, rc = strands(RENDER_ANGLES, curl=0.01)
-    add_curves(stage, "/World/Hair", rp, rc)
-    stage.Save()
+    src, rp = dense_stage(tmp_path)
     out = tmp_path / "out.usdc"
     assert run([src, "-o", out, "--guides", "10%", "--guide-method", "fps"]) == 0
     assert f" 4 strands, {4 * N} particles" in capsys.readouterr().out
@@ -248,11 +254,7 @@ def test_info_counts_a_render_prim_as_its_binding_not_as_simulated_strands(tmp_p
 def test_render_roots_stay_where_the_groom_puts_them(tmp_path, guides):
     """The guides' first segments swing as they fall; the render strands' roots are pinned to the
     scalp (their prim), not carried around the guides' roots by the swinging root frames."""
-    src = tmp_path / "dense.usda"
-    stage = new_stage(src, start=1, end=4)
-    rp, rc = strands(RENDER_ANGLES, curl=0.01)
-    add_curves(stage, "/World/Hair", rp, rc)
-    stage.Save()
+    src, rp = dense_stage(tmp_path)
     out = tmp_path / "out.usdc"
     assert run([src, "-o", out, "--guides", guides]) == 0
     got = composed_samples(out, "/World/Hair")
