@@ -68,7 +68,8 @@ def read(data: bytes, path: str) -> Groom:
         raise buf.error(seg_offset, f"{where} gives {total} points for {hair_count} strands "
                                     f"but the header says point_count = {point_count}")
     points = buf.array("<f4", 3 * point_count, offset, f"points array of {point_count} points")
-    points = points.reshape(-1, 3).astype(np.float64)
+    with np.errstate(invalid="ignore"):   # corrupted bytes may be signalling NaNs (convert.py: check_finite)
+        points = points.reshape(-1, 3).astype(np.float64)
     offset += 12 * point_count
     widths = None
     constant = None
