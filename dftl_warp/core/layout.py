@@ -42,6 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bounds import box
+
 LAYOUTS = ("strand-major", "particle-major")
 
 #: strands per interleaved chunk (one warp)
@@ -154,7 +156,7 @@ def morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if p.shape[0] == 0:
         return np.zeros(0, dtype=np.uint64)
-    lo, hi = p.min(axis=0), p.max(axis=0)
+    lo, hi = box(p)
     scale = np.where(hi > lo, ((1 << bits) - 1) / np.where(hi > lo, hi - lo, 1.0), 0.0)
     q = np.clip(np.floor((p - lo) * scale), 0, (1 << bits) - 1).astype(np.uint64)
     code = np.zeros(p.shape[0], dtype=np.uint64)

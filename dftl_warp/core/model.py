@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from .bounds import box
 from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets
 from .precision import numpy_type, scalar_type, vec3_type
 from .state import feature_hook
@@ -33,7 +34,7 @@ def _world_origin(points: np.ndarray) -> np.ndarray:
     """
     if points.shape[0] == 0:
         return np.zeros(3)
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    lo, hi = box(points)
     centre = 0.5 * (lo + hi)
     extent = float(np.max(hi - lo))
     if np.linalg.norm(centre) <= 16.0 * max(extent, 1.0e-30) or np.linalg.norm(centre) < 1.0:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import warp as wp
 
+from ..core.bounds import box
 from ..core.layout import strand_offsets
 from ..kernels.features.grid import grid_reset_kernel, grid_splat_kernel
 from ..kernels.features.grid_strands import grid_bounds_strands_kernel, grid_splat_strands_kernel
@@ -136,7 +137,8 @@ def hair_hair_extent(hh: HairHair, points, counts) -> np.ndarray:
     seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
     seg[starts] = 0.0
     longest = float(np.add.reduceat(seg, starts).max())
-    return points.max(0) - points.min(0) + 2.0 * longest
+    lo, hi = box(points)
+    return hi - lo + 2.0 * longest
 
 
 def volume_fractions(points, counts, widths, cell: float, hair_width: float = DEFAULT_HAIR_WIDTH) -> np.ndarray:
@@ -161,7 +163,7 @@ def splat_nodes(points, weights, cell: float, shape=None) -> np.ndarray:
     at ``points`` (N, 3) on a grid of ``cell`` (numpy; the device kernels' weights). ``shape``: the
     device grid's node counts (:func:`grid_dimensions`); the points it leaves out (its extent is
     smaller than the hair's) are left out here too, and the array is no larger than that grid."""
-    g = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - np.min(points, axis=0)) / float(cell)
+    g = (np.asarray(points, dtype=np.float64).reshape(-1, 3) - box(points)[0]) / float(cell)
     base = np.floor(g).astype(np.int64)
     weights = np.broadcast_to(np.asarray(weights, dtype=np.float64).reshape(-1), len(g))
     if shape is not None:

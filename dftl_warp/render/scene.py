@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.bounds import box
 from ..core.layout import strand_offsets
 from ..core.model import check_strand_arrays
 #: default linear hair colour at the root and at the tip (a mid brown)
@@ -127,7 +128,7 @@ class RenderScene:
         if len(self.points) == 0:
             return None
         r = self.radii[:, None]
-        return (self.points - r).min(axis=0), (self.points + r).max(axis=0)
+        return box(self.points - r)[0], box(self.points + r)[1]
 
     def bounds(self):
         """(lo, hi) of everything drawn, or None for an empty scene."""
@@ -137,7 +138,7 @@ class RenderScene:
             boxes.append(hb)
         boxes += [s.bounds() for s in self.shapes]
         if len(self.mesh_points):
-            boxes.append((self.mesh_points.min(axis=0), self.mesh_points.max(axis=0)))
+            boxes.append(box(self.mesh_points))
         if not boxes:
             return None
         return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
@@ -181,7 +182,8 @@ def default_width(points: np.ndarray) -> float:
     """Width used when none is authored: 1/1000 of the strands' bounding-box diagonal."""
     if len(points) == 0:
         return 0.0
-    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    lo, hi = box(points)
+    diag = float(np.linalg.norm(hi - lo))
     return max(diag * 1.0e-3, 1.0e-6)
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from ..core.bounds import box
 from ..errors import UserError
 from ..options import check_api, default
 from ..usd.scene import Scene
@@ -197,7 +198,8 @@ def check_extent(points, offsets, curves, source, precision) -> None:
     """Refuse scenes too large for the precision (squared lengths would overflow)."""
     if points.shape[0] == 0:
         return
-    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    lo, hi = box(points)
+    centre = 0.5 * (lo + hi)
     distance = np.abs(points - centre).max(axis=1)
     limit = 0.5 * MAX_EXTENT[precision]
     if distance.max() > limit:

@@ -32,6 +32,7 @@ from ...kernels.features.sdf import (
     sample_kernel,
     share_nodes_kernel,
 )
+from ...core.bounds import box
 from .base import ColliderApproximationWarning
 
 #: meshes of at least this many triangles collide through a field unless told otherwise
@@ -51,8 +52,7 @@ BYTES_PER_BRICK = BRICK_NODES * (4 + 6) + BRICK_CELLS + 12
 
 def bounds(points) -> tuple[np.ndarray, np.ndarray]:
     """The lower and upper corners (3,), m, of ``points`` (P, 3)."""
-    points = np.asarray(points).reshape(-1, 3)
-    return points.min(0), points.max(0)
+    return box(points)
 
 
 def mean_edge_length(points: np.ndarray, indices: np.ndarray) -> float:
