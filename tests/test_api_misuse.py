@@ -94,3 +94,95 @@ def test_rest_of_the_api_still_steps():
     solver.advance(b, control, 1 / 240, 3)
     assert np.isfinite(model.points_from_device(b.positions)).all()
     assert solver.diagnostics(b)["max_speed"] > 0
+
+
+# -- Model.from_strands: shapes and origin ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("shape", [(6, 2), (3, 4), (2, 9)])
+def test_points_of_another_width_are_refused_not_reshaped(shape):
+    """(6, 2) x, y pairs (12 numbers) were reshaped to 4 points of 3 without a word."""
+    points = np.arange(np.prod(shape), dtype=float).reshape(shape)
+    with pytest.raises(ValueError, match=rf"points must have shape \(N, 3\), got \({shape[0]}, {shape[1]}\)"):
+        dw.Model.from_strands(points, [4])
+    with pytest.raises(ValueError, match=r"points must have shape \(N, 3\)"):
+        dw.RenderScene.from_strands(points, [4])
+
+
+def test_points_of_odd_dtypes_and_layouts_give_the_same_model():
+    points, counts = _strands(s=2)
+    reference = dw.Model.from_strands(points, counts)
+    for variant in (points.astype(np.float32), np.asfortranarray(points), np.repeat(points, 2, axis=1)[:, ::2],
+                    points.reshape(2, 6, 3), points.reshape(-1), [tuple(p) for p in points]):
+        m = dw.Model.from_strands(variant, np.array(counts, dtype=np.int32))
+        np.testing.assert_allclose(m.points_from_device(m.rest_positions), reference.points_from_device(
+            reference.rest_positions), atol=1e-7)
+
+
+@pytest.mark.parametrize("origin", [[0.0, 0.0, NAN], [0.0, 0.0], "abc"])
+def test_origin_must_be_three_finite_numbers(origin):
+    """origin=(0, 0, nan) made every device position NaN; (0, 0) was numpy's reshape error."""
+    with pytest.raises(ValueError, match=r"origin must be 3 finite numbers \(m\)"):
+        dw.Model.from_strands(*_strands(), origin=origin)
+
+
+def test_a_fractional_interleave_is_refused_not_truncated():
+    with pytest.raises(ValueError, match=r"interleave must be a whole number of state vectors, got 2.5"):
+        dw.Model.from_strands(*_strands(), layout="particle-major", interleave=2.5)
+
+
+# -- solver options coerced by bool() / float() ------------------------------------------------------
+
+
+@pytest.mark.parametrize("name, kw, fragment", [
+    ("dftl", {"fused": "no"}, r"fused must be True or False, got 'no'"),
+    ("ftl", {"fused": 0}, r"fused must be True or False, got 0"),
+    ("dftl", {"damping": "0.5"}, r"damping must be in \[0, 1\], got '0.5'"),
+    ("dftl", {"damping": True}, r"damping must be in \[0, 1\], got True"),
+])
+def test_solver_options_are_not_coerced(small, name, kw, fragment):
+    """fused="no" was bool("no"): fused substeps on; damping="0.5" was float("0.5")."""
+    with pytest.raises(ValueError, match=fragment):
+        dw.make_solver(small, name, **kw)
+
+
+def test_valid_dftl_options_still_build(small):
+    assert dw.make_solver(small, "dftl", damping=np.float32(0.5), fused=False).damping == 0.5
+    assert dw.make_solver(small, "dftl", damping=1, fused=np.bool_(False)).fused is False
+
+
+# -- simulate_strands --------------------------------------------------------------------------------
+
+
+def _one():
+    return np.c_[0.01 * np.arange(5), np.zeros(5), np.zeros(5)], [5]
+
+
+def test_simulate_strands_refuses_fractional_counts():
+    """counts [5.5] went through astype(int64) (5) before Model.from_strands could see it."""
+    points, _ = _one()
+    with pytest.raises(ValueError, match=r"counts\[0\] = 5.5 is not a whole number"):
+        dw.simulate_strands(points, [5.5], steps=1, dt=0.01)
+
+
+@pytest.mark.parametrize("kw, fragment", [
+    ({"velocities": np.full((5, 3), NAN)}, r"velocities\[0\] is not finite"),
+    ({"velocities": np.zeros((4, 3))}, r"velocities must have shape \(5, 3\).*got \(4, 3\)"),
+    ({"velocities": np.zeros((5, 2))}, r"velocities must have shape \(5, 3\).*got \(5, 2\)"),
+    ({"roots": np.zeros((2, 1, 3))}, r"roots must have shape \(3, 1, 3\): \(steps \+ 1, S, 3\).*got \(2, 1, 3\)"),
+    ({"roots": np.r_[np.zeros((2, 1, 3)), np.full((1, 1, 3), NAN)]}, r"roots\[2, 0\] is not finite"),
+])
+def test_simulate_strands_names_bad_velocities_and_roots(kw, fragment):
+    """NaN velocities were stepped without a word; wrong shapes were numpy's broadcast errors."""
+    points, counts = _one()
+    with pytest.raises(ValueError, match=fragment):
+        dw.simulate_strands(points, counts, steps=2, dt=0.01, **kw)
+
+
+def test_simulate_strands_with_velocities_and_roots_still_runs():
+    points, counts = _one()
+    roots = np.zeros((3, 1, 3))
+    roots[:, 0, 1] = [0.0, 0.001, 0.002]
+    rec = dw.simulate_strands(points, np.array([5.0]), steps=2, dt=0.01, velocities=np.ones((5, 3)), roots=roots)
+    assert rec.positions.shape == (3, 5, 3)
+    np.testing.assert_allclose(rec.positions[-1, 0], [0.0, 0.002, 0.0], atol=1e-6)
