@@ -407,5 +407,8 @@ def test_a_new_solver_gets_the_checks_without_a_line_of_its_own():
         toy.step(None, None, None, float("nan"))
     with pytest.raises(ValueError, match="substeps must be"):
         toy.advance(None, None, 0.01, 0)
-    toy.step(None, None, None, 0.01)
+    with pytest.raises(TypeError, match="state_in must be a dftl_warp.State"):   # and the State/Control check
+        toy.step(None, None, None, 0.01)
+    state = toy.state()
+    toy.step(state, state, model.control(), 0.01)
     assert toy.ran

@@ -11,6 +11,7 @@ holding every frame on a grid.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -121,6 +122,8 @@ def _check_output(args, n_images: int):
 
     out = args.output
     suffix = Path(out).suffix.lower()
+    if len(re.findall(r"#+", out)) > 1:   # only the first run was numbered: hair.0001.v##.png
+        raise UserError(f"-o {out}: more than one run of '#': a pattern numbers frames with one (hair.####.png)")
     if args.contact_sheet or n_images == 1:
         if suffix != ".png" or has_pattern(out) and args.contact_sheet:
             raise UserError(f"-o {out}: expected a .png file name")
@@ -205,6 +208,7 @@ def run(args) -> int:
     _check_frame_numbers(args, times, kind)
     # everything that can fail is checked before the first frame is rendered
     usd_scene.check_samples(stage, times, source)
+    stage_warnings.extend(usd_scene.render_notes(stage, source))
     first_number = 0 if args.turntable or times[0] is None else times[0]   # a turntable's views count from 0
     check_writable(image.frame_path(args.output, first_number) if kind == "pattern" else args.output)
     if kind == "video":
@@ -223,8 +227,8 @@ def run(args) -> int:
         scene = usd_scene.read_render_scene(stage, t, source)
         if usd_scene.is_empty(scene):
             at = "" if t is None else f" at frame {t:g}"
-            raise UserError(f"{source}: nothing to render{at}: no visible BasisCurves, Sphere, Capsule, "
-                            "Cube or Mesh prim (an output whose input moved?)")
+            raise UserError(f"{source}: nothing to render{at}: no visible BasisCurves with a segment (2 or more "
+                            "vertices), Sphere, Capsule, Cube or Mesh prim (an output whose input moved?)")
         return scene
 
     def camera_at(t, scene):

@@ -12,6 +12,7 @@ Units: positions in metres (or stage units, consistently), lengths likewise.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from numbers import Integral
 
 import numpy as np
 import warp as wp
@@ -125,11 +126,16 @@ class Model:
         :func:`~dftl_warp.core.layout.default_interleave`: on CUDA without features, 3, or 2 when
         ``corrections`` is False: the solver carries none, :func:`~dftl_warp.solvers.dftl.carries_corrections`).
 
-        ValueError for ``counts`` that are not whole numbers and for ``widths`` of another length
-        than one or one per point, non-finite or negative, whatever the features.
+        ValueError for ``points`` that are not (N, 3) (a flat array of x, y, z triples is taken),
+        ``counts`` that are not whole numbers, ``widths`` of another length than one or one per
+        point, non-finite or negative, whatever the features, and an ``origin`` that is not 3 finite
+        numbers.
         """
         points, counts = check_strand_arrays(points, counts)
         widths = _checked_widths(widths, points.shape[0])
+        if interleave is not None and (isinstance(interleave, (bool, np.bool_))
+                                       or not isinstance(interleave, Integral)):
+            raise ValueError(f"interleave must be a whole number of state vectors, got {interleave!r}")
         device = wp.get_device(device)
         layout_name = layout or default_layout(str(device))
         if layout_name not in LAYOUTS:
@@ -141,7 +147,7 @@ class Model:
         lay = make_layout(counts, layout_name, interleave, roots=first)
         if default and lay.storage_length > MAX_SLOTS:
             lay = make_layout(counts, layout_name, 1, roots=first)
-        origin = _world_origin(points) if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
+        origin = _world_origin(points) if origin is None else _checked_origin(origin)
         local = points - origin
 
         starts = strand_offsets(counts)
@@ -233,8 +239,13 @@ def check_strand_arrays(points, counts, least: int = 1) -> tuple[np.ndarray, np.
     vertex ``counts``, or a ValueError naming the first bad index: counts that are not whole
     numbers or below ``least`` (a renderer draws nothing for 0; a model needs a root), that do not
     sum to the points, or a point that is not finite."""
-    points = np.asarray(points, dtype=np.float64)
-    if points.size % 3:
+    try:
+        points = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("points must be numbers: an (N, 3) array") from None
+    # an (N, 2) or (N, 4) array was reshaped to (N', 3) without a word: x, y pairs or homogeneous
+    # coordinates became other points; only (..., 3) or a flat run of x, y, z triples is taken
+    if points.size % 3 or (points.ndim > 1 and points.shape[-1] != 3):
         raise ValueError(f"points must have shape (N, 3), got {points.shape}")
     points = points.reshape(-1, 3)
     counts = _checked_counts(counts)
@@ -263,6 +274,18 @@ def _checked_counts(counts) -> np.ndarray:
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(f"counts[{i}] = {float(c[i])!r} is not a whole number of vertices")
     return c.astype(np.int64)
+
+
+def _checked_origin(origin) -> np.ndarray:
+    """``origin`` as a (3,) float64 array; ValueError naming it unless it is 3 finite numbers (a NaN
+    origin made every device position NaN)."""
+    try:
+        o = np.asarray(origin, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"origin must be 3 finite numbers (m), got {origin!r}") from None
+    if o.size != 3 or not np.isfinite(o).all():
+        raise ValueError(f"origin must be 3 finite numbers (m), got {origin!r}")
+    return o.reshape(3)
 
 
 def _checked_widths(widths, num_points: int):

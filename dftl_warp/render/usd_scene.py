@@ -90,9 +90,37 @@ def check_samples(stage, times, source: str | None = None) -> None:
 
 
 def is_empty(scene) -> bool:
-    """True when a RenderScene draws nothing (no strand, shape or mesh triangle)."""
-    return (int(np.sum(scene.curve_vertex_counts)) == 0 and not scene.shapes
-            and len(scene.mesh_triangles) == 0)
+    """True when a RenderScene draws nothing (no strand segment, shape or mesh triangle): curves of
+    one vertex each have no segment to draw (they rendered an empty image without a word)."""
+    return scene.is_empty()
+
+
+def render_notes(stage, source: str | None = None) -> list:
+    """Warnings (one line each) about what the renderer leaves out of the drawn BasisCurves prims:
+    curves of fewer than 2 vertices (no segment to draw), and a guide binding for render-time
+    deformation (``primvars:dftl:guideIds``, ``simulate --guides-output binding``): such a prim is
+    drawn as authored (at rest), not deformed by its guides."""
+    from pxr import UsdGeom
+
+    source = source or stage_source(stage)
+    time = default_time(stage)
+    notes, bound = [], []
+    for prim in _drawn_prims(stage, time):
+        if not prim.IsA(UsdGeom.BasisCurves):
+            continue
+        if UsdGeom.PrimvarsAPI(prim).HasPrimvar("dftl:guideIds"):
+            bound.append(str(prim.GetPath()))
+        counts = np.asarray(UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get(time) or [], dtype=np.int64)
+        short = np.flatnonzero((counts >= 0) & (counts < 2))
+        if len(short):
+            notes.append(f"{source}: {prim.GetPath()}: {len(short)} of {len(counts)} curves have fewer than 2 "
+                         f"vertices (curveVertexCounts[{short[0]}] = {counts[short[0]]}): not drawn (no segment)")
+    if bound:
+        more = f" (and {len(bound) - 3} more)" if len(bound) > 3 else ""
+        notes.append(f"{source}: {', '.join(bound[:3])}{more}: a guide binding (simulate --guides-output binding) "
+                     "is not deformed by the renderer: these curves are drawn as authored, at rest; simulate with "
+                     "--guides-output curves to render them following their guides")
+    return notes
 
 
 def stage_source(stage) -> str:

@@ -8,7 +8,7 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..core.model import Model
+from ..core.model import Model, check_strand_arrays
 from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, carries_corrections, make_solver
 from ..solvers.base import check_gravity, check_step
@@ -56,8 +56,10 @@ def simulate_strands(
 
     Raises:
         ValueError naming the argument: ``dt`` not a finite number > 0, ``gravity`` not 3 finite
-        numbers, ``steps`` not an integer >= 0, ``record_every`` not an integer >= 1, or a
-        ``damping``, ``correction``, ``precision`` or ``solver`` the options table refuses.
+        numbers, ``steps`` not an integer >= 0, ``record_every`` not an integer >= 1, a
+        ``damping``, ``correction``, ``precision`` or ``solver`` the options table refuses,
+        ``points`` and ``counts`` as :meth:`~dftl_warp.core.model.Model.from_strands` refuses them, or
+        ``velocities`` / ``roots`` of another shape or not finite.
     """
     for name, value, least in (("steps", steps, 0), ("record_every", record_every, 1)):
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least:
@@ -68,10 +70,12 @@ def simulate_strands(
     correction = check_api("correction", correction)
     precision = check_api("precision", precision)
     solver = check_api("solver", solver)
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    counts = np.asarray(counts, dtype=np.int64).reshape(-1)
+    # counts went through astype(int64) first: 5.5 vertices became 5 without a word
+    points, counts = check_strand_arrays(points, counts)
+    if velocities is not None:
+        velocities = _checked_rows("velocities", velocities, (points.shape[0], 3), "one (3,) row per point, m/s")
     if roots is not None:
-        roots = np.asarray(roots, dtype=np.float64).reshape(steps + 1, counts.shape[0], 3)
+        roots = _checked_rows("roots", roots, (steps + 1, counts.shape[0], 3), "(steps + 1, S, 3), m")
         starts = strand_offsets(counts)
         points = points.copy()
         points[starts] = roots[0]
@@ -97,3 +101,19 @@ def simulate_strands(
             if k % record_every == 0:
                 record()
     return Recording(np.stack(positions), np.stack(vels))
+
+
+def _checked_rows(name: str, values, shape: tuple, what: str) -> np.ndarray:
+    """``values`` as a float64 array of ``shape``; ValueError naming ``name`` otherwise, or naming
+    its first non-finite row."""
+    try:
+        a = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be numbers: {what}") from None
+    if a.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}: {what}; got {a.shape}")
+    bad = ~np.isfinite(a).all(axis=-1)
+    if bad.any():
+        index = ", ".join(str(int(i)) for i in np.unravel_index(int(np.argmax(bad)), bad.shape))
+        raise ValueError(f"{name}[{index}] is not finite")
+    return a

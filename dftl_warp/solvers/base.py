@@ -15,10 +15,13 @@ by ``dftl_warp/solvers/__init__.py`` (one line). :func:`make_solver` builds one 
 the options the class lists in ``options``.
 
 Arguments are checked in Python before anything launches (:func:`check_step`): a NaN, infinite,
-zero or negative ``dt``, a ``substeps`` that is not an integer >= 1 and a non-finite ``gravity``
-raise ValueError naming the argument. Every subclass's ``step`` and ``advance`` are wrapped with
-the check (:meth:`Solver.__init_subclass__`), so a new solver gets it without a line of its own;
-it costs a few float comparisons per call, nothing on the device.
+zero or negative ``dt``, a ``substeps`` that is not an integer >= 1, a ``root_alpha`` outside
+[0, 1] and a non-finite ``gravity`` raise ValueError naming the argument; a State or Control that
+is not the solver's model's (:func:`check_bound`: another model's arrays would be indexed past
+their end by the kernels) raises TypeError or ValueError naming it. Every subclass's ``step``,
+``advance`` and ``diagnostics`` are wrapped with the checks (:meth:`Solver.__init_subclass__`), so a
+new solver gets them without a line of its own; they cost a few comparisons per call, nothing on
+the device.
 """
 
 from __future__ import annotations
@@ -40,14 +43,51 @@ DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
 SOLVERS: dict[str, type] = {}
 
 
-def check_step(dt, substeps=None) -> None:
+_UNSET = object()
+
+
+def check_step(dt, substeps=_UNSET) -> None:
     """ValueError naming the argument unless ``dt`` is a finite number > 0 (seconds) and
-    ``substeps`` (when given) an integer >= 1."""
+    ``substeps`` (when given, None included) an integer >= 1."""
     if isinstance(dt, (bool, np.bool_)) or not isinstance(dt, numbers.Real) or not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number of seconds > 0, got {dt!r}")
-    if substeps is not None and (isinstance(substeps, (bool, np.bool_)) or not isinstance(substeps, numbers.Integral)
-                                 or substeps < 1):
+    if substeps is not _UNSET and (isinstance(substeps, (bool, np.bool_))
+                                   or not isinstance(substeps, numbers.Integral) or substeps < 1):
         raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
+
+
+def check_root_alpha(root_alpha) -> None:
+    """ValueError unless ``root_alpha`` is a finite number in [0, 1] (a NaN put every root, and
+    so every particle, at NaN)."""
+    ok = (not isinstance(root_alpha, (bool, np.bool_)) and isinstance(root_alpha, numbers.Real)
+          and 0.0 <= root_alpha <= 1.0)
+    if not ok:
+        raise ValueError(f"root_alpha must be a number in [0, 1] (the share of the frame's root path), "
+                         f"got {root_alpha!r}")
+
+
+def check_bound(model, state, control=_UNSET, name: str = "state") -> None:
+    """TypeError or ValueError naming ``name`` unless ``state`` is a State whose arrays are the
+    ``model``'s (length ``num_slots``, its precision, its device), and ``control`` (when given) a
+    Control made by this model (``model.control()``). A State or Control of another model was
+    stepped without a word: its arrays were read and written past their ends."""
+    from ..core.state import Control, State
+
+    if not isinstance(state, State):
+        raise TypeError(f"{name} must be a dftl_warp.State (solver.state()), got {type(state).__name__}")
+    for field in ("positions", "velocities", "corrections"):
+        a = getattr(state, field)
+        if a is not None and (a.shape[0] != model.num_slots or a.dtype != model.vec3 or a.device != model.device):
+            raise ValueError(
+                f"{name}.{field} is not this model's ({a.shape[0]} slots of {wp.types.type_repr(a.dtype)} on "
+                f"{a.device}; the model has {model.num_slots} of {wp.types.type_repr(model.vec3)} on "
+                f"{model.device}): make States with this solver's state()")
+    if control is _UNSET:
+        return
+    if not isinstance(control, Control):
+        raise TypeError(f"control must be a dftl_warp.Control (model.control()), got {type(control).__name__}")
+    if control.model is not model:
+        raise ValueError("control was made by another model: make it with this solver's model.control()")
 
 
 def check_gravity(gravity) -> np.ndarray:
@@ -86,9 +126,13 @@ def check_bool(name: str, value) -> bool:
 
 def _checked_step(step):
     @functools.wraps(step)
-    def checked(self, state_in, state_out, control, dt, *args, **kwargs):
+    def checked(self, state_in, state_out, control, dt, root_alpha=1.0, *args, **kwargs):
         check_step(dt)
-        return step(self, state_in, state_out, control, dt, *args, **kwargs)
+        check_root_alpha(root_alpha)
+        check_bound(self.model, state_in, control, "state_in")
+        if state_out is not state_in:
+            check_bound(self.model, state_out, name="state_out")
+        return step(self, state_in, state_out, control, dt, root_alpha, *args, **kwargs)
 
     checked._checked = True
     return checked
@@ -98,7 +142,18 @@ def _checked_advance(advance):
     @functools.wraps(advance)
     def checked(self, state, control, dt, substeps, *args, **kwargs):
         check_step(dt, substeps)
+        check_bound(self.model, state, control)
         return advance(self, state, control, dt, substeps, *args, **kwargs)
+
+    checked._checked = True
+    return checked
+
+
+def _checked_diagnostics(diagnostics):
+    @functools.wraps(diagnostics)
+    def checked(self, state, *args, **kwargs):
+        check_bound(self.model, state)
+        return diagnostics(self, state, *args, **kwargs)
 
     checked._checked = True
     return checked
@@ -126,9 +181,11 @@ class Solver:
     options: tuple[str, ...] = ()
 
     def __init_subclass__(cls, **kwargs):
-        """Wrap the subclass's own ``step`` and ``advance`` with :func:`check_step`."""
+        """Wrap the subclass's own ``step``, ``advance`` and ``diagnostics`` with the checks
+        (:func:`check_step`, :func:`check_root_alpha`, :func:`check_bound`)."""
         super().__init_subclass__(**kwargs)
-        for name, wrap in (("step", _checked_step), ("advance", _checked_advance)):
+        for name, wrap in (("step", _checked_step), ("advance", _checked_advance),
+                           ("diagnostics", _checked_diagnostics)):
             method = cls.__dict__.get(name)
             if method is not None and not getattr(method, "_checked", False):
                 setattr(cls, name, wrap(method))
@@ -171,6 +228,7 @@ class Solver:
         and replayed afterwards.
         """
         check_step(dt, substeps)
+        check_bound(self.model, state, control)
         m = self.model
         if m.num_strands == 0:
             return
@@ -197,6 +255,7 @@ class Solver:
 
     def diagnostics(self, state) -> dict:
         """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s)."""
+        check_bound(self.model, state)
         m = self.model
         n = m.num_strands
         if n == 0:
