@@ -267,3 +267,10 @@ def test_root_targets_are_one_finite_row_per_strand():
 def test_make_solver_without_a_model_is_a_type_error():
     with pytest.raises(TypeError, match="make_solver: model must be a dftl_warp.Model .* got NoneType"):
         dw.make_solver(None, "elastic")
+
+
+@pytest.mark.parametrize("device", ["gpu", "cuda:7"])
+def test_a_device_warp_does_not_have_is_a_value_error_naming_the_device(device):
+    """Warp's bare 'Invalid device identifier' named neither the argument nor what is there."""
+    with pytest.raises(ValueError, match=rf"device '{device}' is not available here \(.*cpu.*\)"):
+        dw.Model.from_strands(np.zeros((2, 3)), [2], device=device)

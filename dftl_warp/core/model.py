@@ -136,7 +136,11 @@ class Model:
         if interleave is not None and (isinstance(interleave, (bool, np.bool_))
                                        or not isinstance(interleave, Integral)):
             raise ValueError(f"interleave must be a whole number of state vectors, got {interleave!r}")
-        device = wp.get_device(device)
+        try:
+            device = wp.get_device(device)
+        except (ValueError, RuntimeError, KeyError, TypeError) as exc:
+            available = ", ".join(d.alias for d in wp.get_devices())
+            raise ValueError(f"device {device!r} is not available here ({available}): {exc}") from None
         layout_name = layout or default_layout(str(device))
         if layout_name not in LAYOUTS:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")
