@@ -161,3 +161,37 @@ def test_a_costly_groom_is_tested_on_a_sample_within_the_budget():
     flagged, scales, tested, total = unstable_strands([(n + 1, np.arange(10, 15), grp)], budget=20)
     assert (tested, total) == (2, 5) and flagged.size == 2 and set(flagged) <= set(range(10, 15))
     assert np.allclose(scales, (2.5 / GREENHILL) ** 3, rtol=5e-3)
+
+
+def test_one_long_strand_does_not_stop_the_test_of_the_others():
+    """A strand whose test alone costs more than the budget (500 segments: (500/32)^3 = 3815 units
+    of 2500) is left out, and the others are still tested, whatever the random order: before, the
+    sample was the prefix of the random order within the budget, so a long strand drawn first left
+    every standing column untested (and ``simulate`` silent)."""
+    n = 32
+    rest = np.stack([column(2.5 * LB, n) + [0.01 * k, 0, 0] for k in range(4)])
+    columns = elastic_rest.RodGroup(rest, np.full((4, n + 1), R), E=HAIR_E, G=TWIST_G, rho=HAIR_DENSITY,
+                                    gravity=(0.0, -G0, 0.0), inverse_statics=True)
+    long = rod_group(column(0.3, 500) * [1, -1, 1])                  # a long strand hanging straight down
+    groups = [(n + 1, np.arange(4), columns), (501, np.array([4]), long)]
+    for seed in range(8):
+        flagged, _, tested, total = unstable_strands(groups, seed=seed)
+        assert (tested, total) == (4, 5) and flagged.tolist() == [0, 1, 2, 3], (seed, flagged, tested)
+
+
+def test_simulate_names_strands_too_long_to_check(tmp_path, capsys):
+    """Strands of more than 434 segments are not checked (the cost grows as the cube of the
+    segments); ``simulate`` says so in one line naming the prim, instead of nothing."""
+    from usd_stages import add_curves, new_stage
+
+    from dftl_warp import cli
+
+    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
+    add_curves(stage, "/World/Long", column(0.3, 500) * [1, -1, 1], [501], widths=2 * R, bending=None)
+    add_curves(stage, "/World/Short", column(2.5 * LB) + [0.01, 0, 0], [N + 1], widths=2 * R, bending=None)
+    stage.Save()
+    assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "out.usdc")]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "not checked for a stable rest shape" in line]
+    assert len(lines) == 1 and "/World/Long: 1 strand(s) of more than 434 segments (up to 500)" in lines[0], err
+    assert "/World/Short: 1 of the 1 strands checked rest in an unstable equilibrium" in err, err

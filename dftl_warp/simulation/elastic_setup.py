@@ -173,15 +173,36 @@ def note_unstable(scene, group) -> None:
     if not group.solver.inverse_statics:
         return
     note_unheld(scene, group)
+    untested = note_untested(scene, group)
     flagged, scales, tested, total = group.solver.unstable_strands()
     if flagged.size == 0:
         return
     of = (f"of the {tested} strands" if tested == total else
+          f"of the {tested} strands checked" if tested + untested == total else
           f"of a random sample of {tested} of the {total} strands")
     them = "of them" if scales.size == flagged.size else f"of a random sample of {scales.size} of them"
     _note(scene, f"{_prims(group, flagged)}: {flagged.size} {of} rest in an unstable equilibrium for hair this "
                  "stiff (standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
                  f"fall at the first disturbance; {_holding(scales, them)}")
+
+
+def note_untested(scene, group) -> int:
+    """A note naming the strands too long for the stability test's budget
+    (:meth:`~dftl_warp.solvers.elastic.ElasticSolver.unchecked_strands`): nothing is said about whether they
+    can stand, and a long curl held by inverse statics can be unstable (curls of 80 um hair, 4 mm
+    radius, 3 mm pitch: the check, run without a budget, flags those of 450 points and more; one of
+    1500 points hanging from a still root flails at 16-58 m/s from its third frame). Returns how
+    many strands it names."""
+    from ..solvers.elastic_stability import longest_tested
+
+    long, most = group.solver.unchecked_strands()
+    if long.size:
+        _note(scene, f"{_prims(group, long)}: {long.size} strand(s) of more than {longest_tested()} segments (up to "
+                     f"{most}) were "
+                     "not checked for a stable rest shape (the check's cost grows as the cube of the segments): "
+                     "a long curl or a standing strand held by inverse statics may fall at the first disturbance "
+                     "unannounced; resample them to fewer points to have them checked")
+    return int(long.size)
 
 
 def _prims(group, strands) -> str:

@@ -334,6 +334,13 @@ class ElasticSolver(Solver):
 
         return unstable_strands(self._groups, **options)
 
+    def unchecked_strands(self) -> tuple[np.ndarray, int]:
+        """(input indices of the strands :meth:`unstable_strands` never checks, too long for its
+        budget: :func:`~dftl_warp.solvers.elastic_stability.too_long`; the most segments of a strand)."""
+        from .elastic_stability import too_long
+
+        return too_long(self._groups), max((grp.N for _, _, grp in self._groups), default=0)
+
     def adopt_rest_shape(self, state, strands=None) -> np.ndarray:
         """Make the positions of ``state`` the rest shape (with its inverse statics, clamp and rest
         tensions) of ``strands``: input strand indices, or by default every strand whose positions

@@ -196,12 +196,42 @@ def _bending_estimate(Hb, Hg) -> np.ndarray:
     return np.maximum(np.linalg.eigvalsh(Li @ (-Hg) @ Li.transpose(0, 2, 1))[:, -1], 0.0)
 
 
+def _within(cost, budget) -> np.ndarray:
+    """Which of the tests of ``cost`` (in the random order) fit the ``budget`` when taken in turn,
+    each one that fits in what is left (a strand costlier than the budget alone is skipped, not the
+    end of the sample: a prefix of the order stopped at the first long strand, which left every
+    strand after it untested)."""
+    keep = np.zeros(cost.size, dtype=bool)
+    left = float(budget)
+    for i, c in enumerate(cost):
+        if c <= left:
+            keep[i] = True
+            left -= c
+    return keep
+
+
+def longest_tested(budget: int = 2500) -> int:
+    """The most segments a strand tested within ``budget`` can have (434 at the default)."""
+    n = int(32.0 * budget ** (1.0 / 3.0)) + 1
+    while n ** 3 > budget * 32.0 ** 3:
+        n -= 1
+    return n
+
+
+def too_long(groups, budget: int = 2500) -> np.ndarray:
+    """Input indices of the strands that :func:`unstable_strands` never tests within ``budget``:
+    each alone costs more ((segments / 32)^3 units: more than :func:`longest_tested` segments)."""
+    long = [idx for _, idx, grp in groups if grp.N > longest_tested(budget)]
+    return np.sort(np.concatenate(long + [np.zeros(0, np.int64)]))
+
+
 def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed: int = 0):
     """Strands whose rest shape is an unstable equilibrium, from the solver's rest groups ((count,
     input strand indices, RodGroup) triples): every strand of two or more segments (through its
     frames a strand can fall without a compressed segment) when that costs no more than ``budget``
     strands of 32 segments (the test's cost grows as the cube of the segments: about 1.5 ms for 32
-    on the 2-core VM), else a random sample within that budget. Returns (unstable input
+    on the 2-core VM), else a random sample within that budget (strands costlier than the budget
+    alone are never tested: :func:`too_long`). Returns (unstable input
     strand indices among those tested, the :func:`holding_scales` of up to ``scale_sample`` of them
     drawn at random (each a search over rebuilt strands: about 20 ms a strand), strands tested,
     strands that could be). Strands whose authored shape needs a moment at a vertex of zero
@@ -212,7 +242,7 @@ def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed
     rng = np.random.default_rng(seed)
     order = rng.permutation(total) if total else np.zeros(0, np.int64)
     cost = np.array([groups[candidates[i][0]][2].N for i in order], float) ** 3 / 32.0 ** 3
-    take = order[np.cumsum(cost) <= budget] if cost.sum() > budget else order
+    take = order[_within(cost, budget)] if cost.sum() > budget else order
     picked = {}
     for i in take:
         k, row = candidates[i]
