@@ -289,6 +289,7 @@ class Simulation:
                     # computed once (this frame's are the last frame's end targets, the same array,
                     # so the Control reuses their device-order copy too)
                     path = root_paths.frame_path(self, "roots", k, g, self.frame, nxt)
+                    root_paths.warn_fast_turns(self, g, self.frame, nxt)
                     start, end = path["start"], path["end"]
                     self._end_roots[k] = (nxt, end)
                     g.control.set_root_targets(**path)
