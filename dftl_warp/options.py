@@ -302,8 +302,8 @@ _USD = [
     Option("hairHairRepulsion", float, None, "acceleration per unit difference of the hair's density relative "
            "to its rest density, across a cell (default 5 m/s^2: a groom's edge at rest is pushed out at about g/2)",
            unit="stage units/s^2", low=0.0, usd="dftl:hairHairRepulsion", scope="scene"),
-    Option("hairHairThreshold", float, 0.0, "relative density below which the hair exerts no repulsion (0: all "
-           "of it; the densest node at rest, which info prints: a groom at rest is not pushed)",
+    Option("hairHairThreshold", float, None, "relative density below which the hair exerts no repulsion "
+           "(default the densest node at rest, which info prints: a groom at rest is not pushed; 0: all of it)",
            low=0.0, usd="dftl:hairHairThreshold", scope="scene"),
     Option("hairHairSplatInterval", int, 1,
            "substeps between rebuilds of the hair-hair grid (1: every substep; the substeps per frame or "

@@ -64,6 +64,9 @@ def test_feature_defaults_agree_with_the_features():
     # the table's None: the feature's SI default, in stage units (here metres)
     assert OPTIONS["hairHairRepulsion"].default is None
     assert hh.repulsion == DEFAULT_REPULSION
+    # None in both: the densest node of the hair at rest, found when the grid is set up
+    assert hh.threshold is None and OPTIONS["hairHairThreshold"].default is None
+    assert hh.splat_interval == OPTIONS["hairHairSplatInterval"].default
 
 
 def test_pbd_iterations_default_is_the_table_default():
