@@ -195,3 +195,45 @@ def test_simulate_names_strands_too_long_to_check(tmp_path, capsys):
     lines = [line for line in err.splitlines() if "not checked for a stable rest shape" in line]
     assert len(lines) == 1 and "/World/Long: 1 strand(s) of more than 434 segments (up to 500)" in lines[0], err
     assert "/World/Short: 1 of the 1 strands checked rest in an unstable equilibrium" in err, err
+
+
+def _mohawk_scaled(tmp_path, scale, interpolation):
+    """Two standing columns of 2.5 l_b and one hanging, with ``primvars:dftl:bendStiffnessScale``."""
+    from pxr import Sdf, UsdGeom
+    from usd_stages import add_curves, new_stage
+
+    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
+    tall = column(2.5 * LB)
+    curves = add_curves(stage, "/World/Mohawk", np.concatenate([tall, tall + [0.01, 0, 0], tall * [1, -1, 1] + [0.02, 0, 0]]),
+                        [N + 1] * 3, widths=2 * R, bending=None)
+    pv = UsdGeom.PrimvarsAPI(curves.GetPrim()).CreatePrimvar("dftl:bendStiffnessScale", Sdf.ValueTypeNames.FloatArray,
+                                                             interpolation)
+    pv.Set([float(s) for s in np.atleast_1d(scale)])
+    stage.Save()
+    return tmp_path / "in.usda"
+
+
+def test_simulate_gives_the_scale_to_author_where_one_is_authored(tmp_path, capsys):
+    """The advice is the primvar's value that holds them, not a factor on the authored one: with 1.5
+    authored, 1.99 holds the 2.5 l_b columns, as without it (before: '1.33 holds half of them, 1.33
+    all', below the 1.5 already authored; Ratboy with 10 authored was told 4.38 holds all)."""
+    from dftl_warp import cli
+
+    path = _mohawk_scaled(tmp_path, 1.5, "constant")
+    assert cli.main(["simulate", str(path), "-o", str(tmp_path / "out.usdc")]) == 0
+    err = capsys.readouterr().err
+    assert ("/World/Mohawk: 2 of the 3 strands rest in an unstable equilibrium" in err
+            and "primvars:dftl:bendStiffnessScale of 1.99 holds half of them, 1.99 all" in err), err
+
+
+def test_simulate_gives_a_factor_on_an_authored_ramp(tmp_path, capsys):
+    """A ramp varying along the strand has no one value that holds it: the line gives the factor on
+    the authored primvar, and says so."""
+    from dftl_warp import cli
+
+    ramp = np.tile(np.linspace(1.0, 0.5, N + 1), 3)
+    path = _mohawk_scaled(tmp_path, ramp, "vertex")
+    assert cli.main(["simulate", str(path), "-o", str(tmp_path / "out.usdc")]) == 0
+    err = capsys.readouterr().err
+    line = next(x for x in err.splitlines() if "unstable equilibrium" in x)
+    assert "a factor on the authored primvars:dftl:bendStiffnessScale of " in line and "holds half of them" in line, err

@@ -183,7 +183,7 @@ def note_unstable(scene, group) -> None:
     them = "of them" if scales.size == flagged.size else f"of a random sample of {scales.size} of them"
     _note(scene, f"{_prims(group, flagged)}: {flagged.size} {of} rest in an unstable equilibrium for hair this "
                  "stiff (standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
-                 f"fall at the first disturbance; {_holding(scales, them)}")
+                 f"fall at the first disturbance; {_holding(scales, them, group.solver.stiffness_scale)}")
 
 
 def note_untested(scene, group) -> int:
@@ -212,16 +212,22 @@ def _prims(group, strands) -> str:
     return ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
 
 
-def _holding(scales, them: str) -> str:
-    """What stiffness holds the unstable strands of the sample ``scales`` (inf: a strand standing
-    on a vertex of scale 0, which no factor stiffens)."""
+def _holding(scales, them: str, authored=None) -> str:
+    """What stiffness holds the unstable strands of the sample ``scales`` (factors on the authored
+    stiffness; inf: a strand standing on a vertex of scale 0, which no factor stiffens). ``authored``:
+    the group's ``primvars:dftl:bendStiffnessScale`` per point; one value everywhere, the line gives
+    the value to author (the factor times it), else the factor on the authored ramp, and says so."""
+    authored = np.ones(1) if authored is None else np.asarray(authored, float)
+    one = authored.size == 0 or bool(np.all(authored == authored.flat[0]))
+    base = float(authored.flat[0]) if one and authored.size else 1.0
+    scale = "primvars:dftl:bendStiffnessScale"
+    what = f"{scale} of" if one else f"a factor on the authored {scale} of"
     hinged = int(np.isinf(scales).sum())
     if not hinged:
-        return (f"primvars:dftl:bendStiffnessScale of {np.median(scales):.3g} holds half {them}, "
-                f"{scales.max():.3g} all")
-    text = f"no primvars:dftl:bendStiffnessScale holds {hinged} {them}: they stand on a vertex of scale 0"
+        return f"{what} {np.median(scales) * base:.3g} holds half {them}, {scales.max() * base:.3g} all"
+    text = f"no {scale} holds {hinged} {them}: they stand on a vertex of scale 0"
     if hinged < scales.size:
-        held = scales[np.isfinite(scales)]
+        held = scales[np.isfinite(scales)] * base
         text += f"; {np.median(held):.3g} holds half the others, {held.max():.3g} all"
     return text
 
