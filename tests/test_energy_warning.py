@@ -78,4 +78,4 @@ def test_scenes_with_energy_sources_say_the_check_is_off_instead_of_calling_it_u
     assert not grown_lines(err), err
     notes = [line for line in err.splitlines() if "no energy check" in line]
     assert len(notes) == 1 and "/World/Hair" in notes[0], err
-    assert ("repulsion" if feature == "dftl:hairHair" else "wind") in notes[0]
+    assert ("hair-hair's repulsion adds" if feature == "dftl:hairHair" else "the wind adds") in notes[0], notes

@@ -125,7 +125,8 @@ class Group:
             # the monitor's account holds kinetic and gravitational energy only: a strand that
             # gains energy from these is not unstable, and it would say so (every hair-hair run did)
             note(scene, f"{scene.source}: {', '.join(c.path for c in curves)}: no energy check "
-                        f"({' and '.join(sources)} add energy the check cannot tell from an unstable setting)")
+                        f"({' and '.join(sources)} {'add' if len(sources) > 1 else 'adds'} energy the check "
+                        "cannot tell from an unstable setting)")
         elif options.monitor:
             from .monitor import EnergyMonitor
 
