@@ -90,6 +90,15 @@ def test_simulate_says_which_strands_can_fall(tmp_path, capsys):
     # both columns are 2.5 l_b: (2.5 / 1.9863)^3 = 1.994 holds them
     assert ("/World/Mohawk: 2 of the 3 strands rest in an unstable equilibrium" in err
             and "primvars:dftl:bendStiffnessScale of 1.99 holds half of them, 1.99 all" in err), err
+    # one unstable strand: the scale that holds it (it said 'holds half of them, ... all')
+    stage = new_stage(tmp_path / "one.usda", start=1, end=2)
+    add_curves(stage, "/World/Mohawk", np.concatenate([tall, tall * [1, -1, 1] + [0.02, 0, 0]]), [N + 1] * 2,
+               widths=2 * R, bending=None)
+    stage.Save()
+    assert cli.main(["simulate", str(tmp_path / "one.usda"), "-o", str(tmp_path / "one.usdc")]) == 0
+    err = capsys.readouterr().err
+    assert ("1 of the 2 strands rest in an unstable equilibrium" in err
+            and "primvars:dftl:bendStiffnessScale of 1.99 holds it" in err and "half" not in err), err
 
 
 def test_the_frames_blocks_are_the_energys_second_derivatives():

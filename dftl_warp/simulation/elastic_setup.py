@@ -224,6 +224,8 @@ def _holding(scales, them: str, authored=None) -> str:
     what = f"{scale} of" if one else f"a factor on the authored {scale} of"
     hinged = int(np.isinf(scales).sum())
     if not hinged:
+        if scales.size == 1:   # one strand: no half of them
+            return f"{what} {scales.max() * base:.3g} holds it"
         return f"{what} {np.median(scales) * base:.3g} holds half {them}, {scales.max() * base:.3g} all"
     text = f"no {scale} holds {hinged} {them}: they stand on a vertex of scale 0"
     if hinged < scales.size:
