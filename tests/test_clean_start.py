@@ -137,6 +137,7 @@ def test_simulate_cli_moves_hair_out_of_a_sphere_and_prerolls(tmp_path, capsys):
     inside = int(line.split("clean start: ")[1].split(" of ")[0])
     deep = float(line.split("up to ")[1].split(" m deep")[0])
     assert inside > 10 and 0.01 < deep < 0.1, line
+    assert " of 33 free particles (roots excluded) started inside" in line, line   # info counts the 36 with roots
     assert "preroll: " in err and ", settled" in err, err
     # each line once, before the run (they were repeated after it as "warning:")
     assert sum("clean start: " in w for w in err.splitlines()) == 1, err

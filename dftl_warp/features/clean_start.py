@@ -48,9 +48,10 @@ class StartReport:
 
     def line(self, units: str = "m") -> str:
         if self.inside == 0:
-            return f"clean start: no particle starts inside a collider ({self.particles} checked)"
+            return f"clean start: no particle starts inside a collider ({self.particles} checked, roots excluded)"
         radii = f" ({self.max_depth_radii:.3g} hair radii)" if self.max_depth_radii > 0 else ""
-        return (f"clean start: {self.inside} of {self.particles} particles started inside a collider, up to "
+        return (f"clean start: {self.inside} of {self.particles} free particles (roots excluded) started inside a "
+                f"collider, up to "
                 f"{self.max_depth:.3g} {units} deep{radii}; moved out along the shortest path")
 
 
