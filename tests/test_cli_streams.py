@@ -73,3 +73,46 @@ def test_simulate_quiet_keeps_every_warning(tmp_path, capsys):
                      "--substeps", "40", "--device", "cpu", "--quiet"]) == 0
     err = capsys.readouterr().err.splitlines()
     assert sum(line.startswith("dftl-warp: warning: ") and "energy grew" in line for line in err) == 1, err
+
+
+def _closing(fd):
+    import os
+
+    return lambda: os.close(fd)
+
+
+def test_closed_stdout_or_stderr_is_no_traceback(tmp_path):
+    """`dftl-warp devices >&-` ended in AttributeError: 'NoneType' object has no attribute 'flush'
+    (exit 1); with stderr closed (`2>&-`) Python's print(file=None) sent every message to stdout,
+    mixed with the results. A closed stdout is a reader gone (141, as `| head` gives); a closed
+    stderr loses the messages, not the results."""
+    src = tmp_path / "in.usda"
+    stage = new_stage(src, start=1, end=3)
+    add_curves(stage, "/World/Hair", chain(8, 0.01, direction=(0.0, -1.0, 0.0)), [8])
+    stage.Save()
+    argv = [sys.executable, "-m", "dftl_warp"]
+    r = subprocess.run([*argv, "devices"], stderr=subprocess.PIPE, text=True, preexec_fn=_closing(1), timeout=60)
+    assert r.returncode == 141 and "Traceback" not in r.stderr, r.stderr
+    out = tmp_path / "o.usda"
+    r = subprocess.run([*argv, "simulate", str(src), "-o", str(out), "--device", "cpu", "--end", "2"],
+                       stdout=subprocess.PIPE, text=True, preexec_fn=_closing(2), timeout=60)
+    assert r.returncode == 0 and out.exists()
+    assert r.stdout.splitlines() == [r.stdout.strip()] and r.stdout.startswith(str(out)), r.stdout
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_no_progress_bar_on_a_dumb_terminal(monkeypatch):
+    """TERM=dumb (Emacs shells, some CI consoles) cannot move the cursor: a bar's carriage returns
+    and escape codes came out as one long garbled line. Such a terminal gets the plain lines."""
+    from dftl_warp.output.progress import LineProgress, progress_bar
+
+    monkeypatch.setenv("TERM", "dumb")
+    assert isinstance(progress_bar(4, desc="simulating", file=_Terminal()), LineProgress)
+    monkeypatch.setenv("TERM", "xterm-256color")
+    bar = progress_bar(4, desc="simulating", file=_Terminal())
+    assert not isinstance(bar, LineProgress)
+    bar.close()

@@ -82,13 +82,14 @@ class LineProgress:
 
 
 def progress_bar(total: int, desc: str = "", unit: str = "frame", file=None):
-    """A tqdm bar on ``file`` (default stderr) when it is a terminal, else a :class:`LineProgress`."""
+    """A tqdm bar on ``file`` (default stderr) when it is a terminal (not ``TERM=dumb``), else a
+    :class:`LineProgress`."""
     file = file if file is not None else sys.stderr
     try:
         tty = file.isatty()
     except (AttributeError, ValueError):
         tty = False
-    if tty:
+    if tty and os.environ.get("TERM") != "dumb":   # a dumb terminal cannot redraw a bar: lines
         from tqdm import tqdm
 
         return tqdm(total=total, unit=unit, desc=desc, leave=True, dynamic_ncols=True, file=file)
