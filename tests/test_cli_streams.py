@@ -116,3 +116,17 @@ def test_no_progress_bar_on_a_dumb_terminal(monkeypatch):
     bar = progress_bar(4, desc="simulating", file=_Terminal())
     assert not isinstance(bar, LineProgress)
     bar.close()
+
+
+def test_import_quiet_keeps_its_warnings(tmp_path, capsys):
+    """import -q dropped its warnings with the summary line (two strands with coincident points
+    imported without a word); -q now leaves out the summary line only."""
+    import test_importers as ti
+    from test_import_input import COINCIDE, dup_file
+
+    src, _ = dup_file(tmp_path)
+    code, out, err = ti.run_cli(["import", str(src), "-o", str(tmp_path / "c.usda"), "-q"], capsys)
+    assert code == 0 and out == ""
+    lines = err.splitlines()
+    assert lines and all(line.startswith("dftl-warp: warning: ") for line in lines), err
+    assert sum(bool(COINCIDE.search(line)) for line in lines) == 1, err
