@@ -9,7 +9,8 @@ Signals: SIGINT, SIGTERM and SIGHUP (what farm schedulers send) unwind the comma
 exception, so every temporary file is removed (an output being written, a PNG being saved);
 the program prints one line and exits with 128 + the signal number (130, 143, 129). A batch's
 checkpoints survive (they are what a resumed batch continues from). A closed stdout (``info
---json | head``) ends the program quietly with status 141 (128 + SIGPIPE).
+--json | head``, or ``>&-``) ends the program quietly with status 141 (128 + SIGPIPE); a closed
+stderr (``2>&-``) loses the messages, never mixing them into stdout.
 """
 
 from __future__ import annotations
@@ -133,10 +134,35 @@ def _stdout_closed() -> int:
     return 128 + 13  # 128 + SIGPIPE, what a shell reports for a command killed by a closed pipe
 
 
+class _ClosedStdout:
+    """sys.stdout when the program was started with stdout closed (``>&-``; Python makes it None):
+    a write is a reader gone (:func:`_stdout_closed`), not an AttributeError traceback."""
+
+    def write(self, text):
+        raise BrokenPipeError(32, "stdout is closed")
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return False
+
+
+def _closed_streams() -> None:
+    """Started with stdout or stderr closed (``>&-``, ``2>&-``): Python sets them to None, and
+    print(file=None) writes to stdout, so the messages would go out with the results. A closed
+    stderr becomes os.devnull; a closed stdout raises BrokenPipeError on the first result (141)."""
+    if sys.stderr is None:
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 (the program's stderr to its end)
+    if sys.stdout is None:
+        sys.stdout = _ClosedStdout()
+
+
 def main(argv=None) -> int:
     """Entry point of the ``dftl-warp`` console script; returns the exit status."""
     from .core.devices import init_warp
 
+    _closed_streams()
     previous = install_signal_handlers()
     try:
         try:

@@ -133,7 +133,7 @@ def test_simulate_cli_moves_hair_out_of_a_sphere_and_prerolls(tmp_path, capsys):
     assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(out), "--substeps", "10",
                      "--preroll", "0.5"]) == 0
     err = capsys.readouterr().err
-    line = next(w for w in err.splitlines() if w.startswith("clean start:"))
+    line = next(w for w in err.splitlines() if w.startswith("dftl-warp: warning: clean start:"))
     inside = int(line.split("clean start: ")[1].split(" of ")[0])
     deep = float(line.split("up to ")[1].split(" m deep")[0])
     assert inside > 10 and 0.01 < deep < 0.1, line

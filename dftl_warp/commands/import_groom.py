@@ -37,7 +37,7 @@ def add_parser(sub):
     p.add_argument("--segments", type=int, metavar="N", help="resample every strand to N segments by arc length")
     p.add_argument("--drop-nonfinite", action="store_true",
                    help="drop strands with NaN/inf points (with a warning) instead of failing")
-    p.add_argument("-q", "--quiet", action="store_true", help="no summary line or warnings")
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary line (warnings and errors are still printed)")
     p.set_defaults(run=run)
 
 
@@ -54,12 +54,12 @@ def run(args) -> int:
             head=args.head, head_friction=args.head_friction, max_strands=args.max_strands, every=args.every,
             segments=args.segments, drop_nonfinite=args.drop_nonfinite,
         )
+    for w in caught:   # -q leaves out the summary line, never a warning
+        if issubclass(w.category, GroomImportWarning):
+            print(f"dftl-warp: warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not args.quiet:
-        for w in caught:
-            if issubclass(w.category, GroomImportWarning):
-                print(f"dftl-warp: warning: {w.message}", file=sys.stderr)
-            else:
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         head = ", head collider /Groom/Head" if result.head else ""
         print(f"{result.output}: {result.strands} strands, {result.points} points from {args.input} "
               f"({result.format}); {result.meters_per_unit:g} m per unit, up axis {result.up_axis}; "

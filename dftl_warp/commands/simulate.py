@@ -34,7 +34,7 @@ def add_parser(sub):
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
     _add_output_flags(p)
     add_arguments(p, ("guides", "guide_method", "guides_output"))   # issue 22: docs/guides.md
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or warnings")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or notes (warnings and errors are still printed)")
     p.set_defaults(run=run)
 
 
@@ -86,11 +86,9 @@ def run(args) -> int:
     except QCError as exc:  # a --check gate broken: one line, exit status 3, no output left
         print(f"dftl-warp: error: {exc}", file=sys.stderr)
         return 3
-    if not args.quiet:   # the clean start's lines were printed before the run, with the device line
-        for w in summary.warnings:
-            if w not in summary.start_notes:
-                print(f"dftl-warp: warning: {w}", file=sys.stderr)
     s = summary
+    for line in _warnings(s, notes, args.quiet):
+        print(line, file=sys.stderr)
     for line in s.tolerance:   # --tolerance: what it chose
         print(f"dftl-warp: {line}", file=sys.stderr)
     total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
@@ -101,6 +99,20 @@ def run(args) -> int:
         f"writing {s.seconds_writing:.2f} s, total {total:.2f} s"
     )
     return 0
+
+
+def _warnings(s, notes: list, quiet: bool) -> list:
+    """The warnings printed after the run. Without -q the notes, the clean start's lines and the
+    warnings raised while stepping were printed already (before the run and as they happened);
+    -q holds back progress and notes, never a warning: they all come here."""
+    from ..output.progress import is_plain_note, stderr_line
+
+    lines = [stderr_line(w, warning=True) for w in s.warnings if w not in s.start_notes]
+    if not quiet:
+        return lines
+    held = [n for n in notes if n.startswith("dftl-warp: warning: ")]
+    held += [stderr_line(w, warning=True) for w in s.start_notes if not is_plain_note(w)]
+    return held + lines + [stderr_line(w, warning=True) for w in s.run_warnings]
 
 
 def _check_flags(args) -> list:

@@ -1,4 +1,4 @@
-"""Progress on stderr: a tqdm bar on a terminal, plain lines in a log.
+"""Progress and messages on stderr: a tqdm bar on a terminal, plain lines in a log.
 
 A bar redraws itself with carriage returns, which fill a farm's log file with one long line.
 When the stream is not a terminal, :class:`LineProgress` prints one line per 10 % of the work
@@ -8,8 +8,32 @@ on a terminal) share it.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
+
+#: what every line the program writes on stderr starts with (warnings: ``dftl-warp: warning: ``)
+PREFIX = "dftl-warp: "
+
+
+def stderr_line(text: str, warning: bool = False) -> str:
+    """``text`` as a line of stderr: ``dftl-warp: TEXT`` (``dftl-warp: warning: TEXT`` for a
+    warning), unless it already starts with ``dftl-warp: ``."""
+    if text.startswith(PREFIX):
+        return text
+    return f"{PREFIX}{'warning: ' if warning else ''}{text}"
+
+
+def is_plain_note(text: str) -> bool:
+    """Whether a line of the clean start (``Summary.start_notes``) only reports what was asked for
+    (a preroll that settled), not something moved, approximated or skipped: a note, not a warning
+    (the rule batch applies, :func:`dftl_warp.batch.checkpoint._plain_note`)."""
+    return text == "preroll: none" or (text.startswith("preroll: ") and ", settled:" in text)
+
+
+def start_line(text: str) -> str:
+    """A clean-start line as printed: ``dftl-warp: preroll: ...`` or ``dftl-warp: warning: ...``."""
+    return stderr_line(text, warning=not is_plain_note(text))
 
 
 class LineProgress:
@@ -58,13 +82,14 @@ class LineProgress:
 
 
 def progress_bar(total: int, desc: str = "", unit: str = "frame", file=None):
-    """A tqdm bar on ``file`` (default stderr) when it is a terminal, else a :class:`LineProgress`."""
+    """A tqdm bar on ``file`` (default stderr) when it is a terminal (not ``TERM=dumb``), else a
+    :class:`LineProgress`."""
     file = file if file is not None else sys.stderr
     try:
         tty = file.isatty()
     except (AttributeError, ValueError):
         tty = False
-    if tty:
+    if tty and os.environ.get("TERM") != "dumb":   # a dumb terminal cannot redraw a bar: lines
         from tqdm import tqdm
 
         return tqdm(total=total, unit=unit, desc=desc, leave=True, dynamic_ncols=True, file=file)

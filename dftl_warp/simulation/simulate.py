@@ -469,7 +469,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     """
     from ..usd.read import read_scene
     from ..output.paths import check_output, output_place
-    from ..output.progress import progress_bar
+    from ..output.progress import progress_bar, start_line, stderr_line
     from ..output import check_output_path, writer_for
     from ..core.devices import device_line, init_warp, resolve_device
 
@@ -531,8 +531,9 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         "clips": "none" if out_opts["clips"] is None else out_opts["clips"]})
     qc = FrameQC(sim)
     t_load = time.perf_counter() - t0
-    if progress:
-        for line in (*notes, *sim.start_notes, *(sim.guides.notes() if sim.guides else ()), *(sim.tolerance.notes if sim.tolerance else ()),
+    if progress:   # every line "dftl-warp: ...", the clean start's warnings "dftl-warp: warning: ..."
+        infos = (*(sim.guides.notes() if sim.guides else ()), *(sim.tolerance.notes if sim.tolerance else ()))
+        for line in (*notes, *map(start_line, sim.start_notes), *map(stderr_line, infos),
                      device_line(sim.options.device)):
             print(line, file=sys.stderr)
 
