@@ -318,6 +318,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
 
     from ..options import OUTPUT_OPTIONS
     from ..output import provenance
+    from ..output.progress import is_plain_note
     from ..output.qc import FrameQC, parse_gates
 
     def note(text):
@@ -361,7 +362,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     for text in scene.warnings[shown:]:   # found while setting up (e.g. an elastic style that cannot stand)
         warn(text)
     for text in sim.start_notes:   # the clean start: a settled preroll is a note, the rest warnings
-        (note if _plain_note(text) else warn)(text)
+        (note if is_plain_note(text) else warn)(text)
     sim.on_warning = warn   # energy growth, as it happens
     signature = state_signature(sim)
 
@@ -428,12 +429,6 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         raise
     remove_job_files(files)
     result.status = "done"
-
-
-def _plain_note(text: str) -> bool:
-    """Whether a clean-start line only reports what was asked for (a preroll that settled), not
-    something moved, approximated or skipped (:meth:`~dftl_warp.simulation.simulate.Simulation._clean_start`)."""
-    return text == "preroll: none" or (text.startswith("preroll: ") and ", settled:" in text)
 
 
 def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:

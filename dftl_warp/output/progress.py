@@ -27,7 +27,7 @@ def stderr_line(text: str, warning: bool = False) -> str:
 def is_plain_note(text: str) -> bool:
     """Whether a line of the clean start (``Summary.start_notes``) only reports what was asked for
     (a preroll that settled), not something moved, approximated or skipped: a note, not a warning
-    (the rule batch applies, :func:`dftl_warp.batch.checkpoint._plain_note`)."""
+    (simulate's and batch's rule)."""
     return text == "preroll: none" or (text.startswith("preroll: ") and ", settled:" in text)
 
 
