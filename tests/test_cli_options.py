@@ -102,7 +102,8 @@ def test_study_warns_front_flags_and_reports_elapsed_time(tmp_path, capsys, monk
     out = capsys.readouterr()
     assert code == 0
     assert out.err.count("--strands does nothing without --front") == 1
-    line = [x for x in out.out.splitlines() if x.startswith("study: ")][-1]
+    assert "study: " not in out.out   # progress goes to stderr, prefixed as every command's
+    line = [x for x in out.err.splitlines() if x.startswith("dftl-warp: study: ")][-1].removeprefix("dftl-warp: ")
     assert float(line.split()[1]) >= 1.3, line
 
 

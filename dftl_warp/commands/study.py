@@ -138,7 +138,10 @@ def run(args) -> int:
     args.started = time.perf_counter()   # the elapsed time printed at the end: the whole run, Warp's start included
     if os.path.exists(args.out) and not os.path.isdir(args.out):
         raise UserError(f"--out {args.out}: exists and is not a folder")
-    log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, flush=True))
+    from ..output.progress import stderr_line
+
+    # progress, as every command's: on stderr, prefixed (stdout is left to results)
+    log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(stderr_line(msg), file=sys.stderr, flush=True))
     if args.front_from:
         return run_front_from(args, log)
     if args.front:
