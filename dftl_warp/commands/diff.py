@@ -13,10 +13,11 @@ frames, different point or curve vertex counts: one line naming the files).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
+
+from . import strict_json
 
 
 def add_parser(sub):
@@ -197,17 +198,6 @@ def first_beyond(result: dict, tolerance: float, relative: bool = False):
     return worst
 
 
-def _strict(value):
-    """``value`` with every float that is not finite replaced by None (JSON null)."""
-    if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_strict(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def run(args) -> int:
     from ..errors import UserError
 
@@ -223,7 +213,7 @@ def run(args) -> int:
     result["first_beyond"] = None if beyond is None else {"time": beyond[0], "prim": beyond[1], "value": beyond[2]}
     result["within_tolerance"] = beyond is None
     if args.json:   # strict JSON: a distance that is not finite (NaN points) is null
-        print(json.dumps(_strict(result), indent=1, allow_nan=False))
+        print(strict_json.dumps(result, indent=1))
     else:
         print(f"{'frame':>8} {'prim':<32} {'max':>12} {'rms':>12} {'max/length':>12} {'rms/length':>12}")
         for path, rows in result["prims"].items():

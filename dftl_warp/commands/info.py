@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+from . import strict_json
 
 
 def add_parser(sub):
@@ -255,7 +255,7 @@ def run(args) -> int:
     if made is not None:
         d["provenance"] = made
     if args.json:
-        print(json.dumps(d, indent=2))
+        print(strict_json.dumps(d, indent=2))
         return 0
     frames = "none authored (give --start/--end to simulate)" if d["frames"] is None else (
         f"{d['frames'][0]:g}..{d['frames'][1]:g} at {d['time_codes_per_second']:g} per second")
