@@ -223,6 +223,14 @@ def group_rest_statistics(hh: HairHair, points, counts, widths) -> tuple[float, 
     return rest_statistics(points, volume_fractions(points, counts, widths, cell, hh.hair_width), cell, shape)
 
 
+def resolved(hh: HairHair, typical: float, peak: float) -> tuple[float, float]:
+    """(rest density, threshold) of ``hh`` for hair whose rest statistics are ``typical`` and
+    ``peak`` (:func:`rest_statistics`): ``hh``'s own where given, else the typical volume fraction
+    and the densest node, that node relative to the rest density used."""
+    rest = typical if hh.rest_density is None else hh.rest_density
+    return rest, (peak * typical / rest if hh.threshold is None else hh.threshold)
+
+
 def with_rest_density(features, points, counts, widths) -> tuple[list, float | None]:
     """``features`` with their :class:`HairHair` (if any, and without one) given the rest density of
     strands ``points`` / ``counts`` / ``widths`` (:func:`group_rest_statistics`) and, where it is
@@ -232,14 +240,9 @@ def with_rest_density(features, points, counts, widths) -> tuple[list, float | N
     if hh is None:
         return list(features), None
     typical, peak = group_rest_statistics(hh, points, counts, widths)
-    changes = {}
-    if hh.rest_density is None:
-        changes["rest_density"] = typical
-    else:
-        peak = peak * typical / hh.rest_density
-    if hh.threshold is None:
-        changes["threshold"] = peak
-    return [replace(f, **changes) if f is hh else f for f in features], peak
+    rest, threshold = resolved(hh, typical, peak)
+    return ([replace(f, rest_density=rest, threshold=threshold) if f is hh else f for f in features],
+            peak * typical / rest)
 
 
 def grid_weights(model, hh: HairHair, cell: float, shape=None) -> tuple[np.ndarray, float]:
@@ -247,20 +250,17 @@ def grid_weights(model, hh: HairHair, cell: float, shape=None) -> tuple[np.ndarr
     (:func:`volume_fractions`) over the groom's rest density (``hh.rest_density``, else
     :func:`rest_density` of this model's rest positions on the grid of node counts ``shape``), so
     the grid's density is 1 where the hair is as dense as it typically is at rest, whatever strands
-    and vertices represent it; and the threshold (``hh.threshold``, else the densest node of those
-    rest positions relative to that density: :func:`rest_peak`)."""
+    and vertices represent it; and the threshold (:func:`resolved`)."""
     lay = model.layout
     if lay.slot_of_point is None or model.rest_positions is None:
         raise ValueError("hair-hair interaction needs a model with host rest positions")
     points = model.rest_positions[lay.slot_of_point]
     fractions = volume_fractions(points, model.counts, model.widths, cell, hh.hair_width)
-    typical, threshold = hh.rest_density, hh.threshold
-    if typical is None or threshold is None:
-        rest, peak = rest_statistics(points, fractions, cell, shape)
-        typical = rest if typical is None else typical
-        threshold = peak * rest / typical if threshold is None else threshold
+    rest, threshold = hh.rest_density, hh.threshold
+    if rest is None or threshold is None:
+        rest, threshold = resolved(hh, *rest_statistics(points, fractions, cell, shape))
     out = np.zeros(lay.num_slots)
-    out[lay.slot_of_point] = fractions / typical
+    out[lay.slot_of_point] = fractions / rest
     return out, float(threshold)
 
 

@@ -278,6 +278,7 @@ class SplitSolver:
             for solver, step, s, c in parts:
                 step.sweep(s, s, c, solver.feature_head(c, dt, alpha))
 
+
 class SplitMonitor:
     """One energy monitor per part (dftl_warp.simulation.monitor); warns once, for the first part that does."""
 
