@@ -152,13 +152,13 @@ def run(args) -> int:
                 print(f"dftl-warp: warning: --{flag.replace('_', '-')} does nothing without --front (it sizes the "
                       "front's groom)", file=sys.stderr)
 
-    from ..core.devices import device_line, resolve_device
+    from ..core.devices import DeviceNotFound, device_line, lookup_device, resolve_device
 
     args.device = resolve_device(args.device)
     try:
-        device = wp.get_device(args.device)
-    except (RuntimeError, ValueError, KeyError) as exc:
-        raise UserError(f"--device {args.device}: not available ({exc})") from None
+        device = lookup_device(args.device)
+    except DeviceNotFound as exc:
+        raise UserError(f"--device {args.device}: {exc}") from None
 
     if not args.quiet:
         print(device_line(str(device)), file=sys.stderr)

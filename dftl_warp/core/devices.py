@@ -6,6 +6,8 @@
   Warp finds a CUDA device, else ``cpu`` (``DFTL_WARP_DEVICE`` overrides it, e.g. to keep a CI
   machine with a GPU on the CPU).
 - :func:`parse_devices` is the one parser of device lists (``cuda:0,cuda:1``).
+- :func:`lookup_device` is Warp's device of a name, or one :class:`DeviceNotFound` listing the
+  devices there are (each caller names the option or argument in its own words).
 """
 
 from __future__ import annotations
@@ -18,6 +20,22 @@ from ..errors import UserError
 
 #: environment variable naming the device used when a command gets no ``--device``
 DEVICE_ENV = "DFTL_WARP_DEVICE"
+
+
+class DeviceNotFound(ValueError):
+    """A device this machine lacks; the message reads ``not available here (cpu, cuda:0): why``."""
+
+
+def lookup_device(name):
+    """Warp's device ``name`` (a Device, or a name such as ``cuda:0``); :class:`DeviceNotFound`
+    for one Warp does not have here."""
+    import warp as wp
+
+    try:
+        return wp.get_device(name)
+    except (ValueError, RuntimeError, KeyError, TypeError) as exc:
+        available = ", ".join(d.alias for d in wp.get_devices())
+        raise DeviceNotFound(f"not available here ({available}): {exc}") from None
 
 
 def init_warp() -> None:
@@ -53,12 +71,12 @@ def default_device() -> str:
         for name in (d.strip() for d in chosen.split(",")):
             try:
                 if not name:
-                    raise ValueError("empty device name in the list")
-                wp.get_device(name)
-            except (ValueError, RuntimeError, KeyError) as exc:
-                available = ", ".join(d.alias for d in wp.get_devices())
-                raise UserError(f"${DEVICE_ENV}={chosen}: device {name or repr(name)} is not available here "
-                                f"({available}): {exc}; set it to one of them or unset it") from None
+                    available = ", ".join(d.alias for d in wp.get_devices())
+                    raise DeviceNotFound(f"not available here ({available}): empty device name in the list")
+                lookup_device(name)
+            except DeviceNotFound as exc:
+                raise UserError(f"${DEVICE_ENV}={chosen}: device {name or repr(name)} is {exc}; set it to one of "
+                                "them or unset it") from None
         return chosen
     return "cuda:0" if wp.get_cuda_device_count() > 0 else "cpu"
 

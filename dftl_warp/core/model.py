@@ -18,6 +18,7 @@ import numpy as np
 import warp as wp
 
 from .bounds import box
+from .devices import DeviceNotFound, lookup_device
 from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets
 from .precision import numpy_type, scalar_type, vec3_type
 from .state import feature_hook
@@ -137,10 +138,9 @@ class Model:
                                        or not isinstance(interleave, Integral)):
             raise ValueError(f"interleave must be a whole number of state vectors, got {interleave!r}")
         try:
-            device = wp.get_device(device)
-        except (ValueError, RuntimeError, KeyError, TypeError) as exc:
-            available = ", ".join(d.alias for d in wp.get_devices())
-            raise ValueError(f"device {device!r} is not available here ({available}): {exc}") from None
+            device = lookup_device(device)
+        except DeviceNotFound as exc:
+            raise ValueError(f"device {device!r} is {exc}") from None
         layout_name = layout or default_layout(str(device))
         if layout_name not in LAYOUTS:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")

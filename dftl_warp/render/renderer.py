@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from ..core.devices import DeviceNotFound, lookup_device
 from ..core.layout import strand_offsets
 from ..kernels.render import tracer as rk
 from ..options import OptionError
@@ -52,10 +53,9 @@ class Lighting:
 def parse_device(name: str) -> str:
     """A Warp device name, checked; raises OptionError (a UserError) for one this machine lacks."""
     try:
-        return str(wp.get_device(name))
-    except Exception:
-        available = ", ".join(str(d) for d in wp.get_devices())
-        raise OptionError(f"device {name!r} is not available here (available: {available})") from None
+        return str(lookup_device(name))
+    except DeviceNotFound as exc:
+        raise OptionError(f"device {name!r} is {exc}") from None
 
 
 def whole_number(name: str, value, low: int = 1, high: int | None = None) -> int:

@@ -33,7 +33,7 @@ from dataclasses import asdict, replace
 
 import numpy as np
 
-from ..core.devices import parse_devices, resolve_device
+from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve_device
 from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
@@ -97,11 +97,9 @@ class Simulation:
         devices = []
         for name in parse_devices(resolve_device(options.device)):  # a list splits the strands (multi_device)
             try:
-                devices.append(wp.get_device(name))
-            except (ValueError, RuntimeError, KeyError) as exc:
-                available = ", ".join(d.alias for d in wp.get_devices())
-                # named as the user gave it: --device (command line), device (job file, API)
-                raise UserError(f"{device_option} {name}: not available here ({available}): {exc}") from None
+                devices.append(lookup_device(name))
+            except DeviceNotFound as exc:   # named as the user gave it: --device (command line), device (job file, API)
+                raise UserError(f"{device_option} {name}: {exc}") from None
         self.device = devices[0]
         options = replace(options, device=",".join(str(d) for d in devices))
         self.options = options
