@@ -130,17 +130,13 @@ def warn_fast_turns(sim, group, frame: int, nxt: int) -> None:
     """One warning per animated prim of ``group`` that turns more than :data:`MAX_TURN_DEGREES`
     from ``frame`` to ``nxt``: its roots' path then runs slower than the prim turns (about 3x at
     150 degrees a frame, 10 turns a second at 24 fps)."""
-    warned = sim.__dict__.setdefault("_fast_turns", set())
     for i in group.members:
         c = sim.scene.curves[i]
-        if not c.animated or c.path in warned:
+        if not c.animated or c.path in sim.fast_turns:
             continue
         degrees = turn_degrees(sim._matrix(i, frame), sim._matrix(i, nxt))
         if degrees > MAX_TURN_DEGREES:
-            warned.add(c.path)
-            message = (f"{sim.scene.source}: {c.path}: turns {degrees:.0f} degrees from frame {frame} to {nxt} (more "
-                       f"than {MAX_TURN_DEGREES:.0f}): its roots, sampled once a frame, follow the turn slower than "
-                       f"it is (a third of its speed at 150 degrees a frame); author the motion at more frames a second")
-            sim.warnings.append(message)
-            if sim.on_warning is not None:
-                sim.on_warning(message)
+            sim.fast_turns.add(c.path)
+            sim.warn(f"{sim.scene.source}: {c.path}: turns {degrees:.0f} degrees from frame {frame} to {nxt} (more "
+                     f"than {MAX_TURN_DEGREES:.0f}): its roots, sampled once a frame, follow the turn slower than "
+                     f"it is (a third of its speed at 150 degrees a frame); author the motion at more frames a second")

@@ -128,6 +128,8 @@ class Simulation:
         self.on_warning = None
         #: the last frame whose energy was checked
         self._checked = None
+        #: prims already warned about turning faster than their root path follows (root_paths)
+        self.fast_turns: set[str] = set()
         #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
         #: with the device line and kept in Summary.warnings
         self.start_notes: list[str] = self._clean_start()
@@ -234,9 +236,13 @@ class Simulation:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", EnergyGrowthWarning)
                 if g.monitor.check(g.state, self.frame):
-                    self.warnings.append(g.monitor.message)
-                    if self.on_warning is not None:
-                        self.on_warning(g.monitor.message)
+                    self.warn(g.monitor.message)
+
+    def warn(self, message: str) -> None:
+        """A warning found while running: kept in :attr:`warnings` and passed to :attr:`on_warning`."""
+        self.warnings.append(message)
+        if self.on_warning is not None:
+            self.on_warning(message)
 
     def samples(self, owned: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
         """(points, velocities) of every prim of :attr:`output_scene` at the current frame, local

@@ -327,12 +327,7 @@ def setup(sim, tolerance: float) -> Tolerance:
     from .group import Group
     from .settings import resolve_frames
 
-    def warn(line: str) -> None:   # as the energy monitor's: kept in the run's warnings, shown as it happens
-        sim.warnings.append(line)
-        if sim.on_warning is not None:
-            sim.on_warning(line)
-
-    t = Tolerance(tolerance, warn, sim.scene.source)
+    t = Tolerance(tolerance, sim.warn, sim.scene.source)   # kept in the run's warnings, shown as it happens
     scene, options, frame = sim.scene, sim.options, sim.frame
     last = resolve_frames(scene, options.start, options.end)[1]
     frame_dt = 1.0 / scene.stage.time_codes_per_second
