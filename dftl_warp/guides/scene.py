@@ -27,7 +27,7 @@ from ..errors import UserError
 from ..usd.scene import CurvesPrim, Scene, transform_points
 from ..core.layout import zero_length_segment
 from .binding import bind, bind_groom, check_strands, pin_roots
-from .select import METHODS, select_guides
+from .select import METHODS, fraction_strands, select_guides
 
 #: what ``--guides-output`` writes
 OUTPUTS = ("curves", "binding")
@@ -137,7 +137,7 @@ class GuideSet:
                 chosen = select_guides(world, c.counts, count, method)
             except ValueError as exc:
                 raise UserError(f"{file}: {c.path}: --guides {guides}: {_why(exc, c)}") from None
-            if isinstance(count, float) and count * c.num_strands < 0.5:
+            if isinstance(count, float) and fraction_strands(count, c.num_strands) < 1:
                 scene.warnings.append(f"{file}: {c.path}: --guides {guides} of its {c.num_strands} strands is "
                                       f"{count * c.num_strands:.3g} strands: 1 guide simulated")
             path = c.path + GUIDES_SUFFIX if output == "binding" else c.path

@@ -21,6 +21,11 @@ from .frames import normalize
 METHODS = ("fps", "kmeans")
 
 
+def fraction_strands(fraction: float, num_strands: int) -> int:
+    """The strands a ``fraction`` of ``num_strands`` rounds to (0 for a fraction too small)."""
+    return int(round(float(fraction) * num_strands))
+
+
 def guide_count(n_or_fraction, num_strands: int) -> int:
     """Number of guides: an integer ``n`` (1..S) or a fraction in (0, 1] of the strands."""
     v = n_or_fraction
@@ -29,7 +34,7 @@ def guide_count(n_or_fraction, num_strands: int) -> int:
     if isinstance(v, (int, np.integer)):
         n = int(v)
     elif isinstance(v, (float, np.floating)) and 0.0 < float(v) <= 1.0:
-        n = max(1, int(round(float(v) * num_strands)))
+        n = max(1, fraction_strands(v, num_strands))
     else:
         raise ValueError(f"n_or_fraction must be an integer >= 1 or a fraction in (0, 1], got {v!r}")
     if not 1 <= n <= num_strands:
