@@ -68,7 +68,8 @@ class TriangleMesh(ColliderShape):
         object.__setattr__(self, "indices", idx.astype(np.int32))
         band = self.depth_band
         if band is None:
-            band = 0.01 * float(np.linalg.norm(pts.max(0) - pts.min(0)))
+            lo, hi = bounds(pts)
+            band = 0.01 * float(np.linalg.norm(hi - lo))
         object.__setattr__(self, "depth_band", nonnegative(band, f"{self._label()} depth_band"))
         if self.sdf is not None:
             if not isinstance(self.sdf, (bool, np.bool_)):
@@ -126,7 +127,7 @@ class MeshColliders:
                            indices=wp.array(s.indices.reshape(-1), dtype=wp.int32, device=device))
             self.meshes[user_index] = (c, mesh)
             ids[c] = mesh.id
-            lower[c], upper[c] = s.points.min(0), s.points.max(0)
+            lower[c], upper[c] = bounds(s.points)
             band[c] = s.depth_band
             if s.uses_sdf:
                 with_field.append((c, s, mesh))

@@ -83,7 +83,8 @@ def estimated_bytes(points: np.ndarray, indices: np.ndarray, cell: float, band: 
     area = 0.5 * float(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
     side = BRICK * cell
     bricks = area / side**2 * (2.0 * band / side + 2.0)
-    extent = points.max(0) - points.min(0) + 2.0 * band
+    lo, hi = bounds(points)
+    extent = hi - lo + 2.0 * band
     grid = np.prod(np.ceil(extent * (1.0 + GROWTH) / side) + 2)
     return int(2.0 * bricks * BYTES_PER_BRICK + 4 * grid)
 
@@ -151,7 +152,8 @@ class MeshFields:
         for c, shape, mesh in entries:
             _, cell, tolerance = field_settings(shape)
             band = field_band(shape.depth_band, max_radius, cell)
-            extent = shape.points.max(0) - shape.points.min(0) + 2.0 * band
+            lo, hi = bounds(shape.points)
+            extent = hi - lo + 2.0 * band
             bricks = np.ceil(extent * (1.0 + GROWTH) / (BRICK * cell)).astype(np.int64) + 2
             if int(np.prod(bricks)) > MAX_BRICKS:
                 raise ValueError(f"{shape._label()}: a signed distance field of {cell:.3g} m cells needs "
