@@ -129,6 +129,12 @@ def patch(pts, counts, roots, size: int):
     return pts.reshape(len(counts), n, 3)[keep].reshape(-1, 3), counts[keep], roots[keep]
 
 
+def patched_groom(num_strands, size=None):
+    """``(pts, counts, roots)`` of :func:`groom`, or of its :func:`patch` of ``size`` strands."""
+    pts, counts, roots = groom(num_strands)
+    return patch(pts, counts, roots, size) if size else (pts, counts, roots)
+
+
 def scenarios(pts, counts, roots):
     mesh_pts, mesh_tris = uv_sphere(HEAD)
     n = len(counts)

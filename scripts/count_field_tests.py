@@ -25,7 +25,7 @@ from pathlib import Path
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_features import FPS, SETTLE_FRAMES, SUBSTEPS, build_scene, groom, patch, scenarios  # noqa: E402
+from bench_features import FPS, SETTLE_FRAMES, SUBSTEPS, build_scene, patched_groom, scenarios  # noqa: E402
 
 from dftl_warp.kernels.features import mesh as mesh_kernels  # noqa: E402
 
@@ -61,9 +61,7 @@ def main(argv=None) -> int:
     wp.config.quiet = True
     wp.init()
     device = wp.get_device(args.device)
-    pts, counts, roots = groom(args.strands)
-    if args.patch:
-        pts, counts, roots = patch(pts, counts, roots, args.patch)
+    pts, counts, roots = patched_groom(args.strands, args.patch)
     rows = [r for r in scenarios(pts, counts, roots) if r[0].startswith(tuple(args.only or DEFAULT_ROWS))]
     rows = [r for r in rows if "body_frames" in r[2]]  # the deforming body's rows
     for name, feats, extra in rows:

@@ -29,7 +29,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_features import FPS, build_scene, groom, machine_line, patch, scenarios  # noqa: E402
+from bench_features import FPS, build_scene, machine_line, patched_groom, scenarios  # noqa: E402
 
 from dftl_warp import features as F  # noqa: E402
 
@@ -76,9 +76,7 @@ def main(argv=None) -> int:
     wp.config.quiet = True
     wp.init()
     device = wp.get_device(args.device)
-    pts, counts, roots = groom(args.strands)
-    if args.patch:
-        pts, counts, roots = patch(pts, counts, roots, args.patch)
+    pts, counts, roots = patched_groom(args.strands, args.patch)
     (name, feats, extra), = [r for r in scenarios(pts, counts, roots) if r[0].startswith(ROW)]
     at = sorted(set(args.frames))
     reference, _ = run(pts, counts, feats, extra, device, 80, at)

@@ -21,7 +21,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_features import FPS, SETTLE_FRAMES, SUBSTEPS, build_scene, groom, patch, scenarios  # noqa: E402
+from bench_features import FPS, SETTLE_FRAMES, SUBSTEPS, build_scene, patched_groom, scenarios  # noqa: E402
 
 from dftl_warp import features as F  # noqa: E402
 
@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repulsion", type=float, default=None, help="the grid's repulsion (default: the scene's)")
     args = ap.parse_args(argv)
     wp.config.quiet = True
-    pts, counts, roots = patch(*groom(args.strands), args.patch)
+    pts, counts, roots = patched_groom(args.strands, args.patch)
     dt = 1.0 / FPS / SUBSTEPS
     for name, feats, extra in (r for r in scenarios(pts, counts, roots) if r[0].startswith(ROWS)):
         if args.repulsion is not None:
