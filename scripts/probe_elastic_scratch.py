@@ -1,0 +1,172 @@
+#!/usr/bin/env python3
+"""Probe (not product code): can the elastic step's factor scratch stay on chip? A persistent launch
+of a few threads per SM loops over the strands, its scratch either in per-thread local matrices
+(``PROBE_MODE=local``) or in a per-thread slice of the global scratch (``PROBE_MODE=global``, the
+default). Writes a text-transformed copy of kernels/solvers/elastic.py beside it (removed at the
+end), and times it against the kernel as it is on scripts/bench_elastic.py's curly groom (float32
+arithmetic, 8 substeps), printing ms per step and each variant's distance to it after one frame.
+
+    PROBE_MODE=local python scripts/probe_elastic_scratch.py cuda:0 1000000 32,64,128
+    PROBE_MODE=global python scripts/probe_elastic_scratch.py cuda:0 1000000 64,128,256
+
+On the H200 (2026-11-27) both were 16-130x slower than the kernel as it is (7.0 ms a step), each
+thread 8x slower per strand (the local run there used blocks of 32 at 64 threads per SM, this
+script blocks of 64), and the global variant moved the hair by up to 0.36 m: what this
+measures is Warp's code for the kernel wrapped in a strand loop, not where the scratch lives.
+"""
+import gc, importlib, json, os, re, sys, time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))  # noqa: E402
+import dftl_warp as dw
+import dftl_warp.solvers.elastic as E
+from bench_elastic import curly_groom
+
+SRC = (ROOT / "kernels/solvers/elastic.py").read_text()
+MAXP = 33
+MODE = os.environ.get("PROBE_MODE", "global")
+
+
+def transform_global(threads: int) -> str:
+    """The scratch in the global arrays, but one slice per thread of a persistent launch (index k T + t)."""
+    lines = SRC.split("\n")
+    start = next(i for i, l in enumerate(lines) if l == "        s = wp.tid()")
+    end = next(i for i, l in enumerate(lines) if l == "    return elastic_step")
+    out = lines[:start] + ["        t = wp.tid()", f"        for s in range(t, strand_base.shape[0], {threads}):"]
+    for l in lines[start + 1:end]:
+        if l.strip() == "return":
+            l = l.replace("return", "continue")
+        out.append(("    " + l) if l.strip() else l)
+    out += lines[end:]
+    s = "\n".join(out)
+    slot = f"k * {threads} + t"
+    for a in ("factor_inv[kk]", "factor_up[kk]", "factor_rhs[kk]"):
+        assert s.count(a) == 2, (a, s.count(a))
+        s = s.replace(a, a.replace("kk", slot))
+    return s
+
+
+def transform(threads: int) -> str:
+    lines = SRC.split("\n")
+    start = next(i for i, l in enumerate(lines) if l == "        s = wp.tid()")
+    end = next(i for i, l in enumerate(lines) if l == "    return elastic_step")
+    out = lines[:start] + [f"        for s in range(wp.tid(), strand_base.shape[0], {threads}):"]
+    for l in lines[start + 1:end]:
+        if l.strip() == "return":
+            l = l.replace("return", "continue")
+        out.append(("    " + l) if l.strip() else l)
+    out += lines[end:]
+    s = "\n".join(out)
+    s = s.replace('    prior = correction == "prior"\n',
+                  '    prior = correction == "prior"\n'
+                  f'    ScrInv = wp.types.matrix(shape=({MAXP}, 10), dtype=real)\n'
+                  f'    ScrRow = wp.types.matrix(shape=({MAXP}, 4), dtype=real)\n', 1)
+    ind = " " * 12
+    decl = (f"{ind}loc_inv = ScrInv()\n{ind}loc_u0 = ScrRow()\n{ind}loc_u1 = ScrRow()\n{ind}loc_u2 = ScrRow()\n"
+            f"{ind}loc_rhs = ScrRow()\n")
+    marker = f"{ind}# ---- B: forces and elimination"
+    assert marker in s
+    s = s.replace(marker, decl + marker, 1)
+    rep = [
+        ("factor_inv[kk] = Di_packed", "loc_inv[k] = Di_packed"),
+        ("factor_rhs[kk] = wk", "loc_rhs[k] = wk"),
+        ("yk = factor_rhs[kk]", "yk = loc_rhs[k]"),
+        ("unpack_symmetric(factor_inv[kk])", "unpack_symmetric(loc_inv[k])"),
+    ]
+    for a, b in rep:
+        assert s.count(a) == 1, a
+        s = s.replace(a, b)
+    m = re.search(r"\n( +)factor_up\[kk\] = B1\n", s)
+    sp = m.group(1)
+    s = s.replace(m.group(0), f"\n{sp}loc_u0[k] = B1[0]\n{sp}loc_u1[k] = B1[1]\n{sp}loc_u2[k] = B1[2]\n", 1)
+    m = re.search(r"\n( +)yk = yk - wp.transpose\(factor_up\[kk\]\) \* vec3\(z1\[0\], z1\[1\], z1\[2\]\)\n", s)
+    sp = m.group(1)
+    s = s.replace(m.group(0), (f"\n{sp}r0 = loc_u0[k]\n{sp}r1 = loc_u1[k]\n{sp}r2 = loc_u2[k]\n"
+                               f"{sp}Bk = mat34(r0[0], r0[1], r0[2], r0[3], r1[0], r1[1], r1[2], r1[3], r2[0], r2[1], "
+                               f"r2[2], r2[3])\n{sp}yk = yk - wp.transpose(Bk) * vec3(z1[0], z1[1], z1[2])\n"), 1)
+    assert "factor_inv[" not in s and "factor_up[" not in s and "factor_rhs[" not in s
+    return s
+
+
+def load(threads: int):
+    name = f"elastic_probe_{threads}"
+    (ROOT / "kernels/solvers" / f"{name}.py").write_text(transform_global(threads) if MODE == "global"
+                                                          else transform(threads))
+    return importlib.import_module(f"dftl_warp.kernels.solvers.{name}")
+
+
+class Launcher:
+    def __init__(self):
+        self.probe = None
+    def __getattr__(self, a):
+        return getattr(wp, a)
+    def launch(self, kernel, dim=None, **kw):
+        if self.probe is not None and getattr(kernel, "key", "").startswith("elastic_step"):
+            dim = self.probe[0]
+            kw["block_dim"] = self.probe[1]
+        return wp.launch(kernel, dim=dim, **kw)
+
+
+def run(pts, counts, probe, frames, substeps, device):
+    lau = E.wp if isinstance(E.wp, Launcher) else Launcher()
+    E.wp = lau
+    orig = E.elastic_kernel
+    if probe is not None:
+        mod = load(probe[0])
+        E.elastic_kernel = mod.elastic_kernel
+    lau.probe = probe
+    try:
+        model = dw.Model.from_strands(pts, counts, device=device, widths=80e-6)
+        solver = dw.make_solver(model, "elastic", compute_precision="float32")
+        state, control = solver.state(), model.control()
+        dt = 1.0 / (24 * substeps)
+        solver.advance(state, control, dt, substeps)
+        wp.synchronize_device(device)
+        x1 = model.points_from_device(state.positions).copy()
+        times = []
+        for _ in range(frames):
+            wp.synchronize_device(device)
+            t = time.perf_counter()
+            solver.advance(state, control, dt, substeps)
+            wp.synchronize_device(device)
+            times.append(time.perf_counter() - t)
+        return float(np.median(times)) / substeps * 1e3, x1
+    finally:
+        E.elastic_kernel = orig
+        lau.probe = None
+        gc.collect()
+
+
+def main():
+    device = sys.argv[1]
+    strands = int(sys.argv[2])
+    per_sm = [int(v) for v in sys.argv[3].split(",")]
+    out = Path(sys.argv[4]) if len(sys.argv) > 4 else None
+    wp.init()
+    sms = wp.get_device(device).sm_count if device.startswith("cuda") else 1
+    pts, counts = curly_groom(strands)
+    rows = []
+    base_ms, base_x = run(pts, counts, None, 5, 8, device)
+    rows.append(("global scratch (as it is), all strands", base_ms, 0.0))
+    print(f"baseline: {base_ms:.3f} ms/step", flush=True)
+    for p in per_sm:
+        for block in ((32,) if p <= 32 else (64,)):
+            threads = sms * p
+            ms, x = run(pts, counts, (threads, block), 3, 8, device)
+            diff = float(np.abs(x - base_x).max())
+            rows.append((f"{MODE} scratch, {p} threads/SM ({threads}), blocks of {block}", ms, diff))
+            print(f"{rows[-1][0]}: {ms:.3f} ms/step, max |x - x_base| after 1 frame {diff:.3g} m", flush=True)
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "elastic-local.json").write_text(json.dumps({"device": device, "strands": strands, "sms": sms,
+                                                            "rows": rows}, indent=1))
+    for f in (ROOT / "kernels/solvers").glob("elastic_probe_*.py"):
+        f.unlink()
+
+
+if __name__ == "__main__":
+    main()
