@@ -18,6 +18,9 @@ Sections (``--sections``, comma separated; default both):
 - ``hairhair`` : as ``simulate`` with hair-hair interaction on (``dftl:hairHair``): the parts step
                  in lockstep and exchange the grid every substep (not bitwise: the largest
                  difference from one device is reported, stage units). Not in the default sections.
+- ``elastic``  : as ``simulate`` with widths of 80 um hair on the groom, so that it runs as elastic rods
+                 (the default solver for a prim with widths; float64 arithmetic, the default): each
+                 part has its own elastic solver, identical samples checked. Not in the default sections.
 
 Results go to ``--out``: results.json, bench_multi_gpu.md, speedup.png.
 
@@ -25,6 +28,7 @@ Results go to ``--out``: results.json, bench_multi_gpu.md, speedup.png.
     python scripts/bench_multi_gpu.py --devices cuda:0,cuda:1,cuda:2,cuda:3 --out OUT
     python scripts/bench_multi_gpu.py --devices cpu,cpu --strands 8192 --usd-strands 2000 --out OUT  # smoke test
     python scripts/bench_multi_gpu.py --devices cuda:0,cuda:1 --sections simulate,hairhair --out OUT
+    python scripts/bench_multi_gpu.py --devices cuda:0,cuda:1 --sections simulate,elastic --out OUT
 """
 
 from __future__ import annotations
@@ -136,9 +140,11 @@ def bench_compute(devices, strands, vertices, substeps, frames, repeats=3):
     return rows
 
 
-def groom_usd(path: Path, strands: int, vertices: int, frames: int, hair_hair: bool = False) -> Path:
+def groom_usd(path: Path, strands: int, vertices: int, frames: int, hair_hair: bool = False,
+              widths: float | None = None) -> Path:
     """A .usdc with one BasisCurves prim of straight strands under a turning Xform (cm, Y up);
-    ``hair_hair``: ``dftl:hairHair`` on (default cell size) on the Xform, made the default prim."""
+    ``hair_hair``: ``dftl:hairHair`` on (default cell size) on the Xform, made the default prim;
+    ``widths`` (cm): constant widths, which make the prim elastic rods."""
     from pxr import Gf, Usd, UsdGeom, Vt
 
     stage = Usd.Stage.CreateNew(str(path))
@@ -167,20 +173,27 @@ def groom_usd(path: Path, strands: int, vertices: int, frames: int, hair_hair: b
     curves.CreateTypeAttr("linear")
     curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(strands, vertices, dtype=np.int32)))
     curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.reshape(-1, 3)))
+    if widths is not None:
+        curves.CreateWidthsAttr(Vt.FloatArray([float(widths)]))
+        curves.SetWidthsInterpolation("constant")
     stage.GetRootLayer().Save()
     return path
 
 
-def bench_simulate(devices, strands, vertices, substeps, frames, hair_hair=False):
+def bench_simulate(devices, strands, vertices, substeps, frames, hair_hair=False, elastic=False):
     from dftl_warp.simulation.simulate import Simulation, SimulationOptions
     from dftl_warp.usd.read import read_scene
 
     with tempfile.TemporaryDirectory() as tmp:
-        path = groom_usd(Path(tmp) / "groom.usdc", strands, vertices, frames + 2, hair_hair)
+        path = groom_usd(Path(tmp) / "groom.usdc", strands, vertices, frames + 2, hair_hair,
+                         widths=80e-4 if elastic else None)
         scene = read_scene(str(path))
     rows, outputs = [], {}
     for device in dict.fromkeys([devices[0], ",".join(devices)]):
         sim = Simulation(scene, SimulationOptions(device=device, substeps=substeps, precision=PRECISION), 1)
+        solvers = {g.settings.solver for g in sim.groups}
+        if solvers != {"elastic" if elastic else "dftl"}:
+            raise SystemExit(f"the groom runs {solvers}, not what the section measures")
         sim.advance()  # compile, capture graphs
         sim.samples()
         t_advance = t_samples = 0.0
@@ -201,7 +214,8 @@ def bench_simulate(devices, strands, vertices, substeps, frames, hair_hair=False
             "advance_and_samples_frames_per_s": frames / (t_advance + t_samples),
             "samples_seconds_per_frame": t_samples / frames,
         })
-        print(f"simulate {strands} strands{' (hair-hair)' if hair_hair else ''} on {device}: advance {rows[-1]['advance_frames_per_s']:.1f} frames/s, "
+        what = " (hair-hair)" if hair_hair else " (elastic)" if elastic else ""
+        print(f"simulate {strands} strands{what} on {device}: advance {rows[-1]['advance_frames_per_s']:.1f} frames/s, "
               f"with samples {rows[-1]['advance_and_samples_frames_per_s']:.1f} frames/s", flush=True)
     one = outputs[devices[0]]
     for row in rows:
@@ -240,7 +254,8 @@ def to_markdown(res) -> str:
         lines.append("")
     for key, title in (("simulate", "Frame loop of `dftl-warp simulate` (USD groom, animated transform):"),
                        ("hairhair", "The same with hair-hair interaction (grid exchanged every substep; "
-                                    "max |difference| from one device in stage units):")):
+                                    "max |difference| from one device in stage units):"),
+                       ("elastic", "The same groom as elastic rods of 80 um hair (float64 arithmetic):")):
         if not res.get(key):
             continue
         lines += [title, "",
@@ -309,6 +324,9 @@ def main(argv=None):
     if "hairhair" in sections:
         res["hairhair"] = bench_simulate(devices, args.usd_strands, args.vertices, args.substeps, args.usd_frames,
                                          hair_hair=True)
+    if "elastic" in sections:
+        res["elastic"] = bench_simulate(devices, args.usd_strands, args.vertices, args.substeps, args.usd_frames,
+                                        elastic=True)
     md = to_markdown(res)
     print()
     print(md)

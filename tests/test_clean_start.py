@@ -8,7 +8,7 @@ from pxr import Usd
 
 import dftl_warp as dw
 from dftl_warp import features as F
-from dftl_warp.features.clean_start import measure_start, preroll, resolve_start
+from dftl_warp.features.clean_start import _depths, measure_start, preroll, resolve_start
 
 R, HAIR_RADIUS, FPS, SUBSTEPS = 0.1, 0.0005, 24.0, 10
 
@@ -80,6 +80,14 @@ def test_clean_start_moves_hair_out_and_reports():
     inner[starts[1:-1] - 1] = False       # pairs across strands
     assert np.abs(seg[inner] - seg_rest[inner]).max() < 1e-5 * 0.004 * 10
     assert np.allclose(x[starts[:-1]], points[starts[:-1]], atol=1e-6)   # roots untouched
+    # a strand with no particle in contact is left exactly as it was, not re-placed at its rest
+    # lengths (round-off that made a groom split over devices start otherwise than on one)
+    pen, _, valid = _depths(model, solver.state(), control)
+    free = np.zeros(len(counts), bool)
+    free[model.layout.strand_order] = ~np.any(valid & (pen > 0), axis=1)
+    assert 5 < free.sum() < len(counts)
+    strand = np.repeat(np.arange(len(counts)), counts)
+    assert x[free[strand]].tobytes() == rest[free[strand]].tobytes()
 
 
 def ease(frame, shift=0.04, frames=24):

@@ -54,11 +54,19 @@ def test_widths_mean_elastic_hair_unless_bending_is_off(tmp_path):
     assert _solver(tmp_path / "a" / "in.usda", solver="pbd")[0] == "pbd"
 
 
-def test_unsupported_scenes_stay_dftl_and_say_why(tmp_path):
+def test_several_devices_keep_hair_elastic(tmp_path):
+    """A groom split across devices bends as on one device (tests/test_multi_device_elastic.py);
+    before, it ran as the plain DFTL chain there."""
     solver, warnings = _solver(_scene(tmp_path), device="cpu,cpu")
-    assert solver == "dftl"
-    assert any("/World/Hair: has widths but runs as a plain DFTL chain" in w and "several devices" in w
-               for w in warnings), warnings
+    assert solver == "elastic"
+    assert not any("plain DFTL chain" in w for w in warnings), warnings
+
+
+def test_unsupported_scenes_stay_dftl_and_say_why(tmp_path):
+    scene = read_scene(str(_scene(tmp_path)))
+    assert group_settings(scene, SimulationOptions(), 0, tolerance=True).solver == "dftl"
+    assert any("/World/Hair: has widths but runs as a plain DFTL chain" in w and "--tolerance" in w
+               for w in scene.warnings), scene.warnings
 
 
 def test_hair_hair_keeps_hair_elastic(tmp_path):

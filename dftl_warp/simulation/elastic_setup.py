@@ -100,12 +100,6 @@ def elastic_options(scene, curves, frame, features, widths, settings) -> tuple[d
     return kwargs, features
 
 
-def check_single_device(devices, source: str) -> None:
-    if len(devices) > 1:
-        raise UserError(f"{source}: the elastic solver runs on one device for now; give --device with one "
-                        f"device (not {','.join(devices)})")
-
-
 def rotation_of(matrix: np.ndarray) -> np.ndarray:
     """The rotation (3x3, column vectors) of a 4x4 row-vector matrix's linear part: its polar factor
     (scale and shear left out)."""

@@ -32,6 +32,7 @@ from .multi_device import (
     split_strands,
 )
 from .settings import check_extent, describe_setting
+from .split_elastic import SplitElasticSolver, part_options
 
 
 class Group:
@@ -78,13 +79,13 @@ class Group:
             for c in curves:
                 check_rest_lengths(scene.source, c, c.points, settings.solver)
         if elastic:
-            from .elastic_setup import check_single_device, elastic_options
+            from .elastic_setup import elastic_options
 
-            check_single_device(devices, scene.source)
             extra, features = elastic_options(scene, curves, frame, features, widths, settings)
             extra["compute_precision"] = options.arithmetic
         models, solvers, states, controls = [], [], [], []
         for (s0, s1), (p0, p1), device in zip(ranges, self.point_ranges, devices):
+            options_here = part_options(extra, p0, p1) if elastic and split else extra
             part = part_features(features, s0, s1, len(counts), scene.source, grid_extent) if split else features
             with wp.ScopedDevice(device):
                 try:
@@ -96,7 +97,7 @@ class Group:
                     raise UserError(f"{scene.source}: {exc}") from None
                 try:
                     solver = make_solver(model, settings.solver, damping=settings.damping,
-                                         correction=settings.correction, gravity=scene.gravity, **extra)
+                                         correction=settings.correction, gravity=scene.gravity, **options_here)
                 except ValueError as exc:
                     hint = (" (remove them from the scene or use --solver dftl)"
                             if elastic and "features" in str(exc) else "")
@@ -110,7 +111,7 @@ class Group:
             self.model = SplitModel(models, ranges)
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                self.solver = SplitSolver(solvers)
+                self.solver = SplitElasticSolver(solvers, ranges) if elastic else SplitSolver(solvers)
             for w in caught:   # a splat interval a split groom cannot keep: one line naming file and prims
                 note(scene, f"{scene.source}: {', '.join(c.path for c in curves)}: {w.message}", w.category)
             self.state = SplitState(states, models)

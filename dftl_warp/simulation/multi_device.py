@@ -15,7 +15,8 @@ when the frame is written.
 appear twice (``cpu,cpu``: two Models on one device, for tests).
 
 Features (:mod:`dftl_warp.features`): colliders and wind are shared by every part; per-strand
-values (drag rate, root-binding triangles) are sliced with the strands.
+values (drag rate, root-binding triangles) are sliced with the strands. Elastic strands have a
+solver per part too (:mod:`~dftl_warp.simulation.split_elastic`).
 Hair-hair interaction (:class:`~dftl_warp.features.HairHair`) couples strands through a grid:
 every part gets the grid shape of the whole groom, and :class:`SplitSolver` then steps the parts
 in lockstep, exchanging the grid each substep (:class:`GridExchange`): the lower corner is the
@@ -80,8 +81,43 @@ class SplitArray:
         return (sum(p.shape[0] for p in self.parts),)
 
 
+class SplitField:
+    """A plain array of each part's State (the elastic solver's tensions and frames per particle, its
+    clamp ghosts per strand) seen as one: ``numpy()`` concatenates the parts' arrays, ``assign``
+    cuts its values at the parts' lengths."""
+
+    def __init__(self, arrays):
+        self.parts = list(arrays)
+        self.dtype = self.parts[0].dtype
+        self.device = self.parts[0].device
+
+    def numpy(self) -> np.ndarray:
+        return np.concatenate([p.numpy() for p in self.parts])
+
+    def assign(self, values) -> None:
+        import warp as wp
+
+        host = values.numpy() if isinstance(values, wp.array) else np.asarray(values)
+        if host.shape[0] != self.shape[0]:
+            raise ValueError(f"expected {self.shape[0]} values, got {host.shape[0]}")
+        start = 0
+        for p in self.parts:
+            p.assign(host[start:start + p.shape[0]])
+            start += p.shape[0]
+
+    @property
+    def shape(self):
+        return (sum(p.shape[0] for p in self.parts),)
+
+
+#: the elastic solver's State arrays beyond the base State's (:class:`SplitField` on several devices)
+EXTRA_FIELDS = ("tensions", "frames", "clamps")
+
+
 class SplitState:
-    """The parts' States: ``positions``, ``velocities`` and ``corrections`` as :class:`SplitArray`."""
+    """The parts' States: ``positions``, ``velocities`` and ``corrections`` as :class:`SplitArray`;
+    the elastic solver's ``tensions``, ``frames`` and ``clamps`` as :class:`SplitField` (None where
+    the parts have none)."""
 
     def __init__(self, states, models):
         self.parts = list(states)
@@ -90,6 +126,9 @@ class SplitState:
         self.velocities = SplitArray(self.parts, models, "velocities")
         has = [s.corrections is not None for s in self.parts]
         self.corrections = SplitArray(self.parts, models, "corrections") if all(has) else None
+        for name in EXTRA_FIELDS:
+            arrays = [getattr(s, name, None) for s in self.parts]
+            setattr(self, name, SplitField(arrays) if all(a is not None for a in arrays) else None)
 
 
 class SplitModel:
@@ -275,8 +314,8 @@ class SplitSolver:
                 for _, step, s, _ in parts:
                     step.splat_density(s)
                 self.exchange.combine_density()
-            for solver, step, s, c in parts:
-                step.sweep(s, s, c, solver.feature_head(c, dt, alpha))
+            for solver, _, s, c in parts:
+                solver.step_on_grid(s, c, dt, alpha)
 
 
 class SplitMonitor:

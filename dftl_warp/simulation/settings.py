@@ -130,7 +130,7 @@ def automatic_solver(scene: Scene, options: SimulationOptions, index: int, toler
     """The solver of ``scene.curves[index]`` where neither the command line nor the prim sets one:
     ``elastic`` for a prim with widths (hair of that thickness bends: docs/elastic.md) unless it
     authors ``dftl:bending = false``, else ``dftl``. Where the elastic solver cannot run the scene yet
-    (several devices, ``--tolerance``) the prim stays on DFTL and the scene's warnings say so."""
+    (``--tolerance``) the prim stays on DFTL and the scene's warnings say so."""
     c = scene.curves[index]
     if c.settings.bending is False or c.widths is None:
         return DEFAULT_SOLVER
@@ -141,15 +141,10 @@ def automatic_solver(scene: Scene, options: SimulationOptions, index: int, toler
         if line not in scene.warnings:
             scene.warnings.append(line)
         return DEFAULT_SOLVER
-    missing = []
-    if options.device is not None and "," in str(options.device):
-        missing.append(f"several devices (--device {options.device})")
     if tolerance:
-        missing.append("--tolerance")
-    if missing:
         line = (f"{scene.source}: {c.path}: has widths but runs as a plain DFTL chain, without hair's bending "
-                f"stiffness: the elastic solver does not support {', '.join(missing)} yet (dftl:bending = false "
-                f"or --solver dftl says this is meant)")
+                "stiffness: the elastic solver does not support --tolerance yet (dftl:bending = false "
+                "or --solver dftl says this is meant)")
         if line not in scene.warnings:
             scene.warnings.append(line)
         return DEFAULT_SOLVER

@@ -40,6 +40,7 @@ from ..usd.scene import Scene, transform_points
 from . import root_paths
 from .elastic_setup import note_unstable
 from .group import Group
+from .multi_device import EXTRA_FIELDS
 from .summary import Summary  # noqa: F401  (re-exported: what simulate_usd returns)
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
@@ -56,10 +57,6 @@ from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     last_written_frame,
     resolve_frames,
 )
-
-#: State arrays beyond positions, velocities and corrections that a checkpoint carries (the elastic
-#: solver's ElasticState)
-_EXTRA_STATE = ("tensions", "frames", "clamps")
 
 
 class Simulation:
@@ -321,7 +318,7 @@ class Simulation:
         """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
         state = {"frame": np.array(self.frame)}
         for k, g in enumerate(self.groups):
-            for name in _EXTRA_STATE:   # the elastic solver's State: tensions, frames, clamp ghosts
+            for name in EXTRA_FIELDS:   # the elastic solver's State: tensions, frames, clamp ghosts
                 if getattr(g.state, name, None) is not None:
                     state[f"group{k}.{name}"] = getattr(g.state, name).numpy()
             if getattr(g.state, "storage", None) is not None:  # interleaved: the fields share one buffer
@@ -338,7 +335,7 @@ class Simulation:
         import warp as wp
 
         for k, g in enumerate(self.groups):
-            for name in _EXTRA_STATE:
+            for name in EXTRA_FIELDS:
                 target = getattr(g.state, name, None)
                 if target is None:
                     continue

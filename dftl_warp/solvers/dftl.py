@@ -135,6 +135,12 @@ class DFTLSolver(Solver):
                 control.root_deviation_start, control.root_deviation_end, root_alpha, m.rest_lengths, self.gravity,
                 dt, self.damping]
 
+    def step_on_grid(self, state, control, dt: float, root_alpha: float) -> None:
+        """A featured substep's sweep in place once its collider poses and hair-hair grid are set (a
+        groom split over devices builds the grid of all its parts first:
+        :class:`~dftl_warp.simulation.multi_device.SplitSolver`)."""
+        self._features.sweep(state, state, control, self.feature_head(control, dt, root_alpha))
+
     def advance(self, state, control, dt: float, substeps: int) -> None:
         """``substeps`` steps of ``dt`` in place, roots moving along the Control's root path: fused into one
         launch per run of strands where that pays (:func:`fused_pays`), else one launch per

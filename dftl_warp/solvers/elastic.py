@@ -494,11 +494,23 @@ class ElasticSolver(Solver):
                 raise ValueError("the elastic solver needs its own States (solver.state())")
             if self.carries_corrections and s.corrections is None:
                 raise ValueError("the prior correction form needs states with corrections (solver.state())")
-        f = self._fields
-        prior = self.carries_corrections
         if self._features is not None:
             # this substep's collider poses and the hair-hair grid (rebuilt every splat_interval substeps)
             self._features.prepare(state_in, control, dt, root_alpha)
+        self._launch(state_in, state_out, control, dt, root_alpha)
+
+    def step_on_grid(self, state, control, dt: float, root_alpha: float) -> None:
+        """:meth:`step` in place once this substep's collider poses and hair-hair grid are set (a
+        groom split over devices builds the grid of all its parts first:
+        :class:`~dftl_warp.simulation.multi_device.SplitSolver`)."""
+        self._launch(state, state, control, dt, root_alpha)
+
+    def _launch(self, state_in, state_out, control, dt: float, root_alpha: float) -> None:
+        """The velocity pass (where the features need one) and the step's kernel."""
+        m = self.model
+        f = self._fields
+        prior = self.carries_corrections
+        if self._features is not None:
             features = self._features._struct(control) or self._no_features
             accelerations = self._no_accelerations
             if self._features.velocity_form is not None:

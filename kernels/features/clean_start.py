@@ -83,11 +83,23 @@ def resolve_kernel(scalar, Features, flags: frozenset):
         leader = positions[particle(base, stride, 0)]
         leader_old = leader
         fallback = vec3(scalar(1.0), scalar(0.0), scalar(0.0))
+        moved = bool(False)
         for i in range(1, strand_count[s]):
             k = particle(base, stride, i)
             x_old = positions[k]
             rest = rest_lengths[k]
             radius = features.particle_radius[k]
+            if not moved:
+                # up to the first particle in contact the strand stays exactly as it is: re-placing
+                # it at its rest lengths would move it by round-off, so a strand's start would depend
+                # on whether other strands of its launch needed a sweep (a groom split over devices
+                # started otherwise than on one)
+                y, touched = collide_all(features, x_old, x_old, leader, rest, False, radius)
+                if not touched:
+                    leader_old = x_old
+                    leader = x_old
+                    continue
+                moved = True
             if wp.length(x_old - leader_old) > tiny:
                 fallback = wp.normalize(x_old - leader_old)
             x = follow(leader, x_old, rest, fallback)
