@@ -200,18 +200,23 @@ class PrerollReport:
                 f"largest motion over the last frame {self.motion:.3g} {units} (tolerance {self.tolerance:.3g})")
 
 
-def settle_tolerance(model) -> float:
+def settle_tolerance(model, *more) -> float:
     """Largest motion per frame of a settled groom: the mean hair radius (motion below the contact
     distance, the scale of the contacts' own jitter, is not visible as a pop), else a thousandth of
-    the mean strand length for hair without width."""
-    data = getattr(model.feature_data, "collider_data", None)
-    radius = None if data is None else data.arrays.get("particle_radius")
-    if radius is not None:
-        r = radius.numpy().astype(np.float64)
-        if r.size and float(r.max()) > 0:
-            return float(r[r > 0].mean())
-    lengths = model.rest_lengths.numpy().astype(np.float64)
-    return 1.0e-3 * float(lengths.sum()) / max(model.num_strands, 1)
+    the mean strand length for hair without width. ``more``: further models holding the rest of
+    the groom (a groom split over devices), counted with ``model``."""
+    models = (model, *more)
+    radii = []
+    for m in models:
+        data = getattr(m.feature_data, "collider_data", None)
+        radius = None if data is None else data.arrays.get("particle_radius")
+        if radius is not None:
+            radii.append(radius.numpy().astype(np.float64))
+    r = np.concatenate(radii) if len(radii) == len(models) else np.zeros(0)
+    if r.size and float(r.max()) > 0:
+        return float(r[r > 0].mean())
+    lengths = sum(float(m.rest_lengths.numpy().astype(np.float64).sum()) for m in models)
+    return 1.0e-3 * lengths / max(sum(m.num_strands for m in models), 1)
 
 
 def largest_motion(model, state, previous, largest) -> float:
@@ -235,33 +240,41 @@ def preroll(solver, state, control, seconds: float, frame_dt: float, substeps: i
     friction (``kernels/features/collide.py``): hair slides where it used to stick, and
     ``tests/test_clean_start.py``'s lumpy head now settles in 3.8 s (3.4 s before), near the old
     limit of 4. Velocities (and the corrections) are zeroed at the end.
-    With ``resolve``, particles inside a collider are moved out first (:func:`resolve_start`)."""
-    model = solver.model
+    With ``resolve``, particles inside a collider are moved out first (:func:`resolve_start`).
+    A groom split over devices (the composites of :mod:`dftl_warp.simulation.multi_device`, whose
+    ``parts`` hold each device's solver, State and Control) settles as one: every part steps each
+    frame, and the groom has settled when no particle of any part moves more than the tolerance."""
+    parts = ([(s.model, st, c) for s, st, c in zip(solver.parts, state.parts, control.parts)]
+             if hasattr(state, "parts") else [(solver.model, state, control)])
     if resolve:
-        resolve_start(model, state, control)
-    tol = settle_tolerance(model) if tolerance is None else float(tolerance)
+        for m, st, c in parts:
+            resolve_start(m, st, c)
+    tol = settle_tolerance(*(m for m, _, _ in parts)) if tolerance is None else float(tolerance)
     frames = int(math.ceil(float(seconds) / float(frame_dt) - 1e-9)) if seconds > 0 else 0
     most = int(math.ceil(float(longest) * frames)) if frames else 0
     factor = math.exp(-float(settle_rate) * float(frame_dt))
-    previous = wp.clone(state.positions)
-    largest = wp.zeros(1, dtype=wp.float32, device=model.device)
+    previous = [wp.clone(st.positions) for _, st, _ in parts]
+    largest = [wp.zeros(1, dtype=wp.float32, device=m.device) for m, _, _ in parts]
     motion, done = 0.0, 0
     while done < most:
         solver.advance(state, control, frame_dt / substeps, substeps)
-        damp_velocities(model, state, factor)
+        for m, st, _ in parts:
+            damp_velocities(m, st, factor)
         done += 1
         if done >= frames:
-            motion = largest_motion(model, state, previous, largest)
+            motion = max(largest_motion(m, st, p, big) for (m, st, _), p, big in zip(parts, previous, largest))
             if motion <= tol:
                 break
         else:
-            wp.copy(previous, state.positions)
+            for (_, st, _), p in zip(parts, previous):
+                wp.copy(p, st.positions)
     if done:
-        state.write("velocities", None, zero=True)
-        if state.corrections is not None:
-            state.write("corrections", None, zero=True)
-        if resolve:
-            resolve_start(model, state, control)
+        for m, st, c in parts:
+            st.write("velocities", None, zero=True)
+            if st.corrections is not None:
+                st.write("corrections", None, zero=True)
+            if resolve:
+                resolve_start(m, st, c)
         if control.features is not None:
             control.features.resync()
     return PrerollReport(done, done * float(frame_dt), done > 0 and motion <= tol, motion, tol)

@@ -147,7 +147,8 @@ class Simulation:
     def _clean_start(self) -> list[str]:
         """Hair that starts inside a collider is moved out, and ``options.preroll`` seconds settle
         the groom, with roots and colliders held at the first frame's pose
-        (:mod:`dftl_warp.features.clean_start`). Groups split across devices are left as read."""
+        (:mod:`dftl_warp.features.clean_start`). A group split across devices
+        is moved out and settled as one."""
         import warp as wp
 
         from ..features import update_frame
@@ -179,10 +180,7 @@ class Simulation:
                         notes.append(report.line(units))
                         if g.settings.solver == "elastic":   # elastic strands rest where they were moved
                             notes += rest_where_moved(g, self.frame)
-                if split and seconds > 0:
-                    notes.append(f"preroll: not run for {len(g.members)} prim(s) split across devices "
-                                 f"{', '.join(g.devices)}")
-                elif seconds > 0:
+                if seconds > 0:
                     tcps = self.scene.stage.time_codes_per_second
                     notes.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
                                          resolve=has_colliders).line(units))
