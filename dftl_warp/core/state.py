@@ -390,6 +390,17 @@ class Control:
         self.frame_duration = duration
         self._bent = True
 
+    def root_target_arrays(self, frame_duration: float) -> dict:
+        """The device arrays :meth:`set_root_targets` fills (per device strand: ``start``, ``end``,
+        ``deviation_start``, ``deviation_end``), for a caller that computes them on the device
+        (the simulation's transform-driven roots: ``dftl_warp/simulation/transform_roots.py``); the
+        path becomes the C1 one over ``frame_duration`` seconds."""
+        self.frame_duration = _check_duration(frame_duration)
+        self._bent = True
+        self._last_end = None
+        return {"start": self.root_start, "end": self.root_end, "deviation_start": self.root_deviation_start,
+                "deviation_end": self.root_deviation_end}
+
     @property
     def root_path_curved(self) -> bool:
         """Whether the roots' path inside the frame has non-zero deviations from the linear one

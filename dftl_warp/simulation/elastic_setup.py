@@ -130,11 +130,14 @@ class ClampDriver:
         """Ghosts (S, 3) world at ``frame``; ``matrix_of(index, frame)`` gives a prim's matrix."""
         return np.concatenate([transform_points(matrix_of(i, frame), g) for i, g in zip(members, self.local)])
 
+    def prim_rotations(self, matrix_of, members, frame: int) -> np.ndarray:
+        """Each prim's clamp rotation (P, 3, 3) at ``frame`` from its authored pose: its rotation
+        then, times the inverse of its rotation when the group was made."""
+        return np.stack([rotation_of(matrix_of(i, frame)) @ r0.T for i, r0 in zip(members, self.rest_rotations)])
+
     def rotations(self, matrix_of, members, frame: int) -> np.ndarray:
-        """Each strand's clamp rotation (S, 3, 3) at ``frame`` from its authored pose: its prim's
-        rotation then, times the inverse of the prim's rotation when the group was made."""
-        return np.concatenate([np.broadcast_to(rotation_of(matrix_of(i, frame)) @ r0.T, (n, 3, 3))
-                               for i, r0, n in zip(members, self.rest_rotations, self.counts)])
+        """Each strand's clamp rotation (S, 3, 3) at ``frame`` (its prim's: :meth:`prim_rotations`)."""
+        return np.repeat(self.prim_rotations(matrix_of, members, frame), self.counts, axis=0)
 
 
 def rest_where_moved(group, frame: int) -> list[str]:

@@ -37,7 +37,7 @@ from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve
 from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
-from . import root_paths
+from . import root_paths, transform_roots
 from .elastic_setup import note_unstable
 from .group import Group
 from .multi_device import EXTRA_FIELDS
@@ -112,6 +112,8 @@ class Simulation:
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         #: group index -> (frame, world root targets at that frame): the last advance's end targets
         self._end_roots: dict = {}
+        #: group index -> its device root paths (simulation.transform_roots)
+        self.transform_roots: dict = {}
         #: (what, group index, frame) -> world roots or clamp ghosts at that frame (root_paths)
         self._at_frame: dict = {}
         #: group index -> substeps of its last advance (the frame's velocity over the last substep)
@@ -283,7 +285,10 @@ class Simulation:
         with wp.ScopedDevice(self.device):
             shot = (self.first_frame, math.inf if self.last_frame is None else self.last_frame)
             for k, g in enumerate(self.groups):
-                if any(self.scene.curves[i].animated for i in g.members):
+                if any(self.scene.curves[i].animated for i in g.members) and transform_roots.drive(
+                        self, k, g, self.frame, nxt):
+                    root_paths.warn_fast_turns(self, g, self.frame, nxt)
+                elif any(self.scene.curves[i].animated for i in g.members):
                     # the C1 path from the roots at this frame, the next and their neighbours, each
                     # computed once (this frame's are the last frame's end targets, the same array,
                     # so the Control reuses their device-order copy too)

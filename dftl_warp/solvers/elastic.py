@@ -448,6 +448,16 @@ class ElasticSolver(Solver):
                 raise ValueError(f"clamp velocities must be {m.num_strands} finite (3,) rows, one per strand")
             target.assign((float(frame_duration) * v[order] - chord).astype(device_start.dtype))
 
+    def clamp_target_arrays(self) -> dict:
+        """The device arrays :meth:`set_clamp_targets` fills with its ghosts and rotations (per device
+        strand: ``start``, ``end``, ``deviation_start``, ``deviation_end``, ``rotation_start``,
+        ``rotation_end``), for a caller that computes them on the device (the simulation's
+        transform-driven roots); the ghosts are then the targets, not the authored ones moved with the roots."""
+        self._clamp_relative = 0
+        return {"start": self._clamp_start, "end": self._clamp_end, "deviation_start": self._clamp_deviation_start,
+                "deviation_end": self._clamp_deviation_end, "rotation_start": self._clamp_rotation_start,
+                "rotation_end": self._clamp_rotation_end}
+
     def _set_clamp_rotations(self, start, end) -> None:
         m = self.model
         if start is None:
