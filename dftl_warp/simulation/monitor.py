@@ -39,7 +39,8 @@ first check's state is taken as the start.
 After a run, ``monitor.unstable`` (per device strand) and ``monitor.worst_ratio`` (largest
 energy / budget seen) tell which strands blew up and by how much.
 
-Cost: one small kernel launch and three per-strand arrays copied to the host per check.
+Cost: one small kernel launch per check, and four totals copied to the host (a per-strand copy only
+when a strand first goes over its budget, to name it).
 """
 
 from __future__ import annotations
@@ -50,7 +51,7 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..kernels.simulation.energy import available_energy_kernel
+from ..kernels.simulation.energy import energy_budget_kernel
 
 
 class EnergyGrowthWarning(RuntimeWarning):
@@ -95,76 +96,70 @@ class EnergyMonitor:
         lengths = np.bincount(strand, weights=rest[base[strand] + stride[strand] * local], minlength=model.num_strands)
         scale = np.maximum(np.linalg.norm(gravity) * lengths, 0.5 * lengths**2)
         self._floor = float(floor_fraction) * self._free * scale  # per device strand, J/kg
-        self._start: np.ndarray | None = None
-        self._root_speed = np.zeros(model.num_strands)
-        self._moved_energy: np.ndarray | None = None
-        self._root_position: np.ndarray | None = None
-        #: per device strand: True once its energy has exceeded its budget
-        self.unstable = np.zeros(model.num_strands, dtype=bool)
-        #: per device strand: largest ratio of available energy to budget seen so far
-        self.worst_ratio = np.zeros(model.num_strands)
         n, dev = model.num_strands, model.device
-        self._energy = wp.zeros(n, dtype=wp.float64, device=dev)
-        self._speed = wp.zeros(n, dtype=wp.float64, device=dev)
-        self._root = wp.zeros(n, dtype=wp.vec3d, device=dev)
-        self._bad = wp.zeros(n, dtype=wp.int32, device=dev)
+        self._free_d = wp.array(self._free, dtype=wp.float64, device=dev)
+        self._floor_d = wp.array(self._floor, dtype=wp.float64, device=dev)
+        # the records, per device strand, on the device (energy_budget_kernel): start energy, energy
+        # when the root last moved, root position, fastest root speed, largest ratio, over budget once
+        self._records = [wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
+                         wp.zeros(n, dtype=wp.vec3d, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
+                         wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.int32, device=dev)]
+        self._out = [wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
+                     wp.zeros(n, dtype=wp.int32, device=dev)]
+        self._totals = wp.zeros(4, dtype=wp.float64, device=dev)
+        self._first = True
         if state is not None:
             self.measure(state)
+
+    @property
+    def unstable(self) -> np.ndarray:
+        """Per device strand: True once its energy has exceeded its budget."""
+        return self._records[5].numpy().astype(bool)
+
+    @property
+    def worst_ratio(self) -> np.ndarray:
+        """Per device strand: largest ratio of available energy to budget seen so far."""
+        return self._records[4].numpy()
 
     def restart(self, state) -> None:
         """Take ``state`` as the start of the run (e.g. after a clean start moved hair out of a
         collider, or a preroll: energy they add or remove is not the run's)."""
-        self._start = self._moved_energy = self._root_position = None
-        self._root_speed[:] = 0.0
-        self.unstable[:] = False
-        self.worst_ratio[:] = 0.0
+        for record in self._records[3:]:
+            record.zero_()
+        self._first = True
         self.measure(state)
 
-    def measure(self, state):
-        """Per device strand: (available energy J/kg, budget J/kg, not finite) of ``state``.
-        Updates the root-speed record and the per-strand verdicts; does not warn."""
+    def measure(self, state) -> np.ndarray:
+        """Update the per-strand records and verdicts with ``state`` on the device (no warning);
+        returns the totals (available energy of the finite strands J/kg, budget J/kg, strands over
+        budget, strands not finite), which waits for the device."""
         m = self.model
         if m.num_strands == 0:
-            z = np.zeros(0)
-            return z, z, np.zeros(0, dtype=bool)
+            return np.zeros(4)
+        self._totals.zero_()
         wp.launch(
-            available_energy_kernel(m.scalar),
+            energy_budget_kernel(m.scalar),
             dim=m.num_strands,
-            inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self._gravity,
-                    state.positions, state.velocities],
-            outputs=[self._energy, self._speed, self._root, self._bad],
+            inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self._gravity, self.factor,
+                    self._free_d, self._floor_d, state.positions, state.velocities, int(self._first), *self._records],
+            outputs=[*self._out, self._totals],
             device=m.device,
         )
-        energy = self._energy.numpy().copy()
-        speed = self._speed.numpy()
-        bad = self._bad.numpy().astype(bool) | ~np.isfinite(energy)
-        root = self._root.numpy()
-        np.maximum(self._root_speed, np.where(bad, 0.0, speed), out=self._root_speed)
-        if self._start is None:
-            self._start = np.where(bad, 0.0, energy)
-            self._moved_energy = self._start.copy()
-            self._root_position = root.copy()
-        moved = (speed > 0.0) | np.any(root != self._root_position, axis=1)
-        self._moved_energy = np.where(moved & ~bad, energy, self._moved_energy)
-        self._root_position = root.copy()
-        gross = self._start + self._floor + 2.0 * self._free * self._root_speed**2
-        budget = self.factor * np.minimum(gross, self._moved_energy + self._floor)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(bad, np.inf, energy / np.maximum(budget, 1e-300))
-        np.maximum(self.worst_ratio, ratio, out=self.worst_ratio)
-        self.unstable |= bad | (energy > budget)
-        return energy, budget, bad
+        self._first = False
+        return self._totals.numpy()
 
     def check(self, state, frame: int | None = None) -> bool:
         """Measure ``state`` (at ``frame``); warn once if any strand's energy exceeds its budget
         or is not finite. Returns True when this run has been found unstable (now or earlier)."""
-        energy, budget, bad = self.measure(state)
-        self.history.append((frame, float(np.sum(energy[~bad])), float(np.sum(budget))))
+        totals = self.measure(state)
+        self.history.append((frame, float(totals[0]), float(totals[1])))
         if self.warned:
             return True
-        over = bad | (energy > budget)
-        if not over.any():
+        if totals[2] == 0:
             return False
+        energy, budget, bad = (a.numpy() for a in self._out)
+        bad = bad.astype(bool)
+        over = bad | (energy > budget)
         at = f" at frame {frame}" if frame is not None else ""
         strand = int(self.model.layout.strand_order[int(np.argmax(np.where(bad, np.inf, energy / budget)))])
         count = int(over.sum())

@@ -18,29 +18,15 @@ from ..core.layout import particle
 
 
 @functools.cache
-def available_energy_kernel(scalar):
-    """Kernel writing per strand: available energy (J/kg), root speed (m/s), root position (m,
-    device coordinates), 1 if any position or velocity is not finite (else 0)."""
+def strand_energy_func(scalar):
+    """``strand_energy(base, stride, n, rest_lengths, gravity, positions, velocities) -> (available
+    energy J/kg, root speed m/s, root position m (device coordinates), 1 if any position or velocity
+    is not finite else 0)`` of one strand."""
     vec3 = wp.types.vector(3, scalar)
 
-    @wp.kernel(enable_backward=False, module="unique")
-    def available_energy(
-        strand_base: wp.array(dtype=wp.int32),
-        strand_stride: wp.array(dtype=wp.int32),
-        strand_count: wp.array(dtype=wp.int32),
-        rest_lengths: wp.array(dtype=scalar),
-        gravity: wp.vec3d,
-        positions: wp.array(dtype=vec3),
-        velocities: wp.array(dtype=vec3),
-        energy: wp.array(dtype=wp.float64),
-        root_speed: wp.array(dtype=wp.float64),
-        root_position: wp.array(dtype=wp.vec3d),
-        not_finite: wp.array(dtype=wp.int32),
-    ):
-        s = wp.tid()
-        base = strand_base[s]
-        stride = strand_stride[s]
-        n = strand_count[s]
+    @wp.func
+    def strand_energy(base: wp.int32, stride: wp.int32, n: wp.int32, rest_lengths: wp.array(dtype=scalar),
+                      gravity: wp.vec3d, positions: wp.array(dtype=vec3), velocities: wp.array(dtype=vec3)):
         g = wp.length(gravity)
         k0 = particle(base, stride, 0)
         x0 = positions[k0]
@@ -61,9 +47,88 @@ def available_energy_kernel(scalar):
             rel = wp.vec3d(wp.float64(dx[0]), wp.float64(dx[1]), wp.float64(dx[2]))
             vd = wp.vec3d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]))
             e += wp.float64(0.5) * wp.dot(vd, vd) - wp.dot(gravity, rel) + g * along
-        energy[s] = e
-        root_speed[s] = wp.float64(wp.length(v0))
-        root_position[s] = wp.vec3d(wp.float64(x0[0]), wp.float64(x0[1]), wp.float64(x0[2]))
-        not_finite[s] = bad
+        root = wp.vec3d(wp.float64(x0[0]), wp.float64(x0[1]), wp.float64(x0[2]))
+        return e, wp.float64(wp.length(v0)), root, bad
 
-    return available_energy
+    return strand_energy
+
+
+@functools.cache
+def energy_budget_kernel(scalar):
+    """The energy monitor's check on the device (``dftl_warp/simulation/monitor.py``: its budgets and
+    records, per strand), with the totals a check reports: ``totals`` (float64, 4, zeroed by the
+    caller) += (available energy of the finite strands, budget, strands over budget, strands not
+    finite)."""
+    vec3 = wp.types.vector(3, scalar)
+    strand_energy = strand_energy_func(scalar)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def energy_budget(
+        # Model:
+        strand_base: wp.array(dtype=wp.int32),
+        strand_stride: wp.array(dtype=wp.int32),
+        strand_count: wp.array(dtype=wp.int32),
+        rest_lengths: wp.array(dtype=scalar),
+        gravity: wp.vec3d,
+        factor: wp.float64,
+        # per strand: free particles, the energy floor (J/kg)
+        free: wp.array(dtype=wp.float64),
+        floor: wp.array(dtype=wp.float64),
+        # Data in:
+        positions: wp.array(dtype=vec3),
+        velocities: wp.array(dtype=vec3),
+        first: wp.int32,
+        # Records in and out (per strand): start energy, energy when the root last moved, root position,
+        # fastest root speed, largest energy / budget, 1 once over budget
+        start: wp.array(dtype=wp.float64),
+        moved_energy: wp.array(dtype=wp.float64),
+        root_position: wp.array(dtype=wp.vec3d),
+        root_speed: wp.array(dtype=wp.float64),
+        worst_ratio: wp.array(dtype=wp.float64),
+        unstable: wp.array(dtype=wp.int32),
+        # Data out: this check's energy, budget and non-finite flag per strand, and the totals
+        energy: wp.array(dtype=wp.float64),
+        budget: wp.array(dtype=wp.float64),
+        not_finite: wp.array(dtype=wp.int32),
+        totals: wp.array(dtype=wp.float64),
+    ):
+        s = wp.tid()
+        e, speed, root, bad = strand_energy(strand_base[s], strand_stride[s], strand_count[s], rest_lengths, gravity,
+                                            positions, velocities)
+        if not wp.isfinite(e):
+            bad = 1
+        if bad == 0:
+            root_speed[s] = wp.max(root_speed[s], speed)
+        if first != 0:
+            e0 = e
+            if bad != 0:
+                e0 = wp.float64(0.0)
+            start[s] = e0
+            moved_energy[s] = e0
+            root_position[s] = root
+        moved = speed > wp.float64(0.0) or root[0] != root_position[s][0] or root[1] != root_position[s][1] \
+            or root[2] != root_position[s][2]
+        if moved and bad == 0:
+            moved_energy[s] = e
+        root_position[s] = root
+        u = root_speed[s]
+        gross = start[s] + floor[s] + wp.float64(2.0) * free[s] * u * u
+        b = factor * wp.min(gross, moved_energy[s] + floor[s])
+        over = bad != 0 or e > b
+        ratio = e / wp.max(b, wp.float64(1.0e-300))
+        if bad != 0:
+            ratio = wp.float64(wp.inf)
+        worst_ratio[s] = wp.max(worst_ratio[s], ratio)
+        if over:
+            unstable[s] = 1
+            wp.atomic_add(totals, 2, wp.float64(1.0))
+        energy[s] = e
+        budget[s] = b
+        not_finite[s] = bad
+        if bad == 0:
+            wp.atomic_add(totals, 0, e)
+        else:
+            wp.atomic_add(totals, 3, wp.float64(1.0))
+        wp.atomic_add(totals, 1, b)
+
+    return energy_budget
