@@ -141,6 +141,7 @@ def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where
         attr = curves.GetWidthsAttr()
         values = attr.Get(code) if attr.HasAuthoredValue() else None
         interp, name = str(curves.GetWidthsInterpolation()), "widths"
+    values = None if values is None else curve_checks.numbers(values, name, where)
     if values is None or len(values) == 0:
         return None, ""
     w = curve_checks.check_primvar(values, interp, counts, n_points, ctype, basis, wrap, name, where, nonnegative=True)

@@ -1,0 +1,72 @@
+"""Hand-authored USD as TDs write it: attributes of an unexpected type, time-sampled widths,
+references and payloads that do not resolve. Each is one line naming the file and prim (or one
+warning), never a traceback."""
+
+import pytest
+from pxr import Sdf, UsdGeom
+from usd_stages import add_curves, chain, new_stage
+
+from dftl_warp import cli
+from dftl_warp.errors import UserError
+from dftl_warp.usd.read import read_scene
+
+
+def simulate(capsys, path, *extra):
+    code = cli.main(["simulate", str(path), "-o", str(path.parent / "out.usdc"), "--end", "2", *map(str, extra)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line_error(capsys, path):
+    code, out, err = simulate(capsys, path)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith(f"dftl-warp: error: {path}: ")
+    assert not (path.parent / "out.usdc").exists()
+    return lines[0]
+
+
+def hair_file(path, extra, counts="[2, 3]"):
+    """A hand-written stage: /World/Hair, two linear curves of 2 and 3 points, plus ``extra``."""
+    path.write_text(f"""#usda 1.0
+(
+    startTimeCode = 1
+    endTimeCode = 3
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+def Xform "World"
+{{
+    def BasisCurves "Hair"
+    {{
+        uniform token type = "linear"
+        int[] curveVertexCounts = {counts}
+        point3f[] points = [(0, 0, 0), (0, -0.1, 0), (0.1, 0, 0), (0.1, -0.1, 0), (0.1, -0.2, 0)]
+        {extra}
+    }}
+}}
+""")
+    return path
+
+
+def test_widths_of_strings_are_one_line_naming_the_prim(tmp_path, capsys):
+    hair_file(tmp_path / "in.usda", 'string[] widths = ["a"] (interpolation = "constant")')
+    line = one_line_error(capsys, tmp_path / "in.usda")
+    assert line.endswith("/World/Hair: widths = ['a']: expected numbers (float[])")
+
+
+def test_a_scalar_widths_primvar_is_one_constant_width_as_render_reads_it(tmp_path):
+    """``float primvars:widths = 0.02`` (no brackets): render draws it as one width; simulate read
+    it with len() and crashed. Now it is one constant width."""
+    stage = new_stage(tmp_path / "in.usda")
+    c = add_curves(stage, "/World/Hair", chain(5), [2, 3])
+    UsdGeom.PrimvarsAPI(c).CreatePrimvar("widths", Sdf.ValueTypeNames.Float, "constant").Set(0.02)
+    stage.Save()
+    curves = read_scene(tmp_path / "in.usda").curves[0]
+    assert curves.widths.tolist() == pytest.approx([0.02]) and curves.widths_interpolation == "constant"
+
+
+def test_a_scalar_widths_of_vertex_interpolation_is_counted_like_an_array(tmp_path):
+    hair_file(tmp_path / "in.usda", "float widths = 0.02")
+    with pytest.raises(UserError, match=r"/World/Hair: widths: 1 values for 'vertex' interpolation, expected 5"):
+        read_scene(tmp_path / "in.usda")
