@@ -70,3 +70,22 @@ def test_a_scalar_widths_of_vertex_interpolation_is_counted_like_an_array(tmp_pa
     hair_file(tmp_path / "in.usda", "float widths = 0.02")
     with pytest.raises(UserError, match=r"/World/Hair: widths: 1 values for 'vertex' interpolation, expected 5"):
         read_scene(tmp_path / "in.usda")
+
+
+@pytest.mark.parametrize("counts, message", [
+    ("[2.5, 2.5]", "/World/Hair: curveVertexCounts[0] = 2.5: expected a whole number (int[])"),
+    ('["2", "3"]', "/World/Hair: curveVertexCounts = ['2', '3']: expected numbers (int[])"),
+])
+def test_curve_vertex_counts_that_are_not_whole_numbers_are_refused(tmp_path, capsys, counts, message):
+    """``float[] curveVertexCounts = [2.5, 2.5]`` was truncated to [2, 2] without a word (and with
+    the sum right, simulated as curves of other lengths than authored)."""
+    kind = "float[]" if "." in counts else "string[]"
+    path = hair_file(tmp_path / "in.usda", "", counts=counts)
+    path.write_text(path.read_text().replace("int[] curveVertexCounts", f"{kind} curveVertexCounts"))
+    assert one_line_error(capsys, path).endswith(message)
+
+
+def test_whole_float_curve_vertex_counts_are_read(tmp_path):
+    path = hair_file(tmp_path / "in.usda", "", counts="[2.0, 3.0]")
+    path.write_text(path.read_text().replace("int[] curveVertexCounts", "float[] curveVertexCounts"))
+    assert read_scene(path).curves[0].counts.tolist() == [2, 3]

@@ -183,7 +183,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     points_attr = curves.GetPointsAttr()
     raw_counts = curves.GetCurveVertexCountsAttr().Get(code)
     raw_points = points_attr.Get(code)
-    counts = np.array(raw_counts if raw_counts is not None else [], dtype=np.int64).reshape(-1)
+    counts = curve_checks.whole_numbers(raw_counts if raw_counts is not None else [], "curveVertexCounts", where)
     points = np.array(raw_points if raw_points is not None else [], dtype=np.float64)
     if points.size and (points.ndim != 2 or points.shape[1] != 3):
         specs = points_attr.GetPropertyStack(code)
