@@ -89,3 +89,28 @@ def test_whole_float_curve_vertex_counts_are_read(tmp_path):
     path = hair_file(tmp_path / "in.usda", "", counts="[2.0, 3.0]")
     path.write_text(path.read_text().replace("int[] curveVertexCounts", "float[] curveVertexCounts"))
     assert read_scene(path).curves[0].counts.tolist() == [2, 3]
+
+
+def _sampled_widths(path, samples):
+    stage = new_stage(path, start=1, end=3)
+    c = add_curves(stage, "/World/Hair", chain(5, 0.1, (0, -1, 0)), [2, 3])
+    c.SetWidthsInterpolation("constant")
+    for t, w in samples.items():
+        c.GetWidthsAttr().Set([w], t)
+    stage.Save()
+    return path
+
+
+def test_widths_that_change_over_time_get_one_warning_naming_the_prim(tmp_path):
+    """Widths keyed from 0.02 to 0.5 were read at the start frame without a word (points that change
+    get a warning); now one warning names the prim and the time read."""
+    scene = read_scene(_sampled_widths(tmp_path / "in.usda", {1: 0.02, 3: 0.5}))
+    assert scene.curves[0].widths.tolist() == pytest.approx([0.02])
+    notes = [w for w in scene.warnings if "widths" in w]
+    assert notes == [f"{tmp_path / 'in.usda'}: /World/Hair: widths changes over time (2 samples): only the widths "
+                     "at time 1 are read and simulated"]
+
+
+def test_widths_sampled_with_one_value_are_read_without_a_warning(tmp_path):
+    scene = read_scene(_sampled_widths(tmp_path / "in.usda", {1: 0.02, 2: 0.02, 3: 0.02}))
+    assert not [w for w in scene.warnings if "widths" in w]

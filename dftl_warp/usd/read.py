@@ -129,18 +129,36 @@ def read_feature_values(prim, where: str, scope: str, time_codes_per_second: flo
     return {k: v for k, v in values.items() if k in FEATURE_ATTRIBUTES}
 
 
-def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where):
+def _changes(attr, code) -> bool:
+    """Whether a time-sampled attribute holds another value at some sample than at ``code``."""
+    first = np.asarray(attr.Get(code))
+    for t in attr.GetTimeSamples():
+        other = np.asarray(attr.Get(t))
+        if other.shape != first.shape or not np.array_equal(other, first):
+            return True
+    return False
+
+
+def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where, warnings):
     """(widths, interpolation) as the renderer reads them (``primvars:widths`` wins over
-    ``widths``; an empty array is none), checked by the renderer's rule; (None, "") when none."""
+    ``widths``; an empty array is none), checked by the renderer's rule; (None, "") when none.
+    Time-sampled widths get one warning: only those at ``code`` are simulated."""
     from pxr import UsdGeom
 
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("widths")
     if pv and pv.HasAuthoredValue():
         values, interp, name = curve_checks.flattened(pv, code, where), str(pv.GetInterpolation()), "primvars:widths"
+        sampled = [a for a in (pv.GetAttr(), pv.GetIndicesAttr()) if a and a.GetNumTimeSamples() > 1]
     else:
         attr = curves.GetWidthsAttr()
         values = attr.Get(code) if attr.HasAuthoredValue() else None
         interp, name = str(curves.GetWidthsInterpolation()), "widths"
+        sampled = [attr] if attr.GetNumTimeSamples() > 1 else []
+    changing = [a for a in sampled if _changes(a, code)]
+    if changing and values is not None:
+        at = "the default time" if code.IsDefault() else f"time {code.GetValue():g}"
+        warnings.append(f"{where}: {changing[0].GetName()} changes over time ({changing[0].GetNumTimeSamples()} "
+                        f"samples): only the widths at {at} are read and simulated")
     values = None if values is None else curve_checks.numbers(values, name, where)
     if values is None or len(values) == 0:
         return None, ""
@@ -231,7 +249,8 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
 
-    widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where)
+    widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where,
+                                                warnings)
     stretch = np.linalg.svd(m[:3, :3], compute_uv=False)
     if widths is not None and stretch[0] > stretch[-1] * (1.0 + 1e-6):
         warnings.append(f"{where}: widths under the non-uniform scale {tuple(float(f'{v:.4g}') for v in stretch)} "
