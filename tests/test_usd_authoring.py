@@ -114,3 +114,24 @@ def test_widths_that_change_over_time_get_one_warning_naming_the_prim(tmp_path):
 def test_widths_sampled_with_one_value_are_read_without_a_warning(tmp_path):
     scene = read_scene(_sampled_widths(tmp_path / "in.usda", {1: 0.02, 2: 0.02, 3: 0.02}))
     assert not [w for w in scene.warnings if "widths" in w]
+
+
+@pytest.mark.parametrize("arc, target, says", [
+    ("references", "@gone.usda@", "Could not open asset @gone.usda@ for reference"),
+    ("payload", "@gone.usda@", "Could not open asset @gone.usda@ for payload"),
+    ("references", "@hair.usda@</Nope>", "Unresolved reference prim path"),
+])
+def test_a_groom_whose_reference_or_payload_did_not_load_says_so(tmp_path, capsys, arc, target, says):
+    """A stage whose only hair comes through a reference or payload that does not resolve was
+    refused with "no BasisCurves prims" alone (only a missing sublayer was named); now the refusal
+    quotes USD's warning, for the whole stage and for a --prim at the prim that brings it in."""
+    hair_file(tmp_path / "hair.usda", "")
+    f = tmp_path / "shot.usda"
+    f.write_text(f'#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 3\n)\ndef Xform "Groom" (\n    {arc} = {target}\n)\n'
+                 '{\n}\ndef Xform "Other"\n{\n}\n')
+    line = one_line_error(capsys, f)
+    assert "the stage has no BasisCurves prims (no hair to simulate) (USD: In </Groom>: " in line and says in line
+    with pytest.raises(UserError, match=r"/Groom: no BasisCurves prim at or below this path \(USD: In </Groom>: "):
+        read_scene(f, prims=["/Groom"])
+    with pytest.raises(UserError, match=r"/Other: no BasisCurves prim at or below this path$"):
+        read_scene(f, prims=["/Other"])

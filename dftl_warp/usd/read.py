@@ -294,6 +294,27 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
 # -- which prims ---------------------------------------------------------------------------------
 
 
+#: USD's composition warnings for a sublayer, reference or payload that did not load
+_UNRESOLVED = re.compile(r"Could not (load|open) (sublayer|asset)|Unresolved (reference|payload) prim path")
+
+
+def _unresolved(warnings, file: str, under=None) -> str:
+    """`` (USD: ...)``: the first composition warning of a sublayer, reference or payload that did
+    not load (on a prim at, above or below ``under`` when given); "" when there is none."""
+    from pxr import Sdf
+
+    for w in warnings or ():
+        if not _UNRESOLVED.search(w):
+            continue
+        at = re.match(rf"{re.escape(file)}: In <(/[^>]*)>", w)
+        if under is not None and at and Sdf.Path.IsValidPathString(at.group(1)):
+            where = Sdf.Path(at.group(1))
+            if not (under.HasPrefix(where) or where.HasPrefix(under)):
+                continue
+        return f" (USD: {w.removeprefix(file + ': ')})"
+    return ""
+
+
 def _instanced_curves(prim):
     """The first BasisCurves instance proxy at or below the instance ``prim``, or None."""
     from pxr import Usd, UsdGeom
@@ -371,7 +392,8 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
                     seen.add(p.GetPath())
                     instances.append((p, proxy))
         if selection and not under and not any(i.GetPath().HasPrefix(root.GetPath()) for i, _ in instances):
-            raise UserError(f"{file}: {text}: no BasisCurves prim at or below this path")
+            raise UserError(f"{file}: {text}: no BasisCurves prim at or below this path"
+                            f"{_unresolved(warnings, file, root.GetPath())}")
         for p in under:
             if p.GetPath() not in seen:
                 seen.add(p.GetPath())
@@ -398,10 +420,9 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: every BasisCurves prim is under an instanceable prim ({instances[0][0].GetPath()}"
                             f"{' ...' if len(instances) > 1 else ''}): set instanceable = false to simulate them")
         if not selection:
-            # a layer that did not load (a cache whose input moved) is the likely reason: say so
-            missing = next((w for w in warnings or () if "Could not" in w and "layer" in w), None)
-            because = f" (USD: {missing.removeprefix(file + ': ')})" if missing else ""
-            because = because or (f" ({skipped}: only BasisCurves are simulated)" if skipped else "")
+            # a layer, reference or payload that did not load (a cache whose input moved) is the likely
+            # reason: say so
+            because = _unresolved(warnings, file) or (f" ({skipped}: only BasisCurves are simulated)" if skipped else "")
             raise UserError(f"{file}: the stage has no BasisCurves prims (no hair to simulate){because}")
     return found
 
