@@ -137,6 +137,30 @@ def coincident_note(source: str, groom: Groom, resampled: bool) -> str | None:
             f"handles them, or remove the coincident points")
 
 
+#: the largest float32, USD's point3f and float widths
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def check_float32(source: str, points: np.ndarray, counts=None, widths=None, strand_ids=None) -> None:
+    """UserError naming the first point (strand and index, or mesh vertex) or width beyond float32,
+    which USD would write as inf."""
+    big = np.flatnonzero(np.abs(points).max(axis=1, initial=0.0) > FLOAT32_MAX)
+    wide = np.flatnonzero(np.abs(widths) > FLOAT32_MAX) if widths is not None and widths.size > 1 else []
+    if not len(big) and not len(wide):
+        return
+    i = int(big[0] if len(big) else wide[0])
+    what = f"point {i} = ({', '.join(f'{v:g}' for v in points[i])})" if len(big) else f"width {widths[i]:g} at point {i}"
+    if counts is not None:
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        k = int(np.searchsorted(starts, i, side="right") - 1)
+        ids = strand_ids if strand_ids is not None else np.arange(len(counts))
+        head = f"strand {int(ids[k])}: " + what.replace(f"point {i}", f"point {i - int(starts[k])}")
+    else:
+        head = what.replace("point", "vertex")
+    raise UserError(f"{source}: {head} does not fit float32 (at most {FLOAT32_MAX:.4g}), the type of USD's "
+                    f"points and widths: is the unit right?")
+
+
 def _check_count(name: str, value, low: int = 1):
     """An integer option (``max_strands``, ``every``, ``segments``) as an int, or None if unset."""
     if value is None:
@@ -152,9 +176,9 @@ def _check_number(name: str, value, low: float = 0.0, low_open: bool = True):
     if value is None:
         return None
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not ok or not np.isfinite(value) or (value <= low if low_open else value < low):
+    if not ok or not np.isfinite(value) or (value <= low if low_open else value < low) or abs(value) > FLOAT32_MAX:
         raise OptionError(f"{name} / --{name.replace('_', '-')} = {value!r}: expected a finite number "
-                          f"{'>' if low_open else '>='} {low:g}")
+                          f"{'>' if low_open else '>='} {low:g} (at most {FLOAT32_MAX:.4g}, USD's float32)")
     return float(value)
 
 
@@ -257,6 +281,9 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
             mesh.points = mesh.points @ X_UP_TO_Y_UP.T
         notes.append(f"{source}: X-up input rotated a quarter turn about Z to Y up ((x, y, z) -> (-y, x, z))")
         axis = "Y"
+    check_float32(source, groom.points, groom.counts, widths, groom.strand_ids)
+    if mesh is not None:
+        check_float32(os.fspath(head), mesh.points)
     coincident = coincident_note(source, groom, segments is not None)
     roots = groom.points[np.concatenate([[0], np.cumsum(groom.counts)[:-1]])]
     for note in (coincident, units_note(source, groom.points, groom.counts, mpu, units is not None),

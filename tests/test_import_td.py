@@ -1,0 +1,68 @@
+"""``dftl-warp import`` on files a researcher writes by hand: values USD's float32 cannot hold,
+data a reader skips, head meshes from other tools. One line naming the file and where (exit 2,
+nothing written) or one warning; never a traceback or a stage holding inf."""
+
+from __future__ import annotations
+
+import re
+import numpy as np
+import pytest
+
+import test_importers as ti
+from test_import_input import refused, strands, warned
+
+from dftl_warp.importers import GroomImportWarning  # noqa: F401  (the warnings' class)
+
+
+def double_ply(path, points, counts, widths):
+    """A binary PLY of double x y z width and a strand element of vertex counts."""
+    head = ("ply\nformat binary_little_endian 1.0\n"
+            f"element vertex {len(points)}\nproperty double x\nproperty double y\nproperty double z\n"
+            f"property double width\nelement strand {len(counts)}\nproperty int vertex_count\nend_header\n")
+    rows = np.zeros(len(points), [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("w", "<f8")])
+    rows["x"], rows["y"], rows["z"] = np.asarray(points, float).T
+    rows["w"] = widths
+    path.write_bytes(head.encode() + rows.tobytes() + np.asarray(counts, "<i4").tobytes())
+    return path
+
+
+def test_points_and_widths_beyond_float32_are_refused_naming_strand_and_point(tmp_path, capsys):
+    """A double PLY with a coordinate or width of 1e300 was written as inf into the stage (numpy's
+    overflow warning on stderr, exit 0); simulate then refused the stage. Now the import refuses."""
+    pts, counts = strands([3, 2], step=10.0)
+    big = pts.astype(float)
+    big[4, 0] = 1e300
+    src, out = double_ply(tmp_path / "big.ply", big, counts, 0.05), tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(src))}: strand 1: point 1 = \(1e\+300, 0, -40\) does not fit "
+            r"float32 \(at most 3\.403e\+38\), the type of USD's points and widths: is the unit right\?$")
+    widths = np.full(5, 0.05)
+    widths[3] = 1e300
+    src = double_ply(tmp_path / "wide.ply", pts, counts, widths)
+    refused(["import", str(src), "-o", str(out)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(src))}: strand 1: width 1e\+300 at point 0 does not fit float32")
+    refused(["import", str(double_ply(tmp_path / "ok.ply", pts, counts, 0.05)), "-o", str(out), "--width", "1e40"],
+            capsys, str(out), r"^dftl-warp: error: width / --width = 1e\+40: expected a finite number > 0 \(at most "
+                              r"3\.403e\+38, USD's float32\)$")
+
+
+def test_a_head_vertex_beyond_float32_is_refused_naming_the_vertex(tmp_path, capsys):
+    pts, counts = strands([3, 3], step=10.0)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    head = tmp_path / "head.obj"
+    head.write_text("v 0 0 0\nv 1 0 0\nv 1e300 1 0\nf 1 2 3\n")
+    out = tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out), "--head", str(head)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(head))}: vertex 2 = \(1e\+300, 1, 0\) does not fit float32")
+
+
+def test_strands_kept_after_subsampling_are_named_by_their_index_in_the_file(tmp_path, capsys):
+    pts, counts = strands([3, 3, 3], step=10.0)
+    big = pts.astype(float)
+    big[7, 1] = -1e39
+    src, out = double_ply(tmp_path / "big.ply", big, counts, 0.05), tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out), "--every", "2"], capsys, str(out), r": strand 2: point 1 = ")
+    result, notes = warned(src, out, max_strands=1)      # strand 0 only: nothing beyond float32 is left
+    stage, curves = ti.open_curves(out)
+    points = np.array(curves.GetPointsAttr().Get())
+    assert result.strands == 1 and points.shape == (3, 3) and np.isfinite(points).all()
