@@ -66,3 +66,48 @@ def test_strands_kept_after_subsampling_are_named_by_their_index_in_the_file(tmp
     stage, curves = ti.open_curves(out)
     points = np.array(curves.GetPointsAttr().Get())
     assert result.strands == 1 and points.shape == (3, 3) and np.isfinite(points).all()
+
+
+def ply_head(path, faces, *, item="int", binary=False):
+    """A PLY head: the unit square's 4 corners and ``faces`` (lists of indices) of ``item`` type."""
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    head = ("ply\nformat " + ("binary_big_endian" if binary else "ascii") + " 1.0\nelement vertex 4\n"
+            "property float x\nproperty float y\nproperty float z\n"
+            f"element face {len(faces)}\nproperty list uchar {item} vertex_indices\nend_header\n").encode()
+    if binary:
+        kind = {"int": ">i4", "float": ">f4"}[item]
+        body = corners.astype(">f4").tobytes() + b"".join(bytes([len(f)]) + np.asarray(f, kind).tobytes() for f in faces)
+    else:
+        body = ("".join(f"{x:g} {y:g} {z:g}\n" for x, y, z in corners)
+                + "".join(f"{len(f)} {' '.join(f'{i:g}' for i in f)}\n" for f in faces)).encode()
+    path.write_bytes(head + body)
+    return path
+
+
+@pytest.mark.parametrize("faces, item, binary, where", [
+    ([[0, 1, 2], [0, 2, 2.5]], "float", False, r"line 15: face 1: vertex index 2\.5 is not a whole number"),
+    ([[0, 1, 2], [0, 2, 2.5]], "float", True, r"offset \d+: face 1: vertex index 2\.5 is not a whole number"),
+    ([[0, 1, 2, 3], [0, 2, -1]], "int", False, r"line 15: face 1: vertex index -1 is out of range \(0\.\.3\)"),
+    ([[0, 1, 2, 3], [0, 2, 4]], "int", True, r"offset 231: face 1: vertex index 4 is out of range \(0\.\.3\)"),
+])
+def test_ply_head_face_indices_name_the_face_and_its_line_or_offset(tmp_path, capsys, faces, item, binary, where):
+    """A PLY head with float face indices had 2.5 read as vertex 2 without a word, and an index
+    out of range named neither the face nor where it is; now both name the face, line or offset."""
+    pts, counts = strands([3, 3], step=10.0)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    head, out = ply_head(tmp_path / "head.ply", faces, item=item, binary=binary), tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out), "--head", str(head)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(head))}: {where}$")
+
+
+def test_ply_head_with_whole_float_indices_and_quads_is_read(tmp_path):
+    pts, counts = strands([3, 3], step=10.0)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    head = ply_head(tmp_path / "head.ply", [[0, 1, 2, 3]], item="float", binary=True)
+    result, _ = warned(src, tmp_path / "o.usda", head=head)
+    stage, _ = ti.open_curves(tmp_path / "o.usda")
+    from pxr import UsdGeom
+
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Groom/Head"))
+    assert list(mesh.GetFaceVertexCountsAttr().Get()) == [4]
+    assert list(mesh.GetFaceVertexIndicesAttr().Get()) == [0, 1, 2, 3]

@@ -141,11 +141,16 @@ def read_ply_mesh(data: bytes, path: str) -> MeshData:
     bad = [k for k, c in enumerate(counts) if c < 3]
     if bad:
         raise UserError(f"{path}: face {bad[0]}: a face needs at least 3 vertices")
-    indices = np.concatenate([np.asarray(f, dtype=np.int64) for f in lists]) if lists else np.zeros(0, np.int64)
-    out = np.flatnonzero((indices < 0) | (indices >= points.shape[0]))
-    if out.size:
-        raise UserError(f"{path}: face vertex index {int(indices[out[0]])} is out of range (0..{points.shape[0] - 1})")
-    return _mesh(path, points, counts, indices)
+    values = np.concatenate([np.asarray(f, dtype=np.float64) for f in lists]) if lists else np.zeros(0)
+    owner = np.repeat(np.arange(len(counts)), counts)
+    bad = np.flatnonzero((values != np.round(values)) | (values < 0) | (values >= points.shape[0]))
+    if bad.size:
+        i = int(bad[0])
+        k = int(owner[i])
+        what = "is not a whole number" if values[i] != np.round(values[i]) else \
+            f"is out of range (0..{points.shape[0] - 1})"
+        raise UserError(f"{path}: {face.where(k)}: face {k}: vertex index {values[i]:g} {what}")
+    return _mesh(path, points, counts, values.astype(np.int64))
 
 
 def _mesh(path, points, counts, indices) -> MeshData:

@@ -50,6 +50,8 @@ class Element:
         self.offset: int | None = None
         self.row_size: int | None = None
         self.field_offsets: dict[str, int] = {}
+        #: first byte of each row (binary rows with lists)
+        self.row_offsets: list[int] | None = None
 
     def has(self, name: str) -> bool:
         return name in self.data
@@ -58,6 +60,8 @@ class Element:
         """``line N`` (ASCII) or ``offset N`` (binary) of row ``row`` (and property ``prop``), for messages."""
         if self.line is not None:
             return f"line {self.line + row}"
+        if self.row_offsets is not None:
+            return f"offset {self.row_offsets[row]}"
         if self.offset is not None and self.row_size is not None:
             return f"offset {self.offset + row * self.row_size + self.field_offsets.get(prop, 0)}"
         return f"row {row}"
@@ -155,7 +159,9 @@ def _read_binary(buf: Buffer, elements, offset: int, order: str) -> int:
             raise buf.error(offset, f"truncated: element {el.name!r} has {el.count} rows, they cannot fit in "
                                     f"the {buf.size - offset} bytes left")
         columns = {p[0]: [] for p in el.properties}
+        el.row_offsets = []
         for r in range(el.count):
+            el.row_offsets.append(offset)
             for p in el.properties:
                 if len(p) == 2:
                     dt = p[1].newbyteorder(order)
