@@ -111,3 +111,17 @@ def test_ply_head_with_whole_float_indices_and_quads_is_read(tmp_path):
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Groom/Head"))
     assert list(mesh.GetFaceVertexCountsAttr().Get()) == [4]
     assert list(mesh.GetFaceVertexIndicesAttr().Get()) == [0, 1, 2, 3]
+
+
+def test_an_obj_head_saved_with_a_utf8_byte_order_mark_is_read(tmp_path):
+    """An OBJ saved by a Windows editor starts with a UTF-8 BOM: it was refused as an unknown
+    statement '\\ufeffv 0 0 0' on line 1."""
+    pts, counts = strands([3, 3], step=10.0)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    head = tmp_path / "head.obj"
+    head.write_bytes(b"\xef\xbb\xbfv 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nf 1 2 3\r\n")
+    warned(src, tmp_path / "o.usda", head=head)
+    stage, _ = ti.open_curves(tmp_path / "o.usda")
+    from pxr import UsdGeom
+
+    assert len(UsdGeom.Mesh(stage.GetPrimAtPath("/Groom/Head")).GetPointsAttr().Get()) == 3

@@ -58,7 +58,7 @@ def read_obj(data: bytes, path: str) -> MeshData:
     """An OBJ head mesh: ``v`` (x y z, then a weight or a colour, which are ignored) and ``f`` (``v``,
     ``v/vt``, ``v//vn`` or ``v/vt/vn``; 1-based, negative from the last vertex so far). What
     :data:`IGNORED` lists is counted in one warning; anything else is an error naming the line."""
-    text = data.decode("utf-8", errors="replace")
+    text = data.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a BOM, as Windows editors save
     points, counts, indices = [], [], []
     seen = {"vt": 0, "vn": 0}
     skipped: dict[str, int] = {}
