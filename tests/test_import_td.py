@@ -5,6 +5,7 @@ nothing written) or one warning; never a traceback or a stage holding inf."""
 from __future__ import annotations
 
 import re
+import struct
 import numpy as np
 import pytest
 
@@ -125,3 +126,64 @@ def test_an_obj_head_saved_with_a_utf8_byte_order_mark_is_read(tmp_path):
     from pxr import UsdGeom
 
     assert len(UsdGeom.Mesh(stage.GetPrimAtPath("/Groom/Head")).GetPointsAttr().Get()) == 3
+
+
+# -- what a file holds beyond positions and widths is named in one warning ------------------------
+
+
+def test_hair_transparency_and_colour_arrays_are_named_as_not_imported(tmp_path):
+    """Colours and transparency of a .hair were dropped without a word (TressFX's thickness had a
+    warning); now one warning names them."""
+    pts, counts = strands([3, 3], step=10.0)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    data = bytearray(src.read_bytes())
+    arrays = struct.unpack_from("<I", data, 12)[0] | 8 | 16                 # transparency and colours
+    struct.pack_into("<I", data, 12, arrays)
+    src.write_bytes(bytes(data) + bytes(4 * len(pts)) + bytes(12 * len(pts)))
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert f"{src}: not imported: the transparency and colors arrays (only points and thickness are imported)" in notes
+    _, notes = warned(ti.write_hair(tmp_path / "plain.hair", pts, counts), tmp_path / "o.usda")
+    assert not [n for n in notes if "not imported" in n]
+
+
+def test_tfx_uvs_and_colours_are_named_as_not_imported(tmp_path):
+    pts, _ = strands([4, 4], step=0.02)
+    xyzw = np.concatenate([pts, np.ones((8, 1), np.float32)], axis=1).astype("<f4").tobytes()
+    head = struct.pack("<f7I", 4.0, 2, 4, 160, 288, 304, 0, 368) + bytes(128)
+    src = tmp_path / "g.tfx"
+    src.write_bytes(head + xyzw + bytes(16) + bytes(64) + bytes(128))
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert (f"{src}: not imported: float2 strand UVs, float2 vertex UVs, float4 vertex colours (only positions are "
+            "imported)") in notes
+
+
+def test_ply_properties_and_elements_a_reader_does_not_use_are_named(tmp_path):
+    """Vertex colours and normals, a face element, or a per-vertex list of a strand PLY (and a
+    head PLY's normals and UVs) were skipped silently, while an OBJ head's vt/vn were warned about."""
+    pts, counts = strands([3, 3], step=10.0)
+    rows = "".join(f"{x:g} {y:g} {z:g} 0.05 255 0.5 2 0.1 0.2\n" for x, y, z in pts)
+    src = tmp_path / "g.ply"
+    src.write_text("ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n"
+                   "property float thickness\nproperty uchar red\nproperty float nx\nproperty list uchar float uv\n"
+                   "element strand 2\nproperty int nsegs\nproperty int group\nelement face 1\n"
+                   "property list uchar int vertex_indices\nend_header\n" + rows + "2 7\n2 7\n3 0 1 2\n")
+    result, notes = warned(src, tmp_path / "o.usda")
+    assert result.widths == "per vertex, from the file"
+    assert [n for n in notes if "not imported" in n] == [
+        f"{src}: not imported: vertex properties 'red', 'nx', 'uv'; strand property 'group'; element 'face' (1 row) "
+        "(only positions, widths and strands are imported)"]
+    head = tmp_path / "head.ply"
+    head.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property float nx\nproperty float s\nelement face 1\nproperty list uchar int vertex_indices\n"
+                    "end_header\n0 0 0 0 0\n1 0 0 0 1\n0 1 0 1 0\n3 0 1 2\n")
+    _, notes = warned(ti.write_hair(tmp_path / "g.hair", pts, counts), tmp_path / "o.usda", head=head)
+    assert f"{head}: not imported: vertex properties 'nx', 's' (a collider uses only the vertices' positions and " \
+           "the faces)" in notes
+
+
+@pytest.mark.parametrize("delimit", ["strand", "strand_id", "edge"])
+def test_a_ply_of_only_what_is_imported_gets_no_such_warning(tmp_path, delimit):
+    pts, counts = strands([3, 3], step=10.0)
+    src = ti.write_ply(tmp_path / "g.ply", pts, counts, widths=np.full(6, 0.05), delimit=delimit)
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert not [n for n in notes if "not imported" in n]

@@ -127,14 +127,15 @@ def _obj_index(text: str, count: int, what: str, word: str, where: str) -> int:
 
 
 def read_ply_mesh(data: bytes, path: str) -> MeshData:
-    from .ply import read_ply, vertex_positions
+    from .ply import read_ply, unused_note, vertex_positions
 
     elements = read_ply(data, path)
     points = vertex_positions(elements, path)
     face = elements.get("face")
     if face is None:
         raise UserError(f"{path}: no 'face' element: not a mesh")
-    lists = face.data.get("vertex_indices", face.data.get("vertex_index"))
+    key = "vertex_indices" if "vertex_indices" in face.data else "vertex_index"
+    lists = face.data.get(key)
     if not isinstance(lists, list):
         raise UserError(f"{path}: element 'face' has no 'vertex_indices' list")
     counts = [len(f) for f in lists]
@@ -150,7 +151,12 @@ def read_ply_mesh(data: bytes, path: str) -> MeshData:
         what = "is not a whole number" if values[i] != np.round(values[i]) else \
             f"is out of range (0..{points.shape[0] - 1})"
         raise UserError(f"{path}: {face.where(k)}: face {k}: vertex index {values[i]:g} {what}")
-    return _mesh(path, points, counts, values.astype(np.int64))
+    mesh = _mesh(path, points, counts, values.astype(np.int64))
+    note = unused_note(elements, {"vertex": {"x", "y", "z"}, "face": {key}}, path, "a collider uses only the "
+                       "vertices' positions and the faces")
+    if note:
+        mesh.warnings.append(note)
+    return mesh
 
 
 def _mesh(path, points, counts, indices) -> MeshData:
