@@ -187,3 +187,18 @@ def test_a_ply_of_only_what_is_imported_gets_no_such_warning(tmp_path, delimit):
     src = ti.write_ply(tmp_path / "g.ply", pts, counts, widths=np.full(6, 0.05), delimit=delimit)
     _, notes = warned(src, tmp_path / "o.usda")
     assert not [n for n in notes if "not imported" in n]
+
+
+def test_dropping_every_strand_for_nan_says_so_and_subsampling_names_the_file(tmp_path, capsys):
+    """--drop-nonfinite on a file whose every strand has a NaN was refused as having "no strands
+    with 2 or more vertices" (they had 3); the --every note named no file."""
+    pts, counts = strands([3, 3], step=0.02)
+    pts[1, 0] = pts[4, 2] = np.nan
+    src, out = ti.write_strand_list(tmp_path / "g.data", pts, counts), tmp_path / "o.usda"
+    refused(["import", str(src), "-o", str(out), "--drop-nonfinite"], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(src))}: no strands left to import: all 2 have NaN/inf points "
+            r"\(--drop-nonfinite\)$")
+    pts, counts = strands([3, 3, 3], step=0.02)
+    src = ti.write_strand_list(tmp_path / "g.data", pts, counts)
+    _, notes = warned(src, out, every=2)
+    assert f"{src}: kept 2 of 3 strands (--every/--max-strands)" in notes

@@ -66,7 +66,7 @@ class ImportResult:
     warnings: list[str] = field(default_factory=list)
 
 
-def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: list[str]) -> Groom:
+def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: list[str], source: str = "") -> Groom:
     n = groom.num_strands
     keep = np.arange(n)
     if every is not None and every > 1:
@@ -77,7 +77,7 @@ def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: l
         keep = keep[pick]
     if keep.size == n:
         return groom
-    notes.append(f"kept {keep.size} of {n} strands (--every/--max-strands)")
+    notes.append(f"{source + ': ' if source else ''}kept {keep.size} of {n} strands (--every/--max-strands)")
     return select(groom, keep)
 
 
@@ -256,7 +256,9 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
             groom = select(groom, np.flatnonzero(~bad_strand))
     else:
         check_finite(source, groom.points, groom.counts)
-    groom = subsample(groom, every, max_strands, notes)
+    if groom.num_strands == 0 and total:
+        raise UserError(f"{source}: no strands left to import: all {total} have NaN/inf points (--drop-nonfinite)")
+    groom = subsample(groom, every, max_strands, notes, source)
     if groom.num_strands == 0:
         raise UserError(f"{source}: no strands with 2 or more vertices to import")
     if segments is not None:
