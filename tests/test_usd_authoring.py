@@ -135,3 +135,15 @@ def test_a_groom_whose_reference_or_payload_did_not_load_says_so(tmp_path, capsy
         read_scene(f, prims=["/Groom"])
     with pytest.raises(UserError, match=r"/Other: no BasisCurves prim at or below this path$"):
         read_scene(f, prims=["/Other"])
+
+
+@pytest.mark.parametrize("op", ['string xformOp:translate = "a"', "float3 xformOp:rotateX = (1, 2, 3)"])
+def test_an_xform_op_of_the_wrong_type_is_one_line_naming_the_prim(tmp_path, capsys, op):
+    """``string xformOp:translate`` above a groom raised USD's Tf.ErrorException as a traceback."""
+    path = hair_file(tmp_path / "in.usda", "")
+    text = path.read_text().replace('def Xform "World"\n{', 'def Xform "World"\n{\n    ' + op +
+                                    '\n    uniform token[] xformOpOrder = ["' + op.split()[1] + '"]')
+    path.write_text(text)
+    line = one_line_error(capsys, path)
+    assert "/World/Hair: local-to-world transform at time 1.0: Invalid combination of opType" in line
+    assert "Returning identity" not in line
