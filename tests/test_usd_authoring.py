@@ -147,3 +147,19 @@ def test_an_xform_op_of_the_wrong_type_is_one_line_naming_the_prim(tmp_path, cap
     line = one_line_error(capsys, path)
     assert "/World/Hair: local-to-world transform at time 1.0: Invalid combination of opType" in line
     assert "Returning identity" not in line
+
+
+def test_usd_warnings_while_reading_are_one_line_naming_the_file(tmp_path, capsys):
+    """An xformOpOrder naming an op that is not authored: USD printed its own multi-part
+    "Warning: in _GetOrderedXformOps at line 686 of .../xformable.cpp -- ..." on stderr; now it is
+    one dftl-warp warning naming the file (once, however many frames read the transform)."""
+    path = hair_file(tmp_path / "in.usda", "")
+    path.write_text(path.read_text().replace('def Xform "World"\n{', 'def Xform "World"\n{\n    uniform token[] '
+                                             'xformOpOrder = ["xformOp:translate"]'))
+    code, out, err = simulate(capsys, path)
+    assert code == 0, err
+    lines = [line for line in err.splitlines() if "xformOp:translate" in line]
+    assert lines == [f"dftl-warp: warning: {path}: Unable to get attribute associated with the xformOp "
+                     "'xformOp:translate', on the prim at path </World>. Skipping xformOp in the computation of the "
+                     "local transformation at prim."], err
+    assert "xformable.cpp" not in err

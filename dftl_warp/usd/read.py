@@ -481,7 +481,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
             every integer frame of their animation within them (default: of their whole
             animation; see :mod:`dftl_warp.usd.sampling`).
     """
-    from pxr import Usd, UsdPhysics
+    from pxr import Usd, UsdUtils
 
     if isinstance(source, Usd.Stage):
         stage, warnings = source, []
@@ -489,6 +489,26 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
     else:
         file = os.fspath(source)
         stage, warnings = open_stage(file)
+    # USD's own warnings while reading (an xformOp in xformOpOrder that is not authored) become one
+    # line each naming the file, as open_stage's do, instead of USD's "Warning: in ..." on stderr
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()
+    try:
+        scene = _read_scene(stage, file, warnings, prims, time, frames)
+    finally:
+        diagnostics = delegate.TakeUncoalescedDiagnostics()
+        del delegate
+    seen = set()
+    for d in diagnostics:
+        text = " ".join(d.commentary.split())
+        if text not in seen:
+            seen.add(text)
+            scene.warnings.append(f"{file}: {text}")
+    return scene
+
+
+def _read_scene(stage, file: str, warnings: list, prims, time, frames) -> Scene:
+    from pxr import UsdPhysics
+
     info = read_stage_info(stage, file)
     warnings += layer_unit_warnings(stage, info, file)
     if time is None and info.start_time_code is not None:
