@@ -163,3 +163,19 @@ def test_usd_warnings_while_reading_are_one_line_naming_the_file(tmp_path, capsy
                      "'xformOp:translate', on the prim at path </World>. Skipping xformOp in the computation of the "
                      "local transformation at prim."], err
     assert "xformable.cpp" not in err
+
+
+def test_points_only_time_sampled_on_a_stage_without_a_range_are_read_at_their_first_sample(tmp_path):
+    """No startTimeCode and points authored only as time samples: `info` refused the prim with
+    "curveVertexCounts sum to 3 but points has 0 entries" (USD has no value at the default time),
+    while `simulate --start 10` read them. Now they are read at their first sample, with a warning."""
+    path = tmp_path / "in.usda"
+    path.write_text('#usda 1.0\ndef BasisCurves "Hair"\n{\n    uniform token type = "linear"\n'
+                    '    int[] curveVertexCounts = [3]\n'
+                    '    point3f[] points.timeSamples = { 10: [(0, 0, 0), (0, -1, 0), (0, -2, 0)], '
+                    '20: [(0, 0, 0), (0, -1, 0), (0, -3, 0)] }\n}\n')
+    scene = read_scene(path)
+    assert scene.curves[0].points[:, 1].tolist() == [0, -1, -2]
+    assert f"{path}: /Hair: points have only time samples and the stage no startTimeCode: read at their first " \
+           "sample, time 10 (simulate reads them at --start)" in scene.warnings
+    assert any("only the points at time 10 are read" in w for w in scene.warnings)

@@ -179,6 +179,12 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     transforms = transforms or TransformReader(prim.GetStage(), file)
     curves = UsdGeom.BasisCurves(prim)
     code = _time_code(time)
+    samples = curves.GetPointsAttr().GetTimeSamples()
+    if time is None and samples and curves.GetPointsAttr().Get(code) is None:
+        # no start frame and points only time-sampled: USD has no value at the default time
+        code = _time_code(samples[0])
+        warnings.append(f"{where}: points have only time samples and the stage no startTimeCode: read at their "
+                        f"first sample, time {samples[0]:g} (simulate reads them at --start)")
     settings, features = _split_values(read_values(prim, where, "curves", time_codes_per_second))
     root_mesh = read_root_mesh(prim, where, file, time, transforms)
 
@@ -232,7 +238,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
             if other.shape != counts.shape or np.any(other != counts):
                 raise UserError(f"{where}: curveVertexCounts changes at time {t:g}: the curves' topology must not change over time")
     if points_attr.GetNumTimeSamples() > 1:
-        at = "the default time" if time is None else f"time {float(time):g}"
+        at = "the default time" if code.IsDefault() else f"time {code.GetValue():g}"
         warnings.append(
             f"{where}: points are time-sampled (an animated groom): only the points at {at} are read "
             f"and simulated; the roots follow the prim's transform, not the animated points")
