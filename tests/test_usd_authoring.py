@@ -4,7 +4,7 @@ warning), never a traceback."""
 
 import pytest
 from pxr import Sdf, UsdGeom
-from usd_stages import add_curves, chain, new_stage
+from usd_stages import USDA_HEAD, add_curves, chain, new_stage
 
 from dftl_warp import cli
 from dftl_warp.errors import UserError
@@ -28,14 +28,7 @@ def one_line_error(capsys, path):
 
 def hair_file(path, extra, counts="[2, 3]"):
     """A hand-written stage: /World/Hair, two linear curves of 2 and 3 points, plus ``extra``."""
-    path.write_text(f"""#usda 1.0
-(
-    startTimeCode = 1
-    endTimeCode = 3
-    upAxis = "Y"
-    metersPerUnit = 1
-)
-def Xform "World"
+    path.write_text(USDA_HEAD + f"""def Xform "World"
 {{
     def BasisCurves "Hair"
     {{
