@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 import pytest
-from usd_stages import add_curves, chain, new_stage
+from usd_stages import USDA_HEAD, add_curves, chain, new_stage
 
 from dftl_warp import cli
 from dftl_warp.usd import read as usd_read
@@ -216,14 +216,7 @@ def test_a_cache_whose_input_moved_says_which_layer_did_not_load(tmp_path, capsy
 
 
 def _indexed_widths_stage(path, indices):
-    path.write_text(f"""#usda 1.0
-(
-    startTimeCode = 1
-    endTimeCode = 3
-    upAxis = "Y"
-    metersPerUnit = 1
-)
-def BasisCurves "Hair"
+    path.write_text(USDA_HEAD + f"""def BasisCurves "Hair"
 {{
     uniform token type = "linear"
     int[] curveVertexCounts = [3, 3]

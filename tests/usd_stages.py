@@ -8,6 +8,10 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
 
+#: the layer metadata of a hand-written test stage: frames 1..3, Y up, metres
+USDA_HEAD = '#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 3\n    upAxis = "Y"\n    metersPerUnit = 1\n)\n'
+
+
 def new_stage(path, *, up="Y", meters_per_unit=1.0, start=1, end=10, fps=24.0, default_prim=True):
     """A stage with /World; ``None`` leaves a metadata field unauthored."""
     path = Path(path)

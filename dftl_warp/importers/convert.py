@@ -66,7 +66,7 @@ class ImportResult:
     warnings: list[str] = field(default_factory=list)
 
 
-def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: list[str]) -> Groom:
+def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: list[str], source: str = "") -> Groom:
     n = groom.num_strands
     keep = np.arange(n)
     if every is not None and every > 1:
@@ -77,7 +77,7 @@ def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: l
         keep = keep[pick]
     if keep.size == n:
         return groom
-    notes.append(f"kept {keep.size} of {n} strands (--every/--max-strands)")
+    notes.append(f"{source + ': ' if source else ''}kept {keep.size} of {n} strands (--every/--max-strands)")
     return select(groom, keep)
 
 
@@ -137,6 +137,30 @@ def coincident_note(source: str, groom: Groom, resampled: bool) -> str | None:
             f"handles them, or remove the coincident points")
 
 
+#: the largest float32, USD's point3f and float widths
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def check_float32(source: str, points: np.ndarray, counts=None, widths=None, strand_ids=None) -> None:
+    """UserError naming the first point (strand and index, or mesh vertex) or width beyond float32,
+    which USD would write as inf."""
+    big = np.flatnonzero(np.abs(points).max(axis=1, initial=0.0) > FLOAT32_MAX)
+    wide = np.flatnonzero(np.abs(widths) > FLOAT32_MAX) if widths is not None and widths.size > 1 else []
+    if not len(big) and not len(wide):
+        return
+    i = int(big[0] if len(big) else wide[0])
+    what = f"point {i} = ({', '.join(f'{v:g}' for v in points[i])})" if len(big) else f"width {widths[i]:g} at point {i}"
+    if counts is not None:
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        k = int(np.searchsorted(starts, i, side="right") - 1)
+        ids = strand_ids if strand_ids is not None else np.arange(len(counts))
+        head = f"strand {int(ids[k])}: " + what.replace(f"point {i}", f"point {i - int(starts[k])}")
+    else:
+        head = what.replace("point", "vertex")
+    raise UserError(f"{source}: {head} does not fit float32 (at most {FLOAT32_MAX:.4g}), the type of USD's "
+                    f"points and widths: is the unit right?")
+
+
 def _check_count(name: str, value, low: int = 1):
     """An integer option (``max_strands``, ``every``, ``segments``) as an int, or None if unset."""
     if value is None:
@@ -152,9 +176,9 @@ def _check_number(name: str, value, low: float = 0.0, low_open: bool = True):
     if value is None:
         return None
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not ok or not np.isfinite(value) or (value <= low if low_open else value < low):
+    if not ok or not np.isfinite(value) or (value <= low if low_open else value < low) or abs(value) > FLOAT32_MAX:
         raise OptionError(f"{name} / --{name.replace('_', '-')} = {value!r}: expected a finite number "
-                          f"{'>' if low_open else '>='} {low:g}")
+                          f"{'>' if low_open else '>='} {low:g} (at most {FLOAT32_MAX:.4g}, USD's float32)")
     return float(value)
 
 
@@ -232,7 +256,9 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
             groom = select(groom, np.flatnonzero(~bad_strand))
     else:
         check_finite(source, groom.points, groom.counts)
-    groom = subsample(groom, every, max_strands, notes)
+    if groom.num_strands == 0 and total:
+        raise UserError(f"{source}: no strands left to import: all {total} have NaN/inf points (--drop-nonfinite)")
+    groom = subsample(groom, every, max_strands, notes, source)
     if groom.num_strands == 0:
         raise UserError(f"{source}: no strands with 2 or more vertices to import")
     if segments is not None:
@@ -257,6 +283,9 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
             mesh.points = mesh.points @ X_UP_TO_Y_UP.T
         notes.append(f"{source}: X-up input rotated a quarter turn about Z to Y up ((x, y, z) -> (-y, x, z))")
         axis = "Y"
+    check_float32(source, groom.points, groom.counts, widths, groom.strand_ids)
+    if mesh is not None:
+        check_float32(os.fspath(head), mesh.points)
     coincident = coincident_note(source, groom, segments is not None)
     roots = groom.points[np.concatenate([[0], np.cumsum(groom.counts)[:-1]])]
     for note in (coincident, units_note(source, groom.points, groom.counts, mpu, units is not None),

@@ -22,7 +22,7 @@ A strand of s segments has s + 1 points. Thickness is the strand's diameter, in 
 points; it becomes the USD ``widths`` (per vertex with the thickness array, else constant
 ``d_thickness``, which must then be finite and >= 0; 0 means none). Strands of 0 segments (one
 point) are dropped with a warning, as in the other formats. Transparency and colors are not
-imported. The format has no unit; its models are Z-up.
+imported (one warning names them). The format has no unit; its models are Z-up.
 """
 
 from __future__ import annotations
@@ -94,6 +94,10 @@ def read(data: bytes, path: str) -> Groom:
     if arrays & COLORS_BIT:
         buf.need(offset, 12 * point_count, f"colors array of {point_count} points")
         offset += 12 * point_count
+    skipped = [name for bit, name in ((TRANSPARENCY_BIT, "transparency"), (COLORS_BIT, "colors")) if arrays & bit]
+    if skipped:
+        warnings.append(f"{path}: not imported: the {' and '.join(skipped)} array{'s' if len(skipped) > 1 else ''} "
+                        f"(only points and thickness are imported)")
     if offset < buf.size:
         warnings.append(f"{path}: {buf.size - offset} bytes after the last array (offset {offset}); ignored")
     points, counts, widths = drop_short_strands(path, points, counts, widths, warnings)

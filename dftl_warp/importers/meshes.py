@@ -58,7 +58,7 @@ def read_obj(data: bytes, path: str) -> MeshData:
     """An OBJ head mesh: ``v`` (x y z, then a weight or a colour, which are ignored) and ``f`` (``v``,
     ``v/vt``, ``v//vn`` or ``v/vt/vn``; 1-based, negative from the last vertex so far). What
     :data:`IGNORED` lists is counted in one warning; anything else is an error naming the line."""
-    text = data.decode("utf-8", errors="replace")
+    text = data.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a BOM, as Windows editors save
     points, counts, indices = [], [], []
     seen = {"vt": 0, "vn": 0}
     skipped: dict[str, int] = {}
@@ -127,25 +127,36 @@ def _obj_index(text: str, count: int, what: str, word: str, where: str) -> int:
 
 
 def read_ply_mesh(data: bytes, path: str) -> MeshData:
-    from .ply import read_ply, vertex_positions
+    from .ply import read_ply, unused_note, vertex_positions
 
     elements = read_ply(data, path)
     points = vertex_positions(elements, path)
     face = elements.get("face")
     if face is None:
         raise UserError(f"{path}: no 'face' element: not a mesh")
-    lists = face.data.get("vertex_indices", face.data.get("vertex_index"))
+    key = "vertex_indices" if "vertex_indices" in face.data else "vertex_index"
+    lists = face.data.get(key)
     if not isinstance(lists, list):
         raise UserError(f"{path}: element 'face' has no 'vertex_indices' list")
     counts = [len(f) for f in lists]
     bad = [k for k, c in enumerate(counts) if c < 3]
     if bad:
         raise UserError(f"{path}: face {bad[0]}: a face needs at least 3 vertices")
-    indices = np.concatenate([np.asarray(f, dtype=np.int64) for f in lists]) if lists else np.zeros(0, np.int64)
-    out = np.flatnonzero((indices < 0) | (indices >= points.shape[0]))
-    if out.size:
-        raise UserError(f"{path}: face vertex index {int(indices[out[0]])} is out of range (0..{points.shape[0] - 1})")
-    return _mesh(path, points, counts, indices)
+    values = np.concatenate([np.asarray(f, dtype=np.float64) for f in lists]) if lists else np.zeros(0)
+    owner = np.repeat(np.arange(len(counts)), counts)
+    bad = np.flatnonzero((values != np.round(values)) | (values < 0) | (values >= points.shape[0]))
+    if bad.size:
+        i = int(bad[0])
+        k = int(owner[i])
+        what = "is not a whole number" if values[i] != np.round(values[i]) else \
+            f"is out of range (0..{points.shape[0] - 1})"
+        raise UserError(f"{path}: {face.where(k)}: face {k}: vertex index {values[i]:g} {what}")
+    mesh = _mesh(path, points, counts, values.astype(np.int64))
+    note = unused_note(elements, {"vertex": {"x", "y", "z"}, "face": {key}}, path, "a collider uses only the "
+                       "vertices' positions and the faces")
+    if note:
+        mesh.warnings.append(note)
+    return mesh
 
 
 def _mesh(path, points, counts, indices) -> MeshData:

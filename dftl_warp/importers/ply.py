@@ -50,6 +50,8 @@ class Element:
         self.offset: int | None = None
         self.row_size: int | None = None
         self.field_offsets: dict[str, int] = {}
+        #: first byte of each row (binary rows with lists)
+        self.row_offsets: list[int] | None = None
 
     def has(self, name: str) -> bool:
         return name in self.data
@@ -58,6 +60,8 @@ class Element:
         """``line N`` (ASCII) or ``offset N`` (binary) of row ``row`` (and property ``prop``), for messages."""
         if self.line is not None:
             return f"line {self.line + row}"
+        if self.row_offsets is not None:
+            return f"offset {self.row_offsets[row]}"
         if self.offset is not None and self.row_size is not None:
             return f"offset {self.offset + row * self.row_size + self.field_offsets.get(prop, 0)}"
         return f"row {row}"
@@ -155,7 +159,9 @@ def _read_binary(buf: Buffer, elements, offset: int, order: str) -> int:
             raise buf.error(offset, f"truncated: element {el.name!r} has {el.count} rows, they cannot fit in "
                                     f"the {buf.size - offset} bytes left")
         columns = {p[0]: [] for p in el.properties}
+        el.row_offsets = []
         for r in range(el.count):
+            el.row_offsets.append(offset)
             for p in el.properties:
                 if len(p) == 2:
                     dt = p[1].newbyteorder(order)
@@ -285,6 +291,21 @@ def read_ply(data: bytes, path: str, *, defer_end: bool = False) -> PlyElements:
     return result
 
 
+def unused_note(elements: dict, used: dict, path: str, why: str) -> str | None:
+    """One warning listing the elements and properties of a PLY file that a reader did not use
+    (``used``: element name -> the properties it read); None when it used everything."""
+    parts = []
+    for name, el in elements.items():
+        if name not in used:
+            if el.count:
+                parts.append(f"element {name!r} ({el.count} row{'s' if el.count > 1 else ''})")
+            continue
+        rest = [p[0] for p in el.properties if p[0] not in used[name]]
+        if rest:
+            parts.append(f"{name} propert{'y' if len(rest) == 1 else 'ies'} {', '.join(repr(r) for r in rest)}")
+    return f"{path}: not imported: {'; '.join(parts)} ({why})" if parts else None
+
+
 def vertex_positions(elements: dict, path: str) -> np.ndarray:
     v = elements.get("vertex")
     if v is None:
@@ -326,6 +347,7 @@ def read(data: bytes, path: str) -> Groom:
     vertex = elements["vertex"]
     counts = None
     how = ""
+    used = {"vertex": {"x", "y", "z"}}
     for name in STRAND_ELEMENTS:
         el = elements.get(name)
         if el is None:
@@ -335,6 +357,7 @@ def read(data: bytes, path: str) -> Groom:
             if col is not None:
                 counts = _integers(el, prop, path) + (1 if prop in SEGMENT_PROPS else 0)
                 how = f"element {name!r} property {prop!r}"
+                used[name] = {prop}
                 break
         if counts is not None:
             break
@@ -356,6 +379,7 @@ def read(data: bytes, path: str) -> Groom:
                                         f"vertices resume at vertex {int(starts[again])} after other strands' "
                                         "(a strand's vertices must follow one another)")
                 how = f"vertex property {prop!r}"
+                used["vertex"].add(prop)
                 break
     if counts is None and "edge" in elements:
         e = elements["edge"]
@@ -373,6 +397,7 @@ def read(data: bytes, path: str) -> Groom:
         breaks = np.flatnonzero(~linked) + 1
         counts = np.diff(np.concatenate([[0], breaks, [n]])).astype(np.int64) if n else np.zeros(0, np.int64)
         how = "element 'edge'"
+        used["edge"] = {"vertex1", "vertex2"}
     if counts is None:
         raise UserError(f"{path}: cannot tell where strands start: expected an element 'strand' with 'nsegs' "
                         f"(or 'vertex_count'), a vertex property 'strand_id', or an element 'edge'")
@@ -392,8 +417,12 @@ def read(data: bytes, path: str) -> Groom:
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 raise UserError(f"{path}: vertex {i}: {prop} = {col[i]:g}: expected a finite number >= 0")
+            used["vertex"].add(prop)
             break
     warnings = []
+    note = unused_note(elements, used, path, "only positions, widths and strands are imported")
+    if note:
+        warnings.append(note)
     points, counts, widths = drop_short_strands(path, points, counts, widths, warnings)
     return Groom(points, counts, widths=widths, warnings=warnings)
 

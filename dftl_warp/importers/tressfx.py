@@ -75,6 +75,9 @@ def read(data: bytes, path: str) -> Groom:
     warnings = []
     if off_thick:
         warnings.append(f"{path}: per-strand thickness is a renderer scale, not a width; not imported")
+    others = [what for (field, name, what, _, _), offset in zip(ARRAYS, offsets) if offset and field not in (12, 24)]
+    if others:
+        warnings.append(f"{path}: not imported: {', '.join(others)} (only positions are imported)")
     return Groom(points, counts, warnings=warnings)
 
 

@@ -118,6 +118,27 @@ def check_primvar(values, interpolation: str, counts, num_points: int, curve_typ
     return values
 
 
+def numbers(values, name: str, where: str, expected: str = "float[]") -> np.ndarray:
+    """An authored value (a Vt array, or a scalar the renderer reads as one value) as a 1-D float
+    array; UserError naming the attribute when it holds no numbers (``string[] widths``)."""
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "iuf":
+        shown = repr(str(values) if arr.ndim == 0 else [str(v) for v in arr.reshape(-1)[:3]])[:60]
+        raise UserError(f"{where}: {name} = {shown}: expected numbers ({expected})")
+    return arr.astype(np.float64).reshape(-1)
+
+
+def whole_numbers(values, name: str, where: str) -> np.ndarray:
+    """:func:`numbers` as int64, each a whole number (``float[] curveVertexCounts = [3.5, 4]`` is
+    refused, not read as [3, 4])."""
+    arr = numbers(values, name, where, "int[]")
+    bad = np.flatnonzero(arr != np.round(arr))
+    if bad.size:
+        i = int(bad[0])
+        raise UserError(f"{where}: {name}[{i}] = {arr[i]:g}: expected a whole number (int[])")
+    return arr.astype(np.int64)
+
+
 def flattened(primvar, time, where: str):
     """The values of ``primvar`` at ``time``, expanded through its indices when it has them (USD's
     ``ComputeFlattened`` without its terminal warning): a UserError naming the first index out of

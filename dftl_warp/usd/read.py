@@ -129,18 +129,37 @@ def read_feature_values(prim, where: str, scope: str, time_codes_per_second: flo
     return {k: v for k, v in values.items() if k in FEATURE_ATTRIBUTES}
 
 
-def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where):
+def _changes(attr, code) -> bool:
+    """Whether a time-sampled attribute holds another value at some sample than at ``code``."""
+    first = np.asarray(attr.Get(code))
+    for t in attr.GetTimeSamples():
+        other = np.asarray(attr.Get(t))
+        if other.shape != first.shape or not np.array_equal(other, first):
+            return True
+    return False
+
+
+def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where, warnings):
     """(widths, interpolation) as the renderer reads them (``primvars:widths`` wins over
-    ``widths``; an empty array is none), checked by the renderer's rule; (None, "") when none."""
+    ``widths``; an empty array is none), checked by the renderer's rule; (None, "") when none.
+    Time-sampled widths get one warning: only those at ``code`` are simulated."""
     from pxr import UsdGeom
 
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("widths")
     if pv and pv.HasAuthoredValue():
         values, interp, name = curve_checks.flattened(pv, code, where), str(pv.GetInterpolation()), "primvars:widths"
+        sampled = [a for a in (pv.GetAttr(), pv.GetIndicesAttr()) if a and a.GetNumTimeSamples() > 1]
     else:
         attr = curves.GetWidthsAttr()
         values = attr.Get(code) if attr.HasAuthoredValue() else None
         interp, name = str(curves.GetWidthsInterpolation()), "widths"
+        sampled = [attr] if attr.GetNumTimeSamples() > 1 else []
+    changing = [a for a in sampled if _changes(a, code)]
+    if changing and values is not None:
+        at = "the default time" if code.IsDefault() else f"time {code.GetValue():g}"
+        warnings.append(f"{where}: {changing[0].GetName()} changes over time ({changing[0].GetNumTimeSamples()} "
+                        f"samples): only the widths at {at} are read and simulated")
+    values = None if values is None else curve_checks.numbers(values, name, where)
     if values is None or len(values) == 0:
         return None, ""
     w = curve_checks.check_primvar(values, interp, counts, n_points, ctype, basis, wrap, name, where, nonnegative=True)
@@ -160,6 +179,12 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     transforms = transforms or TransformReader(prim.GetStage(), file)
     curves = UsdGeom.BasisCurves(prim)
     code = _time_code(time)
+    samples = curves.GetPointsAttr().GetTimeSamples()
+    if time is None and samples and curves.GetPointsAttr().Get(code) is None:
+        # no start frame and points only time-sampled: USD has no value at the default time
+        code = _time_code(samples[0])
+        warnings.append(f"{where}: points have only time samples and the stage no startTimeCode: read at their "
+                        f"first sample, time {samples[0]:g} (simulate reads them at --start)")
     settings, features = _split_values(read_values(prim, where, "curves", time_codes_per_second))
     root_mesh = read_root_mesh(prim, where, file, time, transforms)
 
@@ -182,7 +207,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     points_attr = curves.GetPointsAttr()
     raw_counts = curves.GetCurveVertexCountsAttr().Get(code)
     raw_points = points_attr.Get(code)
-    counts = np.array(raw_counts if raw_counts is not None else [], dtype=np.int64).reshape(-1)
+    counts = curve_checks.whole_numbers(raw_counts if raw_counts is not None else [], "curveVertexCounts", where)
     points = np.array(raw_points if raw_points is not None else [], dtype=np.float64)
     if points.size and (points.ndim != 2 or points.shape[1] != 3):
         specs = points_attr.GetPropertyStack(code)
@@ -213,7 +238,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
             if other.shape != counts.shape or np.any(other != counts):
                 raise UserError(f"{where}: curveVertexCounts changes at time {t:g}: the curves' topology must not change over time")
     if points_attr.GetNumTimeSamples() > 1:
-        at = "the default time" if time is None else f"time {float(time):g}"
+        at = "the default time" if code.IsDefault() else f"time {code.GetValue():g}"
         warnings.append(
             f"{where}: points are time-sampled (an animated groom): only the points at {at} are read "
             f"and simulated; the roots follow the prim's transform, not the animated points")
@@ -230,7 +255,8 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
 
-    widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where)
+    widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where,
+                                                warnings)
     stretch = np.linalg.svd(m[:3, :3], compute_uv=False)
     if widths is not None and stretch[0] > stretch[-1] * (1.0 + 1e-6):
         warnings.append(f"{where}: widths under the non-uniform scale {tuple(float(f'{v:.4g}') for v in stretch)} "
@@ -272,6 +298,27 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
 
 
 # -- which prims ---------------------------------------------------------------------------------
+
+
+#: USD's composition warnings for a sublayer, reference or payload that did not load
+_UNRESOLVED = re.compile(r"Could not (load|open) (sublayer|asset)|Unresolved (reference|payload) prim path")
+
+
+def _unresolved(warnings, file: str, under=None) -> str:
+    """`` (USD: ...)``: the first composition warning of a sublayer, reference or payload that did
+    not load (on a prim at, above or below ``under`` when given); "" when there is none."""
+    from pxr import Sdf
+
+    for w in warnings or ():
+        if not _UNRESOLVED.search(w):
+            continue
+        at = re.match(rf"{re.escape(file)}: In <(/[^>]*)>", w)
+        if under is not None and at and Sdf.Path.IsValidPathString(at.group(1)):
+            where = Sdf.Path(at.group(1))
+            if not (under.HasPrefix(where) or where.HasPrefix(under)):
+                continue
+        return f" (USD: {w.removeprefix(file + ': ')})"
+    return ""
 
 
 def _instanced_curves(prim):
@@ -351,7 +398,8 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
                     seen.add(p.GetPath())
                     instances.append((p, proxy))
         if selection and not under and not any(i.GetPath().HasPrefix(root.GetPath()) for i, _ in instances):
-            raise UserError(f"{file}: {text}: no BasisCurves prim at or below this path")
+            raise UserError(f"{file}: {text}: no BasisCurves prim at or below this path"
+                            f"{_unresolved(warnings, file, root.GetPath())}")
         for p in under:
             if p.GetPath() not in seen:
                 seen.add(p.GetPath())
@@ -378,10 +426,9 @@ def _select_prims(stage, file: str, selection, warnings: list | None = None):
             raise UserError(f"{file}: every BasisCurves prim is under an instanceable prim ({instances[0][0].GetPath()}"
                             f"{' ...' if len(instances) > 1 else ''}): set instanceable = false to simulate them")
         if not selection:
-            # a layer that did not load (a cache whose input moved) is the likely reason: say so
-            missing = next((w for w in warnings or () if "Could not" in w and "layer" in w), None)
-            because = f" (USD: {missing.removeprefix(file + ': ')})" if missing else ""
-            because = because or (f" ({skipped}: only BasisCurves are simulated)" if skipped else "")
+            # a layer, reference or payload that did not load (a cache whose input moved) is the likely
+            # reason: say so
+            because = _unresolved(warnings, file) or (f" ({skipped}: only BasisCurves are simulated)" if skipped else "")
             raise UserError(f"{file}: the stage has no BasisCurves prims (no hair to simulate){because}")
     return found
 
@@ -440,7 +487,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
             every integer frame of their animation within them (default: of their whole
             animation; see :mod:`dftl_warp.usd.sampling`).
     """
-    from pxr import Usd, UsdPhysics
+    from pxr import Usd, UsdUtils
 
     if isinstance(source, Usd.Stage):
         stage, warnings = source, []
@@ -448,6 +495,26 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
     else:
         file = os.fspath(source)
         stage, warnings = open_stage(file)
+    # USD's own warnings while reading (an xformOp in xformOpOrder that is not authored) become one
+    # line each naming the file, as open_stage's do, instead of USD's "Warning: in ..." on stderr
+    delegate = UsdUtils.CoalescingDiagnosticDelegate()
+    try:
+        scene = _read_scene(stage, file, warnings, prims, time, frames)
+    finally:
+        diagnostics = delegate.TakeUncoalescedDiagnostics()
+        del delegate
+    seen = set()
+    for d in diagnostics:
+        text = " ".join(d.commentary.split())
+        if text not in seen:
+            seen.add(text)
+            scene.warnings.append(f"{file}: {text}")
+    return scene
+
+
+def _read_scene(stage, file: str, warnings: list, prims, time, frames) -> Scene:
+    from pxr import UsdPhysics
+
     info = read_stage_info(stage, file)
     warnings += layer_unit_warnings(stage, info, file)
     if time is None and info.start_time_code is not None:

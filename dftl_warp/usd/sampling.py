@@ -78,12 +78,18 @@ class TransformReader:
         self._caches: dict = {}
 
     def _matrix(self, prim, time, where: str) -> np.ndarray:
-        from pxr import UsdGeom
+        from pxr import Tf, UsdGeom
+
+        from .stage import tf_message
 
         cache = self._caches.get(time)
         if cache is None:
             cache = self._caches[time] = UsdGeom.XformCache(_code(time))
-        m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
+        try:
+            m = np.array(cache.GetLocalToWorldTransform(prim), dtype=np.float64)
+        except Tf.ErrorException as exc:   # an xformOp of the wrong type (string xformOp:translate)
+            raise UserError(f"{where}: local-to-world transform at time {time}: "
+                            f"{tf_message(exc).removesuffix(' Returning identity matrix.')}") from None
         if not np.all(np.isfinite(m)):
             raise UserError(f"{where}: local-to-world transform at time {time} is not finite")
         if abs(np.linalg.det(m[:3, :3])) < 1e-300:
