@@ -3,10 +3,12 @@
 The strand BVH (``wp.Bvh`` over segment boxes) is kept between frames: when a new frame has
 the same strand topology, the segment boxes are rewritten on the device and the tree is refit
 (``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both;
-``Renderer.hair_visible`` says whether the last image shows any strand.
+``Renderer.hair_visible`` says whether the last image shows any strand. The boxes enclose the
+strands as drawn for the camera: widened to ``min_pixel_width`` pixels at their depth, seen at
+opacity true / drawn width (:mod:`dftl_warp.kernels.render.pixel`).
 
-Bad arguments (a resolution of 8.5 or 0 pixels, a fractional ``spp``, an unknown shading or
-conform policy) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
+Bad arguments (a resolution of 8.5 or 0 pixels, a fractional ``spp``, a negative
+``min_pixel_width``, an unknown shading or conform policy) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
 line for ``dftl-warp render``; nothing is truncated to an integer.
 """
 
