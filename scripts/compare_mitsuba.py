@@ -111,7 +111,7 @@ def main(argv=None) -> int:
         make_groom_stage(path, args.strands, args.width)
     stage = usd_scene.open_stage(path)
     scene = usd_scene.read_render_scene(stage, args.frame, str(path))
-    renderer = Renderer(width, height, spp=args.spp)
+    renderer = Renderer(width, height, spp=args.spp, min_pixel_width=0)   # true widths, as Mitsuba draws them
     camera = usd_scene.read_camera(stage, args.camera, args.frame) if args.camera else renderer.default_camera(scene)
 
     t0 = time.perf_counter()

@@ -1,6 +1,7 @@
 """The README's preview: a numpy groom on a sphere 'head', rendered by dftl-warp's renderer.
 
     python scripts/render_preview.py [--device cpu] [--out docs/img/preview.png]
+                                     [--root-width 0.0005] [--min-pixel-width W]
 
 Writes the groom as a USD stage (OUT's folder/.. is not touched: the stage goes to
 out/preview/groom.usda) and renders it with the same code as ``dftl-warp render``.
@@ -16,8 +17,7 @@ from pathlib import Path
 import numpy as np
 
 
-
-def write_stage(path: Path, strands: int, vertices: int) -> None:
+def write_stage(path: Path, strands: int, vertices: int, root_width: float = 0.0005) -> None:
     from pxr import Gf, Usd, UsdGeom, Vt
 
     from dftl_warp.render.groom import sphere_groom
@@ -32,7 +32,7 @@ def write_stage(path: Path, strands: int, vertices: int) -> None:
     c.CreateCurveVertexCountsAttr(Vt.IntArray(counts.tolist()))
     c.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)))
     u = np.tile(np.linspace(0.0, 1.0, vertices), strands)
-    c.CreateWidthsAttr(Vt.FloatArray((0.0005 * (1.0 - 0.6 * u)).tolist()))
+    c.CreateWidthsAttr(Vt.FloatArray((root_width * (1.0 - 0.6 * u)).tolist()))
     c.SetWidthsInterpolation("vertex")
     head = UsdGeom.Sphere.Define(stage, "/groom/head")
     head.CreateRadiusAttr(0.1)
@@ -55,14 +55,18 @@ def main(argv=None) -> int:
     ap.add_argument("--strands", type=int, default=15000)
     ap.add_argument("--resolution", default="720x540")
     ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--root-width", type=float, default=0.0005,
+                    help="strand width at the root in metres, tapering to 40 %% at the tip (real hair: 4e-5 to 1e-4)")
+    ap.add_argument("--min-pixel-width", default=None, help="passed to dftl-warp render (default: its default)")
     args = ap.parse_args(argv)
     stage = Path("out/preview/groom.usda")
-    write_stage(stage, args.strands, 24)
+    write_stage(stage, args.strands, 24, args.root_width)
     from dftl_warp import cli
 
     t0 = time.perf_counter()
+    extra = [] if args.min_pixel_width is None else ["--min-pixel-width", args.min_pixel_width]
     rc = cli.main(["render", str(stage), "--camera", "/camera", "--resolution", args.resolution,
-                   "--spp", str(args.spp), "--device", args.device, "-o", args.out])
+                   "--spp", str(args.spp), "--device", args.device, *extra, "-o", args.out])
     print(f"{args.out}: {time.perf_counter() - t0:.1f} s")
     return rc
 

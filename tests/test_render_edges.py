@@ -1,5 +1,5 @@
-"""``dftl-warp render`` at the edges: curves of one vertex (nothing to draw), a guide binding the
-renderer does not deform (``simulate --guides-output binding``), and an output with two runs of '#'.
+"""``dftl-warp render`` at the edges: curves of one vertex (nothing to draw), a guide binding that names
+no guides (``simulate --guides-output binding`` writes them), and an output with two runs of '#'.
 What is left out is said once; what cannot be rendered is one line, exit 2, no file."""
 
 import numpy as np
@@ -46,8 +46,9 @@ def test_curves_of_one_vertex_among_others_are_named_once(tmp_path, capsys):
     assert (image.read_png(tmp_path / "out.png")[..., 3] > 0).any()
 
 
-def test_a_guide_binding_drawn_at_rest_is_said(tmp_path, capsys):
-    """A --guides-output binding cache rendered its render curves at rest, as if simulated."""
+def test_a_guide_binding_without_its_guides_is_one_line(tmp_path, capsys):
+    """A --guides-output binding cache was drawn at rest, with a warning; it is now deformed by its guides
+    (tests/test_render_binding.py), and render ids that name no guide prim cannot be: one line, no file."""
     src = tmp_path / "bound.usda"
     stage = new_stage(src)
     hair = add_curves(stage, "/W/Hair", [STRAND, STRAND + [1.0, 0.0, 0.0]], widths=0.1)
@@ -56,11 +57,10 @@ def test_a_guide_binding_drawn_at_rest_is_said(tmp_path, capsys):
                                                             UsdGeom.Tokens.uniform, 1)
     ids.Set(Vt.IntArray([0, 0]))
     stage.Save()
-    assert render(src, "-o", tmp_path / "out.png") == 0
-    (line,) = lines(capsys)
-    assert line.startswith(f"dftl-warp: warning: {src}: /W/Hair: a guide binding (simulate --guides-output binding) "
-                           "is not deformed by the renderer")
-    assert (tmp_path / "out.png").exists()
+    assert render(src, "-o", tmp_path / "out.png") == 2
+    assert lines(capsys) == [f"dftl-warp: error: {src}: /W/Hair: primvars:dftl:guideIds without rel dftl:guides: a "
+                             "guide binding must name its guide prims"]
+    assert not (tmp_path / "out.png").exists()
     # a plain groom says nothing
     plain = tmp_path / "plain.usda"
     stage = new_stage(plain)

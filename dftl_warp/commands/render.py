@@ -1,7 +1,8 @@
 """``dftl-warp render``: ray-traced hair previews of a USD stage (one frame, a range, a turntable).
 
     dftl-warp render INPUT [--frame F | --start F --end F] [--camera PRIM] [--resolution WxH]
-                     [--spp N] [--device cpu|cuda:N] [--turntable N] [--contact-sheet] -o OUT
+                     [--spp N] [--min-pixel-width W] [--device cpu|cuda:N] [--turntable N]
+                     [--contact-sheet] -o OUT
 
 OUT is a PNG for one frame; for several frames a pattern with a run of '#' (``hair.####.png``),
 a video (``.mp4``, ``.gif``; needs the ``video`` extra), or, with ``--contact-sheet``, one PNG
@@ -26,7 +27,7 @@ MAX_IMAGES = 100_000
 
 def add_parser(sub):
     from ..output.paths import path_argument
-    from ..render.renderer import MAX_SIDE, MAX_SPP
+    from ..render.renderer import MAX_PIXEL_WIDTH, MAX_SIDE, MAX_SPP, MIN_PIXEL_WIDTH
 
     p = sub.add_parser(
         "render", help="render hair previews of a USD stage (PNG, image sequence, contact sheet, video)",
@@ -46,6 +47,11 @@ def add_parser(sub):
     p.add_argument("--resolution", default="960x540", metavar="WxH",
                    help=f"image size in pixels, each side 1 to {MAX_SIDE} (default 960x540)")
     p.add_argument("--spp", type=int, default=8, help=f"samples per pixel, 1 to {MAX_SPP} (default 8)")
+    p.add_argument("--min-pixel-width", type=float, default=MIN_PIXEL_WIDTH, metavar="W",
+                   help="draw a strand thinner than W pixels at its depth W pixels wide, its opacity scaled by "
+                        "true / drawn width so as much hair is seen as its true width covers (real hair, "
+                        f"40-100 um, is a fraction of a pixel in a preview); 0 draws true widths; at most "
+                        f"{MAX_PIXEL_WIDTH:g} (default {MIN_PIXEL_WIDTH:g})")
     p.add_argument("--device", default=None,
                    help="Warp device: cpu or cuda:N (default cuda:0 when there is a CUDA device, else cpu)")
     p.add_argument("--shading", default="marschner", choices=("marschner", "kajiya-kay"), help="hair shading model")
@@ -81,13 +87,14 @@ def _check_numbers(args) -> None:
     and --turntable within the renderer's limits, before the stage is read."""
     import math
 
-    from ..render.renderer import MAX_SPP, whole_number
+    from ..render.renderer import MAX_SPP, pixel_width, whole_number
 
     for flag in ("frame", "start", "end", "step"):
         value = getattr(args, flag)
         if value is not None and not math.isfinite(value):
             raise UserError(f"--{flag} {value:g}: expected a finite time code")
     whole_number("--spp", args.spp, 1, MAX_SPP)
+    pixel_width("--min-pixel-width", args.min_pixel_width)
     if args.turntable is not None:
         whole_number("--turntable", args.turntable, 1, MAX_IMAGES)
 
@@ -214,7 +221,8 @@ def run(args) -> int:
     if kind == "video":
         image.check_video(args.output)
     args.device = resolve_device(args.device)
-    renderer = Renderer(width, height, spp=args.spp, device=args.device, shading=args.shading, conform=args.conform)
+    renderer = Renderer(width, height, spp=args.spp, device=args.device, shading=args.shading, conform=args.conform,
+                        min_pixel_width=args.min_pixel_width)
     if not args.quiet:
         print(device_line(args.device), file=sys.stderr)
 

@@ -3,10 +3,12 @@
 The strand BVH (``wp.Bvh`` over segment boxes) is kept between frames: when a new frame has
 the same strand topology, the segment boxes are rewritten on the device and the tree is refit
 (``bvh.refit()``) instead of rebuilt. ``Renderer.bvh_builds`` / ``bvh_refits`` count both;
-``Renderer.hair_visible`` says whether the last image shows any strand.
+``Renderer.hair_visible`` says whether the last image shows any strand. The boxes enclose the
+strands as drawn for the camera: widened to ``min_pixel_width`` pixels at their depth, seen at
+opacity true / drawn width (:mod:`dftl_warp.kernels.render.pixel`).
 
-Bad arguments (a resolution of 8.5 or 0 pixels, a fractional ``spp``, an unknown shading or
-conform policy) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
+Bad arguments (a resolution of 8.5 or 0 pixels, a fractional ``spp``, a negative
+``min_pixel_width``, an unknown shading or conform policy) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
 line for ``dftl-warp render``; nothing is truncated to an integer.
 """
 
@@ -22,6 +24,7 @@ import warp as wp
 
 from ..core.devices import DeviceNotFound, lookup_device
 from ..core.layout import strand_offsets
+from ..kernels.render import pixel
 from ..kernels.render import tracer as rk
 from ..options import OptionError
 from .camera import CONFORM_POLICIES, Camera, auto_frame
@@ -32,6 +35,10 @@ SHADINGS = {"marschner": 0, "kajiya-kay": 1}
 MAX_SIDE = 16384
 #: the most samples per pixel (``--spp``; 8 by default, 64 in the comparisons of docs/render.md)
 MAX_SPP = 4096
+#: the default minimum width of a drawn strand, in pixels (``--min-pixel-width``; 0: true widths)
+MIN_PIXEL_WIDTH = 1.0
+#: the largest minimum pixel width
+MAX_PIXEL_WIDTH = 64.0
 
 
 @dataclass
@@ -58,6 +65,15 @@ def parse_device(name: str) -> str:
         raise OptionError(f"device {name!r} is {exc}") from None
 
 
+def pixel_width(name: str, value) -> float:
+    """``value`` as a minimum strand width in pixels, 0 (off) to :data:`MAX_PIXEL_WIDTH`; OptionError
+    naming ``name`` for anything else (a string, a bool, nan, a negative width)."""
+    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not numeric or not math.isfinite(value) or not 0 <= value <= MAX_PIXEL_WIDTH:
+        raise OptionError(f"{name} {value!r}: expected a width in pixels from 0 (off) to {MAX_PIXEL_WIDTH:g}")
+    return float(value)
+
+
 def whole_number(name: str, value, low: int = 1, high: int | None = None) -> int:
     """``value`` as an int in [``low``, ``high``]; OptionError naming ``name`` for a fraction
     (8.5 is refused, not cut to 8), a bool, a string or a number out of range."""
@@ -73,13 +89,19 @@ def whole_number(name: str, value, low: int = 1, high: int | None = None) -> int
 
 class Renderer:
     """Renders frames of ``width`` x ``height`` pixels with ``spp`` samples per pixel on a Warp
-    ``device``; on the CPU, ``threads`` threads (default: all cores) render bands of rows."""
+    ``device``; on the CPU, ``threads`` threads (default: all cores) render bands of rows.
+
+    ``min_pixel_width``: a strand thinner than this many pixels at its depth is drawn that wide,
+    with its opacity scaled by true / drawn width, so the coverage (how much hair is seen) stays
+    that of the true widths while thin hair no longer breaks into aliased dots; 0: true widths."""
 
     def __init__(self, width=640, height=480, spp=4, device="cpu", shading="marschner",
-                 conform="expandAperture", lighting: Lighting | None = None, seed=0, threads=None):
+                 conform="expandAperture", lighting: Lighting | None = None, seed=0, threads=None,
+                 min_pixel_width=MIN_PIXEL_WIDTH):
         self.width = whole_number("width", width, 1, MAX_SIDE)
         self.height = whole_number("height", height, 1, MAX_SIDE)
         self.spp = whole_number("spp", spp, 1, MAX_SPP)
+        self.min_pixel_width = pixel_width("min_pixel_width", min_pixel_width)
         if shading not in SHADINGS:
             raise OptionError(f"shading {shading!r}: choose one of {', '.join(SHADINGS)}")
         if conform not in CONFORM_POLICIES:
@@ -106,31 +128,29 @@ class Renderer:
 
     # -- scene upload --------------------------------------------------------------------
     def _upload_hair(self, scene: RenderScene, origin: np.ndarray):
+        """Strand arrays on the device; the segment tree is fitted by :meth:`_fit_hair`."""
         dev = self.device
         counts = np.asarray(scene.curve_vertex_counts, dtype=np.int64)
         pts = (np.asarray(scene.points, dtype=np.float64) - origin).astype(np.float32)
         radii = np.asarray(scene.radii, dtype=np.float32)
         colors = np.asarray(scene.colors, dtype=np.float32)
         hair = rk.RenderHair()
+        self._new_tree = False
         if scene.segment_count == 0:
             hair.count = 0
             hair.bvh = wp.uint64(0)
             empty_i = wp.zeros(1, dtype=wp.int32, device=dev)
             hair.seg_v0 = hair.seg_strand = empty_i
             hair.points = hair.colors = wp.zeros(1, dtype=wp.vec3, device=dev)
-            hair.radii = wp.zeros(1, dtype=float, device=dev)
+            hair.radii = hair.drawn = wp.zeros(1, dtype=float, device=dev)
             self._hair, self._hair_counts = hair, None
             return
         if self._hair is not None and self._hair_counts is not None and np.array_equal(self._hair_counts, counts):
-            # same topology: new positions, radii and colours, then refit the tree
+            # same topology: new positions, radii and colours; the tree is refit
             hair = self._hair
             hair.points.assign(pts)
             hair.radii.assign(radii)
             hair.colors.assign(colors)
-            wp.launch(rk.segment_bounds, dim=self._n_seg,
-                      inputs=[hair.seg_v0, hair.points, hair.radii, self._lowers, self._uppers], device=dev)
-            self._bvh.refit()
-            self.bvh_refits += 1
             return
         starts = strand_offsets(counts)
         seg_counts = np.maximum(counts - 1, 0)
@@ -142,15 +162,40 @@ class Renderer:
         hair.seg_strand = wp.array(seg_strand.astype(np.int32), dtype=wp.int32, device=dev)
         hair.points = wp.array(pts, dtype=wp.vec3, device=dev)
         hair.radii = wp.array(radii, dtype=float, device=dev)
+        hair.drawn = wp.empty(len(radii), dtype=float, device=dev)
         hair.colors = wp.array(colors, dtype=wp.vec3, device=dev)
         self._lowers = wp.empty(self._n_seg, dtype=wp.vec3, device=dev)
         self._uppers = wp.empty(self._n_seg, dtype=wp.vec3, device=dev)
-        wp.launch(rk.segment_bounds, dim=self._n_seg,
-                  inputs=[hair.seg_v0, hair.points, hair.radii, self._lowers, self._uppers], device=dev)
-        self._bvh = wp.Bvh(self._lowers, self._uppers)
-        self.bvh_builds += 1
-        hair.bvh = self._bvh.id
         self._hair, self._hair_counts = hair, counts.copy()
+        self._new_tree = True
+
+    def _fit_hair(self, cam: rk.RenderCamera, world_from_camera: np.ndarray):
+        """Drawn radii for this camera (the true radii widened to ``min_pixel_width`` at their
+        depth), the segment boxes around them, and the tree built (new topology) or refit."""
+        hair, dev = self._hair, self.device
+        if hair.count == 0:
+            return
+        if self.min_pixel_width > 0:
+            left, right, bottom, top = (float(v) for v in cam.window)
+            # world size of a pixel at camera depth 1 (orthographic: anywhere)
+            pixel = max(np.linalg.norm(world_from_camera[:3, 0]) * (right - left) / self.width,
+                        np.linalg.norm(world_from_camera[:3, 1]) * (top - bottom) / self.height)
+            camera_from_world = wp.mat44(*np.linalg.inv(world_from_camera).astype(np.float32).reshape(-1))
+            wp.launch(rk.widen_radii, dim=len(hair.radii), device=dev,
+                      inputs=[camera_from_world, cam.orthographic, float(0.5 * self.min_pixel_width * pixel),
+                              hair.radii, hair.points, hair.drawn])
+        else:
+            wp.copy(hair.drawn, hair.radii)
+        wp.launch(rk.segment_bounds, dim=self._n_seg,
+                  inputs=[hair.seg_v0, hair.points, hair.drawn, self._lowers, self._uppers], device=dev)
+        if self._new_tree:
+            self._bvh = wp.Bvh(self._lowers, self._uppers)
+            self.bvh_builds += 1
+            hair.bvh = self._bvh.id
+            self._new_tree = False
+        else:
+            self._bvh.refit()
+            self.bvh_refits += 1
 
     def _upload_shapes(self, scene: RenderScene, origin: np.ndarray):
         dev = self.device
@@ -181,7 +226,8 @@ class Renderer:
         self._shapes = shapes
 
     # -- camera and lights ---------------------------------------------------------------
-    def _camera(self, camera: Camera, origin: np.ndarray) -> rk.RenderCamera:
+    def _camera(self, camera: Camera, origin: np.ndarray):
+        """The kernels' camera, and its world_from_camera (float64) relative to ``origin``."""
         cam = rk.RenderCamera()
         m = np.asarray(camera.world_from_camera, dtype=np.float64).copy()
         m[:3, 3] -= origin
@@ -190,7 +236,7 @@ class Renderer:
         cam.near, cam.far = float(camera.near), float(camera.far)
         cam.orthographic = 1 if camera.projection == "orthographic" else 0
         cam.width, cam.height = self.width, self.height
-        return cam
+        return cam, m
 
     def _lights(self, camera: Camera) -> rk.RenderLights:
         lt = self.lighting
@@ -227,13 +273,15 @@ class Renderer:
             camera = self.default_camera(scene)
         bounds = scene.bounds()
         origin = np.zeros(3) if bounds is None else 0.5 * (bounds[0] + bounds[1])
+        cam, world_from_camera = self._camera(camera, origin)
         self._upload_hair(scene, origin)
+        self._fit_hair(cam, world_from_camera)
         self._upload_shapes(scene, origin)
-        inputs = [self._camera(camera, origin), self._hair, self._shapes, self._lights(camera), self.spp, self.seed]
+        inputs = [cam, self._hair, self._shapes, self._lights(camera), self.spp, self.seed]
         outputs = [self._image, self._hair_seen]
         self._hair_seen.zero_()
         if self.threads <= 1 or self.height < 2:
-            wp.launch(rk.render_kernel, dim=(self.height, self.width), inputs=[*inputs, 0],
+            wp.launch(pixel.render_kernel, dim=(self.height, self.width), inputs=[*inputs, 0],
                       outputs=outputs, device=self.device)
         else:
             # Warp runs a CPU launch on one thread (and lets go of the GIL): render bands of
@@ -242,7 +290,7 @@ class Renderer:
 
             def launch(row):
                 rows = min(band, self.height - row)
-                wp.launch(rk.render_kernel, dim=(rows, self.width), inputs=[*inputs, row],
+                wp.launch(pixel.render_kernel, dim=(rows, self.width), inputs=[*inputs, row],
                           outputs=outputs, device=self.device)
 
             with ThreadPoolExecutor(self.threads) as pool:

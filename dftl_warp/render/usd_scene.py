@@ -5,7 +5,9 @@
   uniform, varying, vertex, faceVarying; indexed primvars are flattened). Linear curves are
   drawn as they are; cubic ones (bezier, bspline, catmullRom; nonperiodic, periodic, pinned)
   are evaluated into ``CUBIC_STEPS`` linear pieces per span. Everything is moved to world
-  space by the prim's local-to-world transform (widths are scaled by its mean scale).
+  space by the prim's local-to-world transform (widths are scaled by its mean scale). The
+  render curves of a guide binding cache (``simulate --guides-output binding``) are deformed by
+  their guides at the time rendered (:mod:`.binding`).
 - ``UsdGeom.Sphere``, ``Capsule``, ``Cube`` (analytic, with their transforms) and ``Mesh``
   (triangulated, world space), drawn in a neutral material.
 - ``UsdGeom.Camera`` prims (:func:`read_camera`).
@@ -24,6 +26,7 @@ from ..core.layout import strand_offsets
 from ..errors import UserError
 from ..usd import curves as curve_checks
 from ..usd.scene import transform_points
+from . import binding
 from .camera import Camera
 from .scene import BOX, CAPSULE, SPHERE, RenderScene, Shape, default_width, root_to_tip, strand_colors
 
@@ -97,29 +100,20 @@ def is_empty(scene) -> bool:
 
 def render_notes(stage, source: str | None = None) -> list:
     """Warnings (one line each) about what the renderer leaves out of the drawn BasisCurves prims:
-    curves of fewer than 2 vertices (no segment to draw), and a guide binding for render-time
-    deformation (``primvars:dftl:guideIds``, ``simulate --guides-output binding``): such a prim is
-    drawn as authored (at rest), not deformed by its guides."""
+    curves of fewer than 2 vertices (no segment to draw)."""
     from pxr import UsdGeom
 
     source = source or stage_source(stage)
     time = default_time(stage)
-    notes, bound = [], []
+    notes = []
     for prim in _drawn_prims(stage, time):
         if not prim.IsA(UsdGeom.BasisCurves):
             continue
-        if UsdGeom.PrimvarsAPI(prim).HasPrimvar("dftl:guideIds"):
-            bound.append(str(prim.GetPath()))
         counts = np.asarray(UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get(time) or [], dtype=np.int64)
         short = np.flatnonzero((counts >= 0) & (counts < 2))
         if len(short):
             notes.append(f"{source}: {prim.GetPath()}: {len(short)} of {len(counts)} curves have fewer than 2 "
                          f"vertices (curveVertexCounts[{short[0]}] = {counts[short[0]]}): not drawn (no segment)")
-    if bound:
-        more = f" (and {len(bound) - 3} more)" if len(bound) > 3 else ""
-        notes.append(f"{source}: {', '.join(bound[:3])}{more}: a guide binding (simulate --guides-output binding) "
-                     "is not deformed by the renderer: these curves are drawn as authored, at rest; simulate with "
-                     "--guides-output curves to render them following their guides")
     return notes
 
 
@@ -289,6 +283,8 @@ def _read_curves(prim, time, source):
     if counts.sum() != len(pts):
         raise UserError(f"{source}: {path}: points has {len(pts)} entries but curveVertexCounts sums to {int(counts.sum())}")
     _finite(pts, source, prim, "points")
+    if binding.is_bound(prim):   # a guide binding cache: the curves follow their guides
+        pts = binding.deformed_points(prim, pts, counts, time, source)
     curve_type = str(curves.GetTypeAttr().Get(time) or "cubic")
     basis = str(curves.GetBasisAttr().Get(time) or "bezier")
     wrap = str(curves.GetWrapAttr().Get(time) or "nonperiodic")

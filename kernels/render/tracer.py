@@ -10,15 +10,15 @@ simulator's output).
   ``wp.Bvh``; a new frame rewrites them and refits the tree.
 - Other geometry: analytic spheres, capsules and boxes (each in its own local frame) and one
   triangle ``wp.Mesh``.
-- Shading (:func:`hair_marschner`): the R, TT and TRT lobes of Marschner et al. 2003 in the
+- Shading (:func:`.shading.hair_marschner`, in :mod:`.shading`): the R, TT and TRT lobes of Marschner et al. 2003 in the
   practical form of Karis 2016 ("Physically Based Hair Shading in Unreal"), plus a diffuse
   term for multiple scattering; or Kajiya-Kay 1989. A key light casts ray-traced shadows in
   which every hair crossed keeps ``hair_shadow_transmittance`` of the light, a fill light does
   not; an ambient term lifts the shadows.
-- :func:`render_kernel`: one thread per pixel, ``spp`` stratified jittered samples; writes the
-  mean linear radiance of the samples that hit something (straight colour) and the fraction
-  that hit (alpha = coverage), and sets ``hair_seen[0]`` to 1 where a sample's first hit is a
-  strand (the host warns about a camera that sees no strand).
+- Thin strands: :func:`widen_radii` widens every tube to a minimum width in pixels at its
+  camera depth, and the camera rays see it with the opacity true / drawn radius
+  (:func:`hair_opacity`), composited front to back by :mod:`.pixel`.
+- :func:`.pixel.render_kernel` (in :mod:`.pixel`): one thread per pixel.
 """
 
 import warp as wp
@@ -31,9 +31,6 @@ HIT_MESH = wp.constant(2)
 SHAPE_SPHERE = wp.constant(0)
 SHAPE_CAPSULE = wp.constant(1)
 SHAPE_BOX = wp.constant(2)
-
-SHADING_MARSCHNER = wp.constant(0)
-SHADING_KAJIYA_KAY = wp.constant(1)
 
 BIG = wp.constant(1.0e30)
 
@@ -74,7 +71,12 @@ class RenderLights:
 
 @wp.struct
 class RenderHair:
-    """Strand segments: ``seg_v0[i]`` is the first of the two vertices of segment ``i``."""
+    """Strand segments: ``seg_v0[i]`` is the first of the two vertices of segment ``i``.
+
+    ``radii`` are the strands' true radii, ``drawn`` the radii the camera rays intersect (the true
+    ones widened to the minimum pixel width, :func:`widen_radii`); a drawn tube is seen with the
+    opacity true / drawn radius (:func:`hair_opacity`). Shadow rays cross the true tubes.
+    """
 
     bvh: wp.uint64
     count: int
@@ -82,6 +84,7 @@ class RenderHair:
     seg_strand: wp.array(dtype=wp.int32)
     points: wp.array(dtype=wp.vec3)
     radii: wp.array(dtype=float)
+    drawn: wp.array(dtype=float)
     colors: wp.array(dtype=wp.vec3)
 
 
@@ -95,6 +98,31 @@ class RenderShapes:
     params: wp.array(dtype=wp.vec3)
     mesh: wp.uint64
     has_mesh: int
+
+
+@wp.kernel(enable_backward=False, module="unique")
+def widen_radii(
+    camera_from_world: wp.mat44,
+    orthographic: int,
+    reach: float,
+    radii: wp.array(dtype=float),
+    points: wp.array(dtype=wp.vec3),
+    drawn: wp.array(dtype=float),
+):
+    """Drawn radius of every vertex: its true radius, or ``reach`` x its camera depth (perspective;
+    ``reach`` alone when orthographic) where that is larger. ``reach`` is half the minimum pixel
+    width times the world size of a pixel at camera depth 1 (orthographic: at any depth). A vertex
+    of radius 0, or behind a perspective camera, is not widened."""
+    i = wp.tid()
+    r = radii[i]
+    half = reach
+    if orthographic == 0:
+        depth = -wp.transform_point(camera_from_world, points[i])[2]
+        half = reach * wp.max(depth, 0.0)
+    if r > 0.0 and half > r:
+        drawn[i] = half
+    else:
+        drawn[i] = r
 
 
 @wp.kernel(enable_backward=False, module="unique")
@@ -256,17 +284,60 @@ def shape_normal(kind: int, m: wp.mat44, params: wp.vec3, p: wp.vec3):
 
 
 @wp.func
-def hair_closest(hair: RenderHair, ro: wp.vec3, rd: wp.vec3, t_min: float, t_max: float):
-    """Closest strand segment hit in (t_min, t_max): returns (t, segment) or (t_max, -1)."""
+def segment_param(hair: RenderHair, v: int, p: wp.vec3):
+    """Parameter (0 at vertex ``v``, 1 at ``v + 1``) of the point of the segment axis nearest ``p``."""
+    a = hair.points[v]
+    ab = hair.points[v + 1] - a
+    len2 = wp.dot(ab, ab)
+    if len2 > 0.0:
+        return wp.clamp(wp.dot(p - a, ab) / len2, 0.0, 1.0)
+    return 0.0
+
+
+@wp.func
+def hair_opacity(hair: RenderHair, v: int, u: float):
+    """Opacity of the drawn tube of the segment from vertex ``v`` at parameter ``u``: true radius /
+    drawn radius, exactly 1 where neither end is widened (the strand covers what it covers)."""
+    r0 = hair.radii[v]
+    r1 = hair.radii[v + 1]
+    d0 = hair.drawn[v]
+    d1 = hair.drawn[v + 1]
+    if d0 == r0 and d1 == r1:
+        return 1.0
+    d = d0 + (d1 - d0) * u
+    if d <= 0.0:
+        return 1.0
+    return wp.min((r0 + (r1 - r0) * u) / d, 1.0)
+
+
+@wp.func
+def hair_closest(hair: RenderHair, ro: wp.vec3, rd: wp.vec3, t_min: float, t_max: float, skip_segment: int,
+                 key: int):
+    """Closest drawn strand segment hit in (t_min, t_max): returns (t, segment) or (t_max, -1).
+
+    The segment ``skip_segment`` and its neighbours on the same strand are not counted (the last
+    layer composited: their joints overlap). ``key`` >= 0: stochastic transparency, a hit counts
+    with probability its opacity, one draw per strand and key."""
     best_t = t_max
     best = int(-1)
     if hair.count > 0:
+        skip_strand = int(-1)
+        if skip_segment >= 0:
+            skip_strand = hair.seg_strand[skip_segment]
         query = wp.bvh_query_ray(hair.bvh, ro, rd)
         i = int(0)
         while wp.bvh_query_next(query, i, best_t):
+            if hair.seg_strand[i] == skip_strand and wp.abs(i - skip_segment) <= 1:
+                continue
             v = hair.seg_v0[i]
-            t = round_cone_hit(ro, rd, hair.points[v], hair.points[v + 1], hair.radii[v], hair.radii[v + 1])
+            t = round_cone_hit(ro, rd, hair.points[v], hair.points[v + 1], hair.drawn[v], hair.drawn[v + 1])
             if t > t_min and t < best_t:
+                if key >= 0:
+                    a = hair_opacity(hair, v, segment_param(hair, v, ro + t * rd))
+                    if a < 1.0:
+                        draw = wp.rand_init(key, hair.seg_strand[i])
+                        if wp.randf(draw) >= a:
+                            continue
                 best_t = t
                 best = i
     return best_t, best
@@ -340,94 +411,6 @@ def geometry_blocks(shapes: RenderShapes, ro: wp.vec3, rd: wp.vec3):
 
 
 @wp.func
-def gauss(width: float, x: float):
-    """Normalised Gaussian of standard deviation ``width`` at ``x``."""
-    return wp.exp(-0.5 * x * x / (width * width)) / (2.5066283 * width)
-
-
-@wp.func
-def fresnel_hair(cos_theta: float):
-    """Schlick Fresnel of a hair cuticle (index of refraction 1.55)."""
-    f0 = 0.04652  # ((1 - 1.55) / (1 + 1.55))^2
-    x = 1.0 - wp.clamp(cos_theta, 0.0, 1.0)
-    x2 = x * x
-    return f0 + (1.0 - f0) * x2 * x2 * x
-
-
-@wp.func
-def pow3(c: wp.vec3, e: float):
-    return wp.vec3(wp.pow(c[0], e), wp.pow(c[1], e), wp.pow(c[2], e))
-
-
-@wp.func
-def hair_marschner(T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughness: float):
-    """Reflected radiance per unit irradiance of a fibre with tangent ``T``: R, TT and TRT lobes
-    (Karis 2016 form of Marschner et al. 2003) plus a Kajiya-Kay-like multiple-scattering
-    diffuse term. ``color`` is the fibre colour (0..1, linear), ``roughness`` its longitudinal
-    roughness."""
-    n_ior = 1.55
-    shift = 0.035
-    r = wp.clamp(roughness, 0.02, 1.0)
-    r2 = r * r
-    vol = wp.dot(V, L)
-    sin_l = wp.clamp(wp.dot(T, L), -1.0, 1.0)
-    sin_v = wp.clamp(wp.dot(T, V), -1.0, 1.0)
-    cos_d = wp.cos(0.5 * wp.abs(wp.asin(sin_v) - wp.asin(sin_l)))
-    cos_d = wp.max(cos_d, 0.05)
-    lp = L - sin_l * T
-    vp = V - sin_v * T
-    cos_phi = wp.dot(lp, vp) / wp.sqrt(wp.dot(lp, lp) * wp.dot(vp, vp) + 1.0e-4)
-    cos_half_phi = wp.sqrt(wp.clamp(0.5 + 0.5 * cos_phi, 0.0, 1.0))
-    s = wp.vec3(0.0, 0.0, 0.0)
-    # R: white, shifted towards the root
-    mp = gauss(r2 * wp.sqrt(2.0) * wp.max(cos_half_phi, 0.05), sin_l + sin_v + 2.0 * shift)
-    np_ = 0.25 * cos_half_phi
-    fp = fresnel_hair(wp.sqrt(wp.clamp(0.5 + 0.5 * vol, 0.0, 1.0)))
-    s = s + wp.vec3(mp * np_ * fp)
-    # TT: through the fibre, tinted, strong when back-lit
-    mp = gauss(0.5 * r2, sin_l + sin_v - shift)
-    a = 1.0 / n_ior
-    h = cos_half_phi * (1.0 + a * (0.6 - 0.8 * cos_phi))
-    f = fresnel_hair(cos_d * wp.sqrt(wp.clamp(1.0 - h * h, 0.0, 1.0)))
-    fp = (1.0 - f) * (1.0 - f)
-    tp = pow3(color, 0.5 * wp.sqrt(wp.clamp(1.0 - (h * a) * (h * a), 0.0, 1.0)) / cos_d)
-    np_ = wp.exp(-3.65 * cos_phi - 3.98)
-    s = s + tp * (mp * np_ * fp)
-    # TRT: the tinted secondary highlight
-    mp = gauss(2.0 * r2, sin_l + sin_v - 4.0 * shift)
-    f = fresnel_hair(cos_d * 0.5)
-    fp = (1.0 - f) * (1.0 - f) * f
-    tp = pow3(color, 0.8 / cos_d)
-    np_ = wp.exp(17.0 * cos_phi - 16.78)
-    s = s + tp * (mp * np_ * fp)
-    # multiple scattering: a wrapped Kajiya-Kay diffuse
-    kk = wp.sqrt(wp.clamp(1.0 - sin_l * sin_l, 0.0, 1.0))
-    wrap = wp.clamp(0.5 + 0.5 * wp.dot(V, L), 0.0, 1.0)
-    diffuse = color * (kk * (0.6 + 0.4 * wrap) / 3.14159265)
-    return s + diffuse
-
-
-@wp.func
-def hair_kajiya_kay(T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughness: float):
-    """Kajiya-Kay 1989: diffuse ``sin(T, L)`` and a specular cone around the tangent."""
-    sin_l2 = 1.0 - wp.dot(T, L) * wp.dot(T, L)
-    sin_v2 = 1.0 - wp.dot(T, V) * wp.dot(T, V)
-    tl = wp.dot(T, L)
-    tv = wp.dot(T, V)
-    cos_spec = wp.clamp(-tl * tv + wp.sqrt(wp.max(sin_l2, 0.0) * wp.max(sin_v2, 0.0)), 0.0, 1.0)
-    exponent = 2.0 / wp.max(roughness * roughness, 1.0e-3)
-    spec = 0.08 * wp.pow(cos_spec, exponent)
-    return color * (wp.sqrt(wp.max(sin_l2, 0.0)) / 3.14159265) + wp.vec3(spec)
-
-
-@wp.func
-def hair_bsdf(shading: int, T: wp.vec3, V: wp.vec3, L: wp.vec3, color: wp.vec3, roughness: float):
-    if shading == SHADING_KAJIYA_KAY:
-        return hair_kajiya_kay(T, V, L, color, roughness)
-    return hair_marschner(T, V, L, color, roughness)
-
-
-@wp.func
 def camera_ray(cam: RenderCamera, x: float, y: float):
     """Origin, unit direction and (near, far) distances of the ray through image position
     (x, y) in pixels (0..width, 0..height from the top-left corner)."""
@@ -444,98 +427,3 @@ def camera_ray(cam: RenderCamera, x: float, y: float):
     scale = wp.length(dv)  # world distance per unit of camera depth
     rd = dv / scale
     return ro, rd, cam.near * scale, cam.far * scale
-
-
-@wp.kernel(enable_backward=False, module="unique")
-def render_kernel(
-    cam: RenderCamera,
-    hair: RenderHair,
-    shapes: RenderShapes,
-    lights: RenderLights,
-    spp: int,
-    seed: int,
-    row_offset: int,
-    image: wp.array2d(dtype=wp.vec4),
-    hair_seen: wp.array(dtype=wp.int32),
-):
-    """One pixel: ``spp`` jittered samples on a stratified grid; straight colour + coverage.
-    Launched over (rows, width) from image row ``row_offset`` (the CPU splits the image in
-    bands rendered by several threads). A pixel with a sample whose first hit is a strand sets
-    ``hair_seen[0] = 1`` (every such pixel writes the same value: a plain store, no atomic)."""
-    ty, px = wp.tid()
-    py = ty + row_offset
-    state = wp.rand_init(seed, py * cam.width + px)
-    grid = int(wp.ceil(wp.sqrt(float(spp))))
-    rows = (spp + grid - 1) // grid
-    radiance = wp.vec3(0.0, 0.0, 0.0)
-    hits = int(0)
-    hair_hits = int(0)
-    for s in range(spp):
-        jx = (float(s % grid) + wp.randf(state)) / float(grid)
-        jy = (float(s // grid) + wp.randf(state)) / float(rows)
-        ro, rd, t_near, t_far = camera_ray(cam, float(px) + jx, float(py) + jy)
-        t_hair, seg = hair_closest(hair, ro, rd, t_near, t_far)
-        t_geo, kind, index, n_geo = geometry_closest(shapes, ro, rd, t_near, t_hair)
-        if seg < 0 and kind == HIT_NONE:
-            continue
-        hits += 1
-        V = -rd
-        if kind != HIT_NONE:
-            # neutral Lambertian geometry; normals face the camera
-            p = ro + t_geo * rd
-            n = n_geo
-            if wp.dot(n, V) < 0.0:
-                n = -n
-            eps = 1.0e-4 * (1.0 + wp.length(p))
-            e = wp.vec3(0.0, 0.0, 0.0)  # irradiance from the two lights
-            nl = wp.dot(n, lights.key_dir)
-            if nl > 0.0:
-                so = p + n * eps
-                vis = float(1.0)
-                if geometry_blocks(shapes, so, lights.key_dir):
-                    vis = 0.0
-                else:
-                    vis = hair_transmittance(hair, so, lights.key_dir, -1, lights.hair_shadow_transmittance)
-                e = e + lights.key_color * (nl * vis)
-            nf = wp.dot(n, lights.fill_dir)
-            if nf > 0.0:
-                e = e + lights.fill_color * nf
-            radiance += wp.cw_mul(lights.geometry_albedo, e / 3.14159265 + lights.ambient)
-        else:
-            hair_hits += 1
-            v = hair.seg_v0[seg]
-            a = hair.points[v]
-            b = hair.points[v + 1]
-            p = ro + t_hair * rd
-            ab = b - a
-            len2 = wp.dot(ab, ab)
-            u = float(0.0)
-            T = wp.vec3(1.0, 0.0, 0.0)
-            if len2 > 0.0:
-                u = wp.clamp(wp.dot(p - a, ab) / len2, 0.0, 1.0)
-                T = ab / wp.sqrt(len2)
-            color = hair.colors[v] * (1.0 - u) + hair.colors[v + 1] * u
-            axis_p = a + u * ab
-            n = p - axis_p
-            nlen = wp.length(n)
-            if nlen > 0.0:
-                n = n / nlen
-            else:
-                n = V
-            eps = 1.0e-4 * (1.0 + wp.length(p))
-            so = p + n * eps
-            vis = float(1.0)
-            if geometry_blocks(shapes, so, lights.key_dir):
-                vis = 0.0
-            else:
-                vis = hair_transmittance(hair, so, lights.key_dir, seg, lights.hair_shadow_transmittance)
-            c = wp.cw_mul(lights.ambient, color)
-            if vis > 0.0:
-                c = c + wp.cw_mul(hair_bsdf(lights.shading, T, V, lights.key_dir, color, lights.roughness), lights.key_color) * vis
-            c = c + wp.cw_mul(hair_bsdf(lights.shading, T, V, lights.fill_dir, color, lights.roughness), lights.fill_color)
-            radiance += c
-    if hits > 0:
-        radiance = radiance / float(hits)
-    if hair_hits > 0:
-        hair_seen[0] = 1
-    image[py, px] = wp.vec4(radiance[0], radiance[1], radiance[2], float(hits) / float(spp))
