@@ -254,7 +254,8 @@ class Solver:
         wp.capture_launch(graph)
 
     def diagnostics(self, state) -> dict:
-        """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s)."""
+        """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s); the
+        stretch and speed are infinite (and the energy NaN) when a position or velocity is not finite."""
         check_bound(self.model, state)
         m = self.model
         n = m.num_strands
