@@ -25,3 +25,36 @@ def test_diagnostics_of_a_non_finite_strand_are_infinite_not_zero(field, index):
     d = solver.diagnostics(state)
     assert d["max_stretch"] == np.inf and d["max_speed"] == np.inf, d
     assert np.isnan(d["energy"]) or index == 0   # the root's energy is not counted
+
+
+@pytest.mark.parametrize("solver", ["pbd", "reference", "rattle"])
+@pytest.mark.parametrize("feature, flag", [
+    (lambda F: F.Colliders([F.Sphere(radius=0.05, position=(0.05, -0.06, 0))]), "spheres"),
+    (lambda F: F.Drag(5.0), "drag"),
+    (lambda F: F.HairHair(cell_size=0.01, friction=2.0), "hair_hair"),
+])
+def test_solvers_without_features_refuse_a_model_with_them(solver, feature, flag):
+    """pbd and reference stepped a model with a sphere, drag or hair-hair as if it had none: the
+    strand fell through the sphere, bit for bit the featureless trajectory, without a word (rattle
+    already refused). Now all three refuse it, naming the feature."""
+    from dftl_warp import features as F
+
+    model = dw.Model.from_strands(chain(6, 0.02), [6], widths=1e-4, features=[feature(F)])
+    with pytest.raises(ValueError, match=rf"the {solver} solver steps gravity and roots only; this model has "
+                                         rf"features \({flag}\): use --solver dftl"):
+        dw.make_solver(model, solver)
+
+
+@pytest.mark.parametrize("solver", ["pbd", "reference", "rattle"])
+def test_solvers_without_features_follow_roots_bound_to_a_mesh(solver):
+    """Root binding only sets root targets: every solver follows them."""
+    from dftl_warp import features as F
+
+    scalp = np.array([[-0.1, 0, -0.1], [0.1, 0, -0.1], [0.0, 0, 0.1]])
+    model = dw.Model.from_strands(chain(4, 0.02, direction=(0, -1, 0)), [4],
+                                  features=[F.RootBinding(scalp, np.array([[0, 1, 2]]))])
+    sim = dw.make_solver(model, solver)
+    state, control = sim.state(), model.control()
+    control.bind_roots(scalp, scalp + (0.01, 0, 0))
+    sim.advance(state, control, 1 / 96, 4)
+    np.testing.assert_allclose(model.points_from_device(state.positions)[0], (0.01, 0, 0), atol=1e-6)
