@@ -58,3 +58,17 @@ def test_solvers_without_features_follow_roots_bound_to_a_mesh(solver):
     control.bind_roots(scalp, scalp + (0.01, 0, 0))
     sim.advance(state, control, 1 / 96, 4)
     np.testing.assert_allclose(model.points_from_device(state.positions)[0], (0.01, 0, 0), atol=1e-6)
+
+
+def test_elastic_names_the_zero_width_it_cannot_take_as_a_radius():
+    """Widths tapered to 0 at the tips are legal for the Model; the elastic solver, whose default
+    radius is half of them, said only 'radius must be finite and > 0' though no radius was passed.
+    Now it names the point and where the radius came from."""
+    widths = np.array([1e-4, 1e-4, 1e-4, 0.0])
+    model = dw.Model.from_strands(chain(4, 0.02), [4], widths=widths)
+    with pytest.raises(ValueError, match=r"radius\[3\] = 0\.0 \(half the model's widths, point 3\): must be finite "
+                                         r"and > 0 \(widths of 0, e\.g\. tapered tips: pass radius=\)"):
+        dw.make_solver(model, "elastic")
+    with pytest.raises(ValueError, match=r"radius\[1\] = -1\.0 \(radius, point 1\)"):
+        dw.make_solver(model, "elastic", radius=[1e-5, -1.0, 1e-5, 1e-5])
+    dw.make_solver(model, "elastic", radius=5e-5)   # an explicit radius takes over

@@ -215,11 +215,16 @@ class ElasticSolver(Solver):
         real = self.real
         dev, lay = model.device, model.layout
         npts = model.num_points
+        source = "radius"
         if radius is None:
+            source = "half the model's widths" if model.widths is not None else source
             radius = 0.5 * model.widths if model.widths is not None else DEFAULT_RADIUS
         radius = _per_point("radius", radius, npts)
-        if not np.all(np.isfinite(radius) & (radius > 0)):
-            raise ValueError("radius must be finite and > 0")
+        bad = ~(np.isfinite(radius) & (radius > 0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            hint = " (widths of 0, e.g. tapered tips: pass radius=)" if source != "radius" else ""
+            raise ValueError(f"radius[{i}] = {float(radius[i])!r} ({source}, point {i}): must be finite and > 0{hint}")
         self.radius = radius
         scale = np.ones(npts) if stiffness_scale is None else _per_point("stiffness_scale", stiffness_scale, npts)
         bad = ~(np.isfinite(scale) & (scale >= 0))
