@@ -72,3 +72,46 @@ def test_elastic_names_the_zero_width_it_cannot_take_as_a_radius():
     with pytest.raises(ValueError, match=r"radius\[1\] = -1\.0 \(radius, point 1\)"):
         dw.make_solver(model, "elastic", radius=[1e-5, -1.0, 1e-5, 1e-5])
     dw.make_solver(model, "elastic", radius=5e-5)   # an explicit radius takes over
+
+
+def test_damping_and_correction_a_solver_does_not_take_are_warned_about(tmp_path, capsys):
+    """`--solver pbd --damping 0.5`, `--solver ftl --damping 0.5` and `--solver reference
+    --correction posterior` ran without a word (the solver has no such setting; only --iterations
+    was warned about). Now each is one warning naming the solvers that take it; the defaults (what a
+    quality preset fills in) and a solver that takes them stay quiet."""
+    import shutil
+    from pathlib import Path
+
+    from dftl_warp import cli
+
+    src = tmp_path / "chain.usda"
+    shutil.copy(Path(__file__).resolve().parents[1] / "scenes" / "chain.usda", src)
+    for k, (args, expected) in enumerate([
+        (["--solver", "pbd", "--damping", "0.5"], "--damping 0.5 does nothing here: no prim runs the dftl or elastic "
+                                                  "solver, whose damping (DFTL's s) it sets (pbd)"),
+        (["--solver", "ftl", "--damping", "0.5"], "--damping 0.5 does nothing here: no prim runs the dftl or elastic"),
+        (["--solver", "reference", "--correction", "posterior"],
+         "--correction posterior does nothing here: no prim runs the dftl, ftl or elastic solver, whose correction "
+         "form it sets (reference)"),
+        (["--quality", "draft", "--solver", "pbd"], None),
+        (["--solver", "dftl", "--damping", "0.5", "--correction", "posterior"], None),
+    ]):
+        assert cli.main(["simulate", str(src), "-o", str(tmp_path / f"{k}.usdc"), "--end", "2", *args]) == 0
+        err = capsys.readouterr().err
+        if expected is None:
+            assert "does nothing" not in err, err
+        else:
+            assert err.count("does nothing") == 1 and f"dftl-warp: warning: {expected}" in err, err
+
+
+def test_simulate_strands_warns_about_damping_its_solver_does_not_take():
+    points = chain(4, 0.02)
+    with pytest.warns(UserWarning, match=r"damping 0\.5 does nothing here: this run does not use the dftl or "
+                                         r"elastic solver, whose damping \(DFTL's s\) it sets \(pbd\)"):
+        dw.simulate_strands(points, [4], steps=2, dt=0.01, solver="pbd", damping=0.5)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        dw.simulate_strands(points, [4], steps=2, dt=0.01, solver="dftl", damping=0.5)
+        dw.simulate_strands(points, [4], steps=2, dt=0.01, solver="pbd")
