@@ -115,3 +115,30 @@ def test_simulate_strands_warns_about_damping_its_solver_does_not_take():
         warnings.simplefilter("error")
         dw.simulate_strands(points, [4], steps=2, dt=0.01, solver="dftl", damping=0.5)
         dw.simulate_strands(points, [4], steps=2, dt=0.01, solver="pbd")
+
+
+def test_a_prims_damping_its_solver_does_not_take_is_warned_about(tmp_path):
+    """A TD's prim with dftl:solver = "pbd" and dftl:damping = 0.5, dftl:correction = "posterior"
+    ran pbd without a word about either. Now each is one warning naming the prim; a prim whose
+    solver takes them (dftl) and a --damping overriding the prim's stay quiet about the prim."""
+    from pxr import Sdf
+
+    from usd_stages import add_curves, new_stage
+
+    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
+    points = np.concatenate([chain(4, 0.02, direction=(0, -1, 0), origin=(0.1 * k, 0, 0)) for k in range(2)])
+    for name, solver in (("/World/Pbd", "pbd"), ("/World/Dftl", "dftl")):
+        add_curves(stage, name, points, [4, 4])
+        prim = stage.GetPrimAtPath(name)
+        prim.CreateAttribute("dftl:solver", Sdf.ValueTypeNames.Token).Set(solver)
+        prim.CreateAttribute("dftl:damping", Sdf.ValueTypeNames.Float).Set(0.5)
+        prim.CreateAttribute("dftl:correction", Sdf.ValueTypeNames.Token).Set("posterior")
+    stage.Save()
+    summary = dw.simulate_usd(tmp_path / "in.usda", tmp_path / "a.usdc")
+    lines = [w for w in summary.warnings if "does nothing" in w]
+    assert lines == [f"{tmp_path / 'in.usda'}: /World/Pbd: dftl:damping = 0.5 does nothing: its solver, pbd, has no "
+                     "damping (DFTL's s)",
+                     f"{tmp_path / 'in.usda'}: /World/Pbd: dftl:correction = 'posterior' does nothing: its solver, pbd, "
+                     "has no correction form"], lines
+    summary = dw.simulate_usd(tmp_path / "in.usda", tmp_path / "b.usdc", damping=0.3, correction="prior")
+    assert not [w for w in summary.warnings if "does nothing" in w], summary.warnings

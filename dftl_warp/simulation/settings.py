@@ -206,6 +206,24 @@ def unused_solver_options(options: dict, solvers, flag=str, subject: str = "no p
     return out
 
 
+def unused_prim_settings(scene: Scene, index: int, settings: GroupSettings, options) -> list[str]:
+    """One warning per ``dftl:damping`` / ``dftl:correction`` authored on ``scene.curves[index]``
+    (and not overridden by ``options``) that the prim's solver does not take: ``dftl:solver = "pbd"``
+    with ``dftl:damping = 0.5`` ignored the damping without a word. Defaults stay quiet."""
+    from ..solvers import SOLVERS
+
+    c = scene.curves[index]
+    out = []
+    for name in ("damping", "correction"):
+        value = getattr(c.settings, name)
+        if value is None or getattr(options, name) is not None or value == default(name):
+            continue
+        if name not in SOLVERS[settings.solver].options:
+            out.append(f"{scene.source}: {c.path}: dftl:{name} = {value!r} does nothing: its solver, "
+                       f"{settings.solver}, has no {SOLVER_OPTION_TEXT[name]}")
+    return out
+
+
 def describe_setting(scene: Scene, members: list[int], settings: GroupSettings, options) -> str:
     """How a group is simulated, as the energy monitor's warning names it."""
     prims = f"{scene.source}: " + ", ".join(scene.curves[i].path for i in members)

@@ -41,7 +41,7 @@ from . import root_paths
 from .elastic_setup import note_unstable
 from .group import Group
 from .summary import Summary  # noqa: F401  (re-exported: what simulate_usd returns)
-from .settings import unused_solver_options
+from .settings import unused_prim_settings, unused_solver_options
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
     DEFAULT_DAMPING,
@@ -108,6 +108,7 @@ class Simulation:
         by_settings: dict[tuple, list[int]] = {}
         for i, c in enumerate(scene.curves):
             settings = group_settings(scene, options, i, tolerance=tolerance is not None)
+            scene.warnings.extend(unused_prim_settings(scene, i, settings, options))
             key = (settings, c.root_mesh.path if c.root_mesh is not None else None,
                    c.material.path if settings.solver == "elastic" and c.material is not None else None)
             by_settings.setdefault(key, []).append(i)
