@@ -142,3 +142,31 @@ def test_a_prims_damping_its_solver_does_not_take_is_warned_about(tmp_path):
                      "has no correction form"], lines
     summary = dw.simulate_usd(tmp_path / "in.usda", tmp_path / "b.usdc", damping=0.3, correction="prior")
     assert not [w for w in summary.warnings if "does nothing" in w], summary.warnings
+
+
+def _root_onto_the_next_particle(solver, precision="float64", **options):
+    """A 10-particle strand along x whose root moves exactly one segment along it in one step: at
+    the full step's end the root sits on particle 1's old place, where the SHAKE Jacobian of the
+    first segment is singular."""
+    points = chain(10, 0.01)
+    model = dw.Model.from_strands(points, [10], precision=precision)
+    sim = dw.make_solver(model, solver, **options)
+    state, control = sim.state(), model.control()
+    control.set_root_targets(points[:1], points[:1] + (0.01, 0.0, 0.0))
+    sim.step(state, state, control, 1 / 96)
+    return model.points_from_device(state.positions), sim.diagnostics(state)
+
+
+def test_a_nan_newton_solve_is_not_taken_for_converged():
+    """The reference's Newton residual was accumulated with wp.max, which drops a NaN: a singular
+    solve read as residual 0, was accepted, and the strand was NaN from a finite input (reported as
+    constraint_residual 0). rattle's likewise accepted it and its projection hid the NaN: a wrong
+    step, counted neither as a fallback nor in the residual. Now both split the step, as for any
+    failed solve, and agree."""
+    reference, d = _root_onto_the_next_particle("reference")
+    assert np.isfinite(reference).all() and d["constraint_residual"] < 1e-12, d
+    assert np.isfinite(d["max_speed"])
+    for on_chip in (False, True):
+        rattle, d = _root_onto_the_next_particle("rattle", on_chip=on_chip)
+        assert d["fallbacks"] == 0 and d["constraint_residual"] > 0, d
+        np.testing.assert_allclose(rattle, reference, atol=1e-6)
