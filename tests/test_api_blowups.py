@@ -170,3 +170,24 @@ def test_a_nan_newton_solve_is_not_taken_for_converged():
         rattle, d = _root_onto_the_next_particle("rattle", on_chip=on_chip)
         assert d["fallbacks"] == 0 and d["constraint_residual"] > 0, d
         np.testing.assert_allclose(rattle, reference, atol=1e-6)
+
+
+def test_a_nan_clamp_target_is_named_and_changes_nothing():
+    """ElasticSolver.set_clamp_targets with a NaN row said 'root targets: row 1 is not finite' (the
+    user passed clamp targets) after it had already reset the clamps' path and rotations. Now it
+    names the clamp targets and the solver steps exactly as if the call had not been made."""
+    points = np.concatenate([chain(5, 0.02), chain(5, 0.02, origin=(0, 0, 0.1))])
+    model = dw.Model.from_strands(points, [5, 5], precision="float64")
+    runs = []
+    for bad in (False, True):
+        sim = dw.make_solver(model, "elastic")
+        state, control = sim.state(), model.control()
+        ghosts = sim.authored_clamps + (0.0, 0.01, 0.0)
+        turn = np.tile(np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]), (2, 1, 1))
+        sim.set_clamp_targets(ghosts, rotation_start=turn)
+        if bad:
+            with pytest.raises(ValueError, match=r"clamp targets \(start\): row 1 is not finite"):
+                sim.set_clamp_targets(np.where([[0, 0, 0], [1, 0, 0]], np.nan, ghosts))
+        sim.advance(state, control, 1 / 96, 2)
+        runs.append(model.points_from_device(state.positions))
+    np.testing.assert_array_equal(runs[0], runs[1])

@@ -424,6 +424,11 @@ class ElasticSolver(Solver):
         about it); without them the root frame is the minimal rotation onto the ghost's direction.
         ``start=None`` returns to the default: the authored ghosts moved with the roots' translation
         (on the roots' path), not turned."""
+        m = self.model
+        if start is not None:   # checked first: a NaN row left the clamps half set before the error
+            end = start if end is None else end
+            device_start = m.roots_to_device(start, "clamp targets (start)")
+            device_end = m.roots_to_device(end, "clamp targets (end)")
         self._clamp_deviation_start.zero_()
         self._clamp_deviation_end.zero_()
         self._set_clamp_rotations(rotation_start, rotation_end)
@@ -431,9 +436,6 @@ class ElasticSolver(Solver):
             wp.copy(self._clamp_start, self._clamp_offset)
             self._clamp_relative = 1
             return
-        m = self.model
-        end = start if end is None else end
-        device_start, device_end = m.roots_to_device(start), m.roots_to_device(end)
         self._clamp_start.assign(device_start)
         self._clamp_end.assign(device_end)
         self._clamp_relative = 0
