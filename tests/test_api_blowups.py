@@ -191,3 +191,25 @@ def test_a_nan_clamp_target_is_named_and_changes_nothing():
         sim.advance(state, control, 1 / 96, 2)
         runs.append(model.points_from_device(state.positions))
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_roots_moved_in_place_between_frames_move():
+    """`roots += step; control.set_root_targets(roots)` frame after frame left the roots at the
+    first frame's targets: the Control reused its device copy of the previous call's end because
+    the array was the same object, though its values had moved. Now the roots follow it."""
+    points = np.concatenate([chain(4, 0.01, direction=(0, -1, 0)), chain(4, 0.01, direction=(0, -1, 0),
+                                                                          origin=(0.1, 0, 0))])
+    model = dw.Model.from_strands(points, [4, 4], precision="float64")
+    sim = dw.make_solver(model, "dftl")
+    state, control = sim.state(), model.control()
+    roots = points[[0, 4]].copy()
+    for _ in range(5):
+        roots += (0.01, 0.0, 0.002)
+        control.set_root_targets(roots)
+        sim.advance(state, control, 1 / 96, 4)
+        np.testing.assert_allclose(model.points_from_device(state.positions)[[0, 4]], roots, atol=1e-15)
+    start = roots.copy()
+    roots[1] += 0.05                                   # start = the last end by value, a new end in place
+    control.set_root_targets(start, roots)
+    np.testing.assert_allclose(control.root_start.numpy(), model.roots_to_device(start))
+    np.testing.assert_allclose(control.root_end.numpy(), model.roots_to_device(roots))
