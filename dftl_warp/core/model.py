@@ -208,19 +208,19 @@ class Model:
         out = host[self.layout.slot_of_point].astype(np.float64)
         return out + self.origin if relative else out
 
-    def roots_to_device(self, roots) -> np.ndarray:
+    def roots_to_device(self, roots, what: str = "root targets") -> np.ndarray:
         """(S, 3) world root targets in input strand order -> device strand order, model precision.
-        ValueError unless they are S finite rows of 3 (one per strand)."""
+        ValueError naming ``what`` unless they are S finite rows of 3 (one per strand)."""
         try:
             roots = np.asarray(roots, dtype=np.float64)
         except (TypeError, ValueError):
-            raise ValueError("root targets must be numbers: an (S, 3) array, one row per strand") from None
+            raise ValueError(f"{what} must be numbers: an (S, 3) array, one row per strand") from None
         if roots.shape != (self.num_strands, 3):
-            raise ValueError(f"root targets must have shape ({self.num_strands}, 3), one row per strand, "
+            raise ValueError(f"{what} must have shape ({self.num_strands}, 3), one row per strand, "
                              f"got {roots.shape}")
         bad = ~np.isfinite(roots).all(axis=1)
         if bad.any():
-            raise ValueError(f"root targets: row {int(np.argmax(bad))} is not finite")
+            raise ValueError(f"{what}: row {int(np.argmax(bad))} is not finite")
         return (roots[self.layout.strand_order] - self.origin).astype(numpy_type(self.precision))
 
     # -- factories ---------------------------------------------------------------------------------

@@ -364,16 +364,18 @@ class Control:
         root's path inside the frame the C1 Hermite curve (the class docstring); without them the
         roots move linearly from ``start`` to ``end``.
 
-        Passing the previous call's ``end`` array as ``start`` (frame after frame, unchanged)
-        reuses its conversion to device order."""
+        A ``start`` equal to the previous call's ``end`` (frame after frame) reuses its conversion
+        to device order. Equal in value, not the same object: an array moved in place between calls
+        (``roots += step; set_root_targets(roots)``) kept the first call's targets, and the roots
+        stood still without a word."""
         m = self.model
         end = start if end is None else end
         last = self._last_end
-        device_start = last[1] if last is not None and last[0] is start else m.roots_to_device(start)
+        device_start = last[1] if last is not None and _equal_rows(last[0], start) else m.roots_to_device(start)
         device_end = device_start if end is start else m.roots_to_device(end)
         self.root_start.assign(device_start)
         self.root_end.assign(device_end)
-        self._last_end = (end, device_end)
+        self._last_end = (np.array(end, dtype=np.float64), device_end)   # a copy: the caller may move end
         if velocity_start is None:
             self._linear(velocity_end, frame_duration)
             return
@@ -416,6 +418,15 @@ class Control:
             self.root_deviation_end.zero_()
             self._bent = False
         self.frame_duration = 0.0
+
+
+def _equal_rows(host: np.ndarray, rows) -> bool:
+    """Whether ``rows`` holds exactly the values of ``host`` (a float64 copy), NaN never equal."""
+    try:
+        rows = np.asarray(rows, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return rows.shape == host.shape and bool(np.array_equal(rows, host))
 
 
 def _check_duration(frame_duration) -> float:

@@ -177,6 +177,48 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int, toleran
     )
 
 
+#: the solver options a run may be given, and what each sets (:func:`unused_solver_options`)
+SOLVER_OPTION_TEXT = {"iterations": "Gauss-Seidel iterations", "damping": "damping (DFTL's s)",
+                      "correction": "correction form"}
+
+
+def unused_solver_options(options: dict, solvers, flag=str, subject: str = "no prim runs") -> list[str]:
+    """One warning per solver option in ``options`` that no solver in ``solvers`` takes (``--damping
+    0.5`` with ``--solver pbd`` did nothing without a word): ``iterations`` whenever given,
+    ``damping`` and ``correction`` where they differ from the default (which a quality preset fills
+    in). ``flag(name)`` spells the option as the caller's user wrote it."""
+    from ..solvers import SOLVERS
+
+    out = []
+    for name, what in SOLVER_OPTION_TEXT.items():
+        value = options.get(name)
+        takers = [n for n, c in SOLVERS.items() if name in c.options]
+        if value is None or set(solvers) & set(takers) or (name != "iterations" and value == default(name)):
+            continue
+        names = " or ".join([", ".join(takers[:-1]), takers[-1]] if len(takers) > 2 else takers)
+        out.append(f"{flag(name)} {value} does nothing here: {subject} the {names} solver, whose {what} it sets "
+                   f"({', '.join(sorted(solvers))})")
+    return out
+
+
+def unused_prim_settings(scene: Scene, index: int, settings: GroupSettings, options) -> list[str]:
+    """One warning per ``dftl:damping`` / ``dftl:correction`` authored on ``scene.curves[index]``
+    (and not overridden by ``options``) that the prim's solver does not take: ``dftl:solver = "pbd"``
+    with ``dftl:damping = 0.5`` ignored the damping without a word. Defaults stay quiet."""
+    from ..solvers import SOLVERS
+
+    c = scene.curves[index]
+    out = []
+    for name in ("damping", "correction"):
+        value = getattr(c.settings, name)
+        if value is None or getattr(options, name) is not None or value == default(name):
+            continue
+        if name not in SOLVERS[settings.solver].options:
+            out.append(f"{scene.source}: {c.path}: dftl:{name} = {value!r} does nothing: its solver, "
+                       f"{settings.solver}, has no {SOLVER_OPTION_TEXT[name]}")
+    return out
+
+
 def describe_setting(scene: Scene, members: list[int], settings: GroupSettings, options) -> str:
     """How a group is simulated, as the energy monitor's warning names it."""
     prims = f"{scene.source}: " + ", ".join(scene.curves[i].path for i in members)

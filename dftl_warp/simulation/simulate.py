@@ -42,6 +42,7 @@ from .elastic_setup import note_unstable
 from .group import Group
 from .multi_device import EXTRA_FIELDS
 from .summary import Summary  # noqa: F401  (re-exported: what simulate_usd returns)
+from .settings import unused_prim_settings, unused_solver_options
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
     DEFAULT_CORRECTION,
     DEFAULT_DAMPING,
@@ -104,6 +105,7 @@ class Simulation:
         by_settings: dict[tuple, list[int]] = {}
         for i, c in enumerate(scene.curves):
             settings = group_settings(scene, options, i, tolerance=tolerance is not None)
+            scene.warnings.extend(unused_prim_settings(scene, i, settings, options))
             key = (settings, c.root_mesh.path if c.root_mesh is not None else None,
                    c.material.path if settings.solver == "elastic" and c.material is not None else None)
             by_settings.setdefault(key, []).append(i)
@@ -511,9 +513,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     # options no prim uses: said, not silently ignored
     flag = (lambda name: f"--{name}") if command else (lambda name: name)
     solvers = {g.settings.solver for g in sim.groups}
-    if options.get("iterations") is not None and "pbd" not in solvers:
-        scene.warnings.append(f"{flag('iterations')} {options['iterations']} does nothing here: no prim runs the pbd "
-                              f"solver, whose Gauss-Seidel iterations it sets ({', '.join(sorted(solvers))})")
+    scene.warnings.extend(unused_solver_options(options, solvers, flag))
     if options.get("arithmetic") is not None and not elastic:
         scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the elastic "
                               f"solver, whose arithmetic it sets (the others compute in the precision)")

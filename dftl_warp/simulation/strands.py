@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -12,6 +13,7 @@ from ..core.model import Model, check_strand_arrays
 from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, carries_corrections, make_solver
 from ..solvers.base import check_gravity, check_step
+from .settings import unused_solver_options
 
 
 class Recording(NamedTuple):
@@ -46,7 +48,8 @@ def simulate_strands(
         points: (N, 3) concatenated strand vertices (m); vertex 0 of each strand is its root.
         counts: (S,) vertex count of each strand.
         gravity: (3,) acceleration, m/s^2.
-        damping, correction, solver: see :class:`~dftl_warp.solvers.dftl.DFTLSolver`.
+        damping, correction, solver: see :class:`~dftl_warp.solvers.dftl.DFTLSolver`; a ``damping``
+            or ``correction`` other than the default that ``solver`` does not take is a warning.
         velocities: optional (N, 3) initial velocities, m/s.
         roots: optional (steps + 1, S, 3) root positions (m): ``roots[k]`` is where the roots are
             after step ``k``; ``roots[0]`` replaces the input roots.
@@ -72,6 +75,9 @@ def simulate_strands(
     solver = check_api("solver", solver)
     # counts went through astype(int64) first: 5.5 vertices became 5 without a word
     points, counts = check_strand_arrays(points, counts)
+    for line in unused_solver_options({"damping": damping, "correction": correction}, {solver},
+                                      subject="this run does not use"):
+        warnings.warn(line, UserWarning, stacklevel=2)   # damping=0.5 with solver="pbd" did nothing silently
     if velocities is not None:
         velocities = _checked_rows("velocities", velocities, (points.shape[0], 3), "one (3,) row per point, m/s")
     if roots is not None:

@@ -101,6 +101,15 @@ def check_gravity(gravity) -> np.ndarray:
     return g
 
 
+def check_no_features(model, solver: str) -> None:
+    """ValueError naming the model's feature flags for a solver that steps gravity and roots only
+    (a model with colliders, drag, wind or hair-hair stepped by it ignored them without a word).
+    Root binding has no flag: it only sets root targets, which every solver follows."""
+    if model.feature_flags:
+        raise ValueError(f"the {solver} solver steps gravity and roots only; this model has features "
+                         f"({', '.join(sorted(model.feature_flags))}): use --solver dftl")
+
+
 def check_real(name: str, value, *, minimum: float = 0.0, inclusive: bool = False) -> float:
     """``value`` as a float; ValueError naming ``name`` unless it is a finite real number above
     ``minimum`` (at or above it where ``inclusive``)."""
@@ -254,7 +263,8 @@ class Solver:
         wp.capture_launch(graph)
 
     def diagnostics(self, state) -> dict:
-        """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s)."""
+        """Total energy per unit particle mass (J/kg), max relative stretch, max speed (m/s); the
+        stretch and speed are infinite (and the energy NaN) when a position or velocity is not finite."""
         check_bound(self.model, state)
         m = self.model
         n = m.num_strands

@@ -215,11 +215,16 @@ class ElasticSolver(Solver):
         real = self.real
         dev, lay = model.device, model.layout
         npts = model.num_points
+        source = "radius"
         if radius is None:
+            source = "half the model's widths" if model.widths is not None else source
             radius = 0.5 * model.widths if model.widths is not None else DEFAULT_RADIUS
         radius = _per_point("radius", radius, npts)
-        if not np.all(np.isfinite(radius) & (radius > 0)):
-            raise ValueError("radius must be finite and > 0")
+        bad = ~(np.isfinite(radius) & (radius > 0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            hint = " (widths of 0, e.g. tapered tips: pass radius=)" if source != "radius" else ""
+            raise ValueError(f"radius[{i}] = {float(radius[i])!r} ({source}, point {i}): must be finite and > 0{hint}")
         self.radius = radius
         scale = np.ones(npts) if stiffness_scale is None else _per_point("stiffness_scale", stiffness_scale, npts)
         bad = ~(np.isfinite(scale) & (scale >= 0))
@@ -419,6 +424,11 @@ class ElasticSolver(Solver):
         about it); without them the root frame is the minimal rotation onto the ghost's direction.
         ``start=None`` returns to the default: the authored ghosts moved with the roots' translation
         (on the roots' path), not turned."""
+        m = self.model
+        if start is not None:   # checked first: a NaN row left the clamps half set before the error
+            end = start if end is None else end
+            device_start = m.roots_to_device(start, "clamp targets (start)")
+            device_end = m.roots_to_device(end, "clamp targets (end)")
         self._clamp_deviation_start.zero_()
         self._clamp_deviation_end.zero_()
         self._set_clamp_rotations(rotation_start, rotation_end)
@@ -426,9 +436,6 @@ class ElasticSolver(Solver):
             wp.copy(self._clamp_start, self._clamp_offset)
             self._clamp_relative = 1
             return
-        m = self.model
-        end = start if end is None else end
-        device_start, device_end = m.roots_to_device(start), m.roots_to_device(end)
         self._clamp_start.assign(device_start)
         self._clamp_end.assign(device_end)
         self._clamp_relative = 0

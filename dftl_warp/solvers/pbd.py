@@ -11,12 +11,13 @@ import numpy as np
 import warp as wp
 
 from ..kernels.solvers.pbd import pbd_kernel
-from .base import DEFAULT_GRAVITY, Solver, check_integer, register
+from .base import DEFAULT_GRAVITY, Solver, check_integer, check_no_features, register
 
 
 @register
 class PBDSolver(Solver):
-    """Gauss-Seidel PBD for strands (equal unit masses, kinematic roots).
+    """Gauss-Seidel PBD for strands (equal unit masses, kinematic roots); gravity and roots only: a
+    model with features (colliders, drag, wind, hair-hair) is refused.
 
     Args:
         model: the :class:`~dftl_warp.core.model.Model` to simulate.
@@ -29,6 +30,7 @@ class PBDSolver(Solver):
 
     def __init__(self, model, *, iterations: int = 4, gravity=DEFAULT_GRAVITY):
         iterations = check_integer("iterations", iterations)
+        check_no_features(model, "pbd")
         super().__init__(model, gravity=gravity)
         self.iterations = int(iterations)
         self._kernel = pbd_kernel(model.scalar)

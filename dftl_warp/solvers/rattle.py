@@ -35,7 +35,7 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..kernels.solvers.rattle import rattle_kernel
 from ..kernels.solvers.rattle_fused import rattle_capacity, rattle_fused_kernel
-from .base import DEFAULT_GRAVITY, Solver, check_bool, check_integer, check_real, register
+from .base import DEFAULT_GRAVITY, Solver, check_bool, check_integer, check_no_features, check_real, register
 
 #: Newton iterations per step: 3 bring the relative squared-length residual of a float32 groom at
 #: production substeps (>= 8 per 1/24 s frame) to round-off (docs/accuracy-second-order.md)
@@ -101,9 +101,7 @@ class RattleSolver(Solver):
         if max_halvings > 10:
             raise ValueError(f"max_halvings must be an integer in [0, 10], got {max_halvings!r}")
         on_chip = check_bool("on_chip", on_chip)
-        if model.feature_flags:
-            raise ValueError("the rattle solver steps gravity and roots only; this model has features "
-                             f"({', '.join(sorted(model.feature_flags))}): use --solver dftl")
+        check_no_features(model, "rattle")
         rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
         starts = strand_offsets(model.counts)
         free = np.ones(rest.shape[0], dtype=bool)

@@ -24,6 +24,9 @@ frames at their minimiser (:mod:`.reference_elastic`, kernel
 :mod:`dftl_warp.kernels.solvers.reference_elastic`); ``drag`` (1/s) adds linear drag there. The
 bending force is explicit: a step beyond ``2 / omega_max`` (the stiffest bending mode) is refused.
 Without ``elastic`` the solver is exactly the chain of unit masses above.
+
+Features: gravity and roots only (roots bound to a mesh included); a model with colliders, drag,
+wind or hair-hair is refused (:func:`~dftl_warp.solvers.base.check_no_features`).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import warp as wp
 
 from ..core.layout import strand_offsets
 from ..kernels.solvers.reference import rattle_kernel
-from .base import DEFAULT_GRAVITY, Solver, check_integer, check_real, register
+from .base import DEFAULT_GRAVITY, Solver, check_integer, check_no_features, check_real, register
 
 
 @register
@@ -70,6 +73,7 @@ class ReferenceSolver(Solver):
         drag = check_real("drag", drag, inclusive=True)
         frame_tolerance = check_real("frame_tolerance", frame_tolerance)
         frame_iterations = check_integer("frame_iterations", frame_iterations)
+        check_no_features(model, "reference")
         rest = model.rest_lengths.numpy()[model.layout.slot_of_point]
         starts = strand_offsets(model.counts)
         free = np.ones(rest.shape[0], dtype=bool)

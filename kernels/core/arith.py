@@ -86,3 +86,19 @@ return 1.0 / sqrt(x);
 #endif
 """)
 def rsqrt(x: wp.float64) -> wp.float64: ...  # noqa: F811
+
+
+@wp.func
+def max_keep_nan(a: wp.float32, b: wp.float32):
+    """The larger of ``a`` and ``b``, NaN if ``b`` is NaN: ``wp.max(a, NaN)`` is ``a``, so a
+    Newton residual accumulated with ``wp.max`` read a NaN solve as converged."""
+    if b > a or b != b:
+        return b
+    return a
+
+
+@wp.func
+def max_keep_nan(a: wp.float64, b: wp.float64):
+    if b > a or b != b:
+        return b
+    return a

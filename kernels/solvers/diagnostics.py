@@ -14,7 +14,9 @@ from ..core.layout import particle
 @functools.cache
 def strand_diagnostics_kernel(scalar):
     """Kernel writing, per strand: energy (J/kg summed over free particles), max relative stretch
-    and max speed (m/s) of its free particles. Accumulates in float64."""
+    and max speed (m/s) of its free particles. Accumulates in float64. A strand with a position or
+    velocity that is not finite gets infinite stretch and speed (``wp.max`` drops a NaN: a blown-up
+    strand read as unstretched and still)."""
     vec3 = wp.types.vector(3, scalar)
 
     @wp.kernel(enable_backward=False, module="unique")
@@ -37,7 +39,9 @@ def strand_diagnostics_kernel(scalar):
         e = wp.float64(0.0)
         worst = wp.float64(0.0)
         fastest = wp.float64(0.0)
-        leader = positions[particle(base, stride, 0)]
+        k0 = particle(base, stride, 0)
+        leader = positions[k0]
+        blown = not (wp.isfinite(leader) and wp.isfinite(velocities[k0]))
         for i in range(1, n):
             k = particle(base, stride, i)
             x = positions[k]
@@ -47,7 +51,12 @@ def strand_diagnostics_kernel(scalar):
             if rest > scalar(0.0):
                 worst = wp.max(worst, wp.abs(wp.float64(wp.length(x - leader) / rest) - wp.float64(1.0)))
             fastest = wp.max(fastest, wp.float64(wp.length(v)))
+            if not (wp.isfinite(x) and wp.isfinite(v)):
+                blown = True
             leader = x
+        if blown:
+            worst = wp.float64(wp.inf)
+            fastest = wp.float64(wp.inf)
         energy[s] = e
         stretch[s] = worst
         speed[s] = fastest

@@ -41,6 +41,7 @@ import functools
 
 import warp as wp
 
+from ..core.arith import max_keep_nan
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from .ftl import follow_func
@@ -202,7 +203,7 @@ def rattle_kernel(scalar):
                     q[k] = di
                     l = rest_lengths[k]
                     dd = (di - prev) + r_i
-                    res = wp.max(res, wp.abs(wp.dot(dd, dd) / (l * l) - one))
+                    res = max_keep_nan(res, wp.abs(wp.dot(dd, dd) / (l * l) - one))
                     prev = di
                 if (not (res <= accept)) and size > 1:
                     # not converged in the fixed iterations: no solution along the old segments

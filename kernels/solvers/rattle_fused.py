@@ -27,6 +27,7 @@ import functools
 
 import warp as wp
 
+from ..core.arith import max_keep_nan
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from .ftl import follow_func
@@ -199,7 +200,7 @@ def rattle_fused_kernel(scalar, capacity: int):
                             di = di - mu[ip] * ((x[ip] - x[i]) + (lo[ip] - lo[i]))
                         l = rest[i]
                         dd = (di - prev) + r_i
-                        res = wp.max(res, wp.abs(wp.dot(dd, dd) / (l * l) - one))
+                        res = max_keep_nan(res, wp.abs(wp.dot(dd, dd) / (l * l) - one))
                         prev = di
                 if (not (res <= accept)) and size > 1:
                     size = size // 2

@@ -38,6 +38,7 @@ import functools
 
 import warp as wp
 
+from ..core.arith import max_keep_nan
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 
@@ -154,7 +155,7 @@ def rattle_kernel(scalar):
                         diag = wsum * wp.dot(dj, rj)
                         l2 = f64(rest_lengths[kj]) * f64(rest_lengths[kj])
                         f = f64(0.5) * (wp.dot(dj, dj) - l2)
-                        res = wp.max(res, wp.abs(f64(2.0) * f / l2))
+                        res = max_keep_nan(res, wp.abs(f64(2.0) * f / l2))
                         # Thomas forward sweep on  sub*delta_{j-1} + diag*delta_j + sup*delta_{j+1} = -f
                         denom = diag - sub * c_prev
                         c_prev = sup / denom
@@ -176,7 +177,7 @@ def rattle_kernel(scalar):
                     # no solution reachable along the old segments at this step: halve it
                     h = f64(0.5) * h
                     continue
-                worst = wp.max(worst, res)
+                worst = max_keep_nan(worst, res)
 
                 # new positions x' = q + mu_i r_i - mu_{i+1} r_{i+1} (old segments), kept in q
                 for i in range(1, n):

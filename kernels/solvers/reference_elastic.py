@@ -49,6 +49,7 @@ import functools
 
 import warp as wp
 
+from ..core.arith import max_keep_nan
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from .reference import _to_d
@@ -371,7 +372,7 @@ def rattle_elastic_kernel(scalar):
                         diag = (wj + wm) * wp.dot(dj, rj)
                         l2 = f64(rest_lengths[kj]) * f64(rest_lengths[kj])
                         f = f64(0.5) * (wp.dot(dj, dj) - l2)
-                        res = wp.max(res, wp.abs(f64(2.0) * f / l2))
+                        res = max_keep_nan(res, wp.abs(f64(2.0) * f / l2))
                         denom = diag - sub * c_prev
                         c_prev = sup / denom
                         d_prev = (-f - sub * d_prev) / denom
@@ -390,7 +391,7 @@ def rattle_elastic_kernel(scalar):
                 if (not (res < accept)) and h > dt * f64(1.0e-6):
                     h = f64(0.5) * h
                     continue
-                worst = wp.max(worst, res)
+                worst = max_keep_nan(worst, res)
 
                 # new positions x' = q + w_i (mu_i r_i - mu_{i+1} r_{i+1}) (old segments), kept in q
                 for i in range(1, n):
