@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..durable import write_file, write_text
 from ..simulation.quality import QUALITY_PRESETS
 from .front import PRESET_MAX_STRETCH, PRESET_TARGETS, pareto_front, pick_presets, preset_ineligible, presets_source
 
@@ -205,9 +206,9 @@ def write_front(result: dict, meta: dict, out, targets=None) -> list[str]:
         text = json.dumps(data, indent=1, default=float), render_front(result, meta, front, picks)
         plot_front(result, front, picks, Path(image))
         out.mkdir(parents=True, exist_ok=True)
-        paths[0].write_text(text[0])
-        paths[1].write_text(text[1])
-        shutil.move(image, paths[2])
+        write_text(paths[0], text[0])
+        write_text(paths[1], text[1])
+        write_file(paths[2], lambda tmp: shutil.copyfile(image, tmp))
     finally:
         if os.path.exists(image):
             os.unlink(image)
