@@ -11,7 +11,10 @@ def add_parser(sub):
         help="describe a USD stage: hair prims, strands, particles, colliders, features, memory, gravity, units, frames",
         description="Read SCENE the way `dftl-warp simulate` does and describe what it would simulate.",
     )
-    p.add_argument("scene", metavar="SCENE", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    from ..output.paths import path_argument
+
+    p.add_argument("scene", metavar="SCENE", type=path_argument("the USD stage to describe"),
+                   help="USD stage (.usd, .usda, .usdc, .usdz)")
     p.add_argument("--prim", action="append", metavar="PATH", help="only the BasisCurves prims at or below PATH")
     p.add_argument("--json", action="store_true", help="print the description as JSON")
     p.set_defaults(run=run)

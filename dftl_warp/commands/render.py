@@ -40,7 +40,7 @@ def add_parser(sub):
     g.add_argument("--start", type=float, help="first time code of a range (with --end)")
     p.add_argument("--end", type=float, help="last time code of a range, inclusive")
     p.add_argument("--step", type=float, default=1.0, help="time-code step of a range (default 1)")
-    p.add_argument("--camera", metavar="PRIM", type=path_argument("a UsdGeom.Camera prim path, or auto"),
+    p.add_argument("--camera", metavar="PRIM", type=path_argument("a UsdGeom.Camera prim path, or auto", file=False),
                    help="UsdGeom.Camera prim path, or 'auto' to frame the hair (default: the stage's first camera, "
                         "else auto)")
     p.add_argument("--resolution", default="960x540", metavar="WxH",

@@ -12,6 +12,8 @@ from ..errors import UserError
 
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+
     p = sub.add_parser(
         "study", help="measure accuracy against cost: convergence, energy, stretch, modes, stability",
         description="Run the accuracy study (dftl_warp/study.py): sweeps of step, damping s, correction "
@@ -20,8 +22,8 @@ def add_parser(sub):
     p.add_argument("--fast", action="store_true", help="the small subset that CI runs (seconds)")
     p.add_argument("--device", default=None,
                    help="Warp device, e.g. cpu or cuda:0 (default cuda:0 when there is a CUDA device, else cpu)")
-    p.add_argument("--out", default="study", help="folder for CSV, PNG and accuracy.md (default ./study)")
-    p.add_argument("--docs", default=None, help="also write the report here, image links relative to it")
+    p.add_argument("--out", default="study", type=path_argument("the folder to write into"), help="folder for CSV, PNG and accuracy.md (default ./study)")
+    p.add_argument("--docs", default=None, type=path_argument("the markdown file to write"), help="also write the report here, image links relative to it")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     front = p.add_argument_group(
         "the front at scale (docs/accuracy-h200/front.md)",
@@ -29,7 +31,7 @@ def add_parser(sub):
         "--strands x --particles against the float64 reference; writes front.json, front.md and front.png "
         "into --out, with the quality presets re-derived from it. With --fast: a few settings (a CPU smoke run).")
     front.add_argument("--front", action="store_true", help="run the front at scale instead of the CPU sections")
-    front.add_argument("--front-from", metavar="JSON", default=None,
+    front.add_argument("--front-from", metavar="JSON", default=None, type=path_argument("a front.json to redraw"),
                        help="redraw front.md and front.png into --out from a front.json, without running (the run's "
                             "flags do nothing, --docs is refused; a file that is not a front.json writes nothing)")
     front.add_argument("--strands", type=int, default=None,

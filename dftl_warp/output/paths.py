@@ -161,16 +161,25 @@ def _remove_empty(folders) -> None:
             return
 
 
-def path_argument(what: str):
-    """An argparse ``type`` for a file path on the command line: the text as given, or one line
-    for an empty (or blank) one, which named the current folder or nothing at all (``-o ''``:
-    ``.: output must end in .usdc``). ``what`` completes "give ...": the file expected."""
+def user_path(text: str) -> str:
+    """``text`` with a leading ``~`` or ``~user`` expanded to that home folder. The shell expands
+    it only in a word of its own: not in ``--out=~/x``, a quoted ``"~/x"``, a TOML file or a job
+    launcher's argument list, where it made a folder literally named ``~``."""
+    return os.path.expanduser(text)
+
+
+def path_argument(what: str, *, file: bool = True):
+    """The argparse ``type`` of every file or folder path on the command line: the text with a
+    leading ``~`` expanded (:func:`user_path`), or one line for an empty (or blank) one, which
+    named the current folder or nothing at all (``-o ''``: ``.: output must end in .usdc``).
+    ``what`` completes "give ...": the file expected. ``file=False``: not a file (a prim path),
+    only checked for being empty."""
     import argparse
 
     def parse(text: str) -> str:
         if not text.strip():
             raise argparse.ArgumentTypeError(f"empty path: give {what}")
-        return text
+        return user_path(text) if file else text
 
     parse.__name__ = "path"
     return parse
