@@ -40,3 +40,25 @@ def test_front_from_says_which_flags_do_nothing(tmp_path, capsys):
     assert "--front-from" in err
     redrawn = json.loads((tmp_path / "b" / "front.json").read_text())
     assert redrawn["presets"] == json.loads(FRONT.read_text())["presets"]
+
+
+@pytest.mark.parametrize("flags, expected", [
+    (["--strands", "0"], "--strands 0: must be at least 1"),
+    (["--strands", "-3"], "--strands -3: must be at least 1"),
+    (["--strands", "1000000000000"], "--strands 1000000000000: must be at most 10,000,000"),
+    (["--particles", "1"], "--particles 1: must be at least 2"),
+    (["--particles", "100000000"], "--particles 100000000: must be at most 1,024"),
+    (["--frames", "0"], "--frames 0: must be at least 1"),
+    (["--frames", "100000000"], "--frames 100000000: must be at most 10,000"),
+    (["--reference-substeps", "1"], "--reference-substeps 1: must be at least 2"),
+    (["--reference-substeps", "99999999"], "--reference-substeps 99999999: must be at most 16,384"),
+    (["--strands", "10000000", "--particles", "1000"], "--strands 10000000 x --particles 1000 = 10,000,000,000 "
+                                                         "particles: at most 2,147,483,647"),
+])
+def test_front_sizes_out_of_range_are_one_line_before_any_work(tmp_path, capsys, flags, expected):
+    # before: zero and negative sizes were refused, but 10^12 strands or 10^8 particles per strand
+    # ended in numpy's MemoryError traceback, and 10^8 frames ran until killed
+    out = tmp_path / "out"
+    err = one_error(capsys, ["study", "--front", "--fast", "--device", "cpu", "--out", str(out), "--quiet", *flags])
+    assert err == f"dftl-warp: error: {expected}", err
+    assert not out.exists()

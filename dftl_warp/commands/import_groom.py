@@ -34,7 +34,7 @@ def add_parser(sub):
     p.add_argument("--head-friction", type=float, metavar="MU", help="dftl:friction of the head collider")
     p.add_argument("--max-strands", type=int, metavar="N", help="keep at most N strands, evenly spaced")
     p.add_argument("--every", type=int, metavar="K", help="keep every K-th strand")
-    p.add_argument("--segments", type=int, metavar="N", help="resample every strand to N segments by arc length")
+    p.add_argument("--segments", type=int, metavar="N", help="resample every strand to N segments by arc length, 1 to 10000")
     p.add_argument("--drop-nonfinite", action="store_true",
                    help="drop strands with NaN/inf points (with a warning) instead of failing")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary line (warnings and errors are still printed)")

@@ -35,11 +35,11 @@ def add_parser(sub):
                        help="redraw front.md and front.png into --out from a front.json, without running (the run's "
                             "flags do nothing, --docs is refused; a file that is not a front.json writes nothing)")
     front.add_argument("--strands", type=int, default=None,
-                       help="strands of the front's groom (default 100000; 64 with --fast)")
-    front.add_argument("--particles", type=int, default=32, help="particles per strand (default 32)")
-    front.add_argument("--frames", type=int, default=None, help="frames at 24 fps (default 12; 3 with --fast)")
+                       help="strands of the front's groom, 1 to 10,000,000 (default 100000; 64 with --fast)")
+    front.add_argument("--particles", type=int, default=32, help="particles per strand, 2 to 1024 (default 32)")
+    front.add_argument("--frames", type=int, default=None, help="frames at 24 fps, 1 to 10,000 (default 12; 3 with --fast)")
     front.add_argument("--reference-substeps", type=int, default=64,
-                       help="substeps per frame of the float64 reference that is the truth (default 64)")
+                       help="substeps per frame of the float64 reference that is the truth, 2 to 16384 (default 64)")
     p.set_defaults(run=run)
 
 
@@ -62,6 +62,13 @@ def _command_line(args=None) -> str:
     return " ".join(["dftl-warp", *words])
 
 
+#: the largest sane value of each --front flag: past it a typo that would fill any memory or run
+#: for days (the front at scale is 100,000 strands x 32 particles, 12 frames, 64 substeps)
+FRONT_LIMITS = {"--strands": 10_000_000, "--particles": 1024, "--frames": 10_000, "--reference-substeps": 16384}
+#: the most particles of the front's groom (--strands x --particles): Warp indexes arrays with 32-bit integers
+FRONT_MAX_PARTICLES = 2**31 - 1
+
+
 def _check_front_args(args) -> None:
     if args.strands is None:
         args.strands = 64 if args.fast else 100_000
@@ -71,6 +78,11 @@ def _check_front_args(args) -> None:
                              ("--frames", args.frames, 1), ("--reference-substeps", args.reference_substeps, 2)):
         if value < low:
             raise UserError(f"{flag} {value}: must be at least {low}")
+        if value > FRONT_LIMITS[flag]:
+            raise UserError(f"{flag} {value}: must be at most {FRONT_LIMITS[flag]:,}")
+    if args.strands * args.particles > FRONT_MAX_PARTICLES:
+        raise UserError(f"--strands {args.strands} x --particles {args.particles} = {args.strands * args.particles:,} "
+                        f"particles: at most {FRONT_MAX_PARTICLES:,}")
     if args.docs:
         raise UserError("--docs: the front writes its report into --out (front.md); leave --docs out")
 
@@ -94,10 +106,14 @@ def run_front(args, device, log) -> int:
     from ..study.front import SMOKE_SETTINGS, measure_front
     from ..study.front_report import write_front
 
-    with wp.ScopedDevice(device):
-        result = measure_front(strands=args.strands, particles=args.particles, frames=args.frames,
-                               reference_substeps=args.reference_substeps, device=str(device),
-                               settings=SMOKE_SETTINGS if args.fast else None, log=log)
+    try:
+        with wp.ScopedDevice(device):
+            result = measure_front(strands=args.strands, particles=args.particles, frames=args.frames,
+                                   reference_substeps=args.reference_substeps, device=str(device),
+                                   settings=SMOKE_SETTINGS if args.fast else None, log=log)
+    except MemoryError:
+        raise UserError(f"--strands {args.strands} x --particles {args.particles}: the front's groom does not fit in "
+                        f"the memory of this machine; give fewer") from None
     meta = {"command": _command_line(args), "machine": platform.node() or "unknown host", "cpu": _cpu_name(),
             "cores": os.cpu_count(), "device": str(device), "device_name": device.name, "warp": wp.config.version,
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "fast": args.fast}
