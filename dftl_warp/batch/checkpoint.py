@@ -284,12 +284,13 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
         result.error = job.error
         return result
     try:
-        from ..output import check_output_path, ensure_folder
+        from ..output import check_output_path
+        from ..output.paths import created_folders
 
         files = JobFiles(Path(job.output))
         check_output_path(job.output)   # a folder that is a file, ...: simulate's one line, not an OSError
-        ensure_folder(job.output)
-        with job_lock(files.lock):
+        # a failed job leaves no new empty folder (one holding its checkpoint stays: a rerun resumes)
+        with created_folders(job.output), job_lock(files.lock):
             _run(job, device, policy, files, result, emit)
     except UserError as exc:
         result.status, result.error = "failed", str(exc)

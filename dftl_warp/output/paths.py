@@ -107,12 +107,11 @@ def check_not_a_dependency(output, input_path) -> None:
 
 
 @contextlib.contextmanager
-def output_place(output):
-    """Where ``simulate`` writes ``output``: its missing folders created (and removed again,
-    when empty, if the run fails), the output lock held (:mod:`.lock`), and the partial files
-    of killed runs removed (:func:`remove_stale_partials`)."""
-    from .lock import lock_path, output_lock
-
+def created_folders(output):
+    """The missing folders of ``output`` created for a run (a UserError naming ``output`` when one
+    cannot be), and removed again, deepest first, if the run fails while they are still empty: a
+    failed run leaves no new empty folder, and never removes one that was there before or that
+    holds anything (``simulate``'s :func:`output_place`, each ``batch`` job)."""
     output = Path(os.fspath(output))
     missing, created = [], []   # created: deepest first
     folder = output.parent if str(output.parent) else Path(".")
@@ -129,12 +128,24 @@ def output_place(output):
             raise UserError(f"{output}: cannot write: cannot create folder {f} ({_reason(exc)})") from None
         created.insert(0, f)
     try:
-        with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
-            remove_stale_partials(output)
-            yield
+        yield
     except BaseException:
         _remove_empty(created)
         raise
+
+
+@contextlib.contextmanager
+def output_place(output):
+    """Where ``simulate`` writes ``output``: its missing folders created (and removed again,
+    when empty, if the run fails: :func:`created_folders`), the output lock held (:mod:`.lock`),
+    and the partial files of killed runs removed (:func:`remove_stale_partials`)."""
+    from .lock import lock_path, output_lock
+
+    output = Path(os.fspath(output))
+    with created_folders(output), output_lock(lock_path(output),
+                                              message=f"{output}: another dftl-warp run is writing it"):
+        remove_stale_partials(output)
+        yield
 
 
 def remove_stale_partials(output) -> None:
