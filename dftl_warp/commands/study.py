@@ -140,10 +140,16 @@ def run_front_from(args, log) -> int:
               "(it redraws the report from the json, running nothing)", file=sys.stderr)
     try:
         result, meta = load_front(args.front_from)
-        written = write_front(result, meta, args.out)
     except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
         why = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
         raise UserError(f"--front-from {args.front_from}: not a front.json ({why})") from None
+    try:
+        written = write_front(result, meta, args.out)
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:   # made before writing
+        why = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise UserError(f"--front-from {args.front_from}: not a front.json ({why})") from None
+    except OSError as exc:
+        raise UserError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     log(f"study --front-from: wrote {', '.join(written)}")
     return 0
 
@@ -154,9 +160,12 @@ def run(args) -> int:
     import warp as wp
 
     args.started = time.perf_counter()   # the elapsed time printed at the end: the whole run, Warp's start included
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        raise UserError(f"--out {args.out}: exists and is not a folder")
+    from ..output.paths import check_folder
     from ..output.progress import stderr_line
+
+    check_folder(args.out, f"--out {args.out}")   # before the study runs (minutes to hours), not after
+    if args.docs and not args.front_from and not args.front:
+        check_folder(os.path.dirname(args.docs) or ".", f"--docs {args.docs}")
 
     # progress, as every command's: on stderr, prefixed (stdout is left to results)
     log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(stderr_line(msg), file=sys.stderr, flush=True))

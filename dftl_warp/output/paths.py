@@ -61,6 +61,28 @@ def check_output(output, input_path) -> Path:
     return output
 
 
+def check_folder(folder, name: str) -> Path:
+    """``folder`` as a Path; a UserError ``NAME: ...`` now, before any work, unless it is a folder
+    or can be created as one, and a file can actually be created in it or in the nearest folder
+    above it that exists (root passes ``os.access`` on read-only file systems and ``/proc``).
+    ``name`` says where the folder comes from (``--out study``)."""
+    import tempfile
+
+    folder = Path(os.fspath(folder))
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"{name}: exists and is not a folder")
+    existing = _nearest_folder(folder / "x")
+    if not existing.is_dir():
+        raise UserError(f"{name}: cannot write: {existing} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".dftl-probe.", dir=existing)
+    except OSError as exc:
+        raise UserError(f"{name}: cannot write: cannot create a file in folder {existing} ({_reason(exc)})") from None
+    os.close(fd)
+    os.remove(probe)
+    return folder
+
+
 def input_files(input_path) -> set[str]:
     """Real paths of the stage ``input_path`` and of every layer and asset it uses (as
     :func:`check_not_a_dependency` finds them, missing ones included); just the stage's own when

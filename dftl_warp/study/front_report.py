@@ -10,6 +10,7 @@ back, so the report can be redrawn (e.g. with other preset targets) without reru
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -88,8 +89,11 @@ def plot_front(result: dict, front: list[int], picks: dict, path: Path) -> None:
                  "error against cost (labels: substeps per frame)", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with warnings.catch_warnings():   # matplotlib's note that placing the legend "best" took long (a loaded
+        # machine): two lines of Python's warning format on stderr, about matplotlib, not the input
+        warnings.filterwarnings("ignore", message="Creating legend with loc", category=UserWarning)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
