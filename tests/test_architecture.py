@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 #: the layers, first to last; a package prefix belongs to the layer of its longest listed prefix
 LAYERS = [
-    ("foundation", ["dftl_warp.errors", "dftl_warp.version", "dftl_warp.options", "dftl_warp.kernels"]),
+    ("foundation", ["dftl_warp.errors", "dftl_warp.version", "dftl_warp.options", "dftl_warp.durable",
+                    "dftl_warp.kernels"]),
     ("usd", ["dftl_warp.usd", "dftl_warp.importers"]),
     ("core", ["dftl_warp.core", "dftl_warp.kernels.core"]),
     ("features", ["dftl_warp.features", "dftl_warp.kernels.features"]),

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..durable import replace_file
 from ..errors import UserError
 
 #: version of the checkpoint and completion records (bump when their meaning changes); 2: clips of
@@ -189,12 +190,6 @@ def _remove(path) -> None:
         os.remove(path)
 
 
-def _fsync_replace(tmp: Path, target: Path) -> None:
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, target)
-
-
 def _copy(source: Path, target: Path) -> None:
     """Copy a file in the kernel (``copy_file_range``: a reflink clone on file systems that have
     them), else through ``shutil``."""
@@ -218,13 +213,13 @@ def _copy(source: Path, target: Path) -> None:
 def atomic_copy(source: Path, target: Path, tmp: Path) -> None:
     """Copy ``source`` to ``target`` through ``tmp`` (whole file or nothing at ``target``)."""
     _copy(source, tmp)
-    _fsync_replace(tmp, target)
+    replace_file(tmp, target)
 
 
 def atomic_savez(target: Path, tmp: Path, arrays: dict) -> None:
     with open(tmp, "wb") as f:
         np.savez(f, **arrays)
-    _fsync_replace(tmp, target)
+    replace_file(tmp, target)
 
 
 def remove_job_files(files: JobFiles) -> None:
@@ -289,12 +284,13 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
         result.error = job.error
         return result
     try:
-        from ..output import check_output_path, ensure_folder
+        from ..output import check_output_path
+        from ..output.paths import created_folders
 
         files = JobFiles(Path(job.output))
         check_output_path(job.output)   # a folder that is a file, ...: simulate's one line, not an OSError
-        ensure_folder(job.output)
-        with job_lock(files.lock):
+        # a failed job leaves no new empty folder (one holding its checkpoint stays: a rerun resumes)
+        with created_folders(job.output), job_lock(files.lock):
             _run(job, device, policy, files, result, emit)
     except UserError as exc:
         result.status, result.error = "failed", str(exc)

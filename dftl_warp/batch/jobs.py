@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..options import BY_TOML, DEVICE_PATTERN as _DEVICE_PATTERN, GUIDE_OPTIONS, OPTIONS, check_toml, did_you_mean
 from ..errors import UserError
+from ..output.paths import user_path
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -211,8 +212,8 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
         if raw_name is not None and not isinstance(raw_name, str):
             raise ValueError(f"name must be a string, got {raw_name!r}")
         options = {**defaults, **_check_options(table, f"job {k}", allowed_extra=JOB_KEYS)}
-        job.input = os.path.abspath(folder / table["input"])
-        job.output = os.path.abspath(folder / table["output"])
+        job.input = os.path.abspath(folder / user_path(table["input"]))   # "~/x": the home folder's, as on the
+        job.output = os.path.abspath(folder / user_path(table["output"]))  # command line (output.paths)
         if Path(job.output).suffix.lower() not in output_extensions():
             raise ValueError(f"output {table['output']} must end in {', '.join(output_extensions())}")
         if os.path.normcase(job.output) == os.path.normcase(job.input):

@@ -6,6 +6,8 @@ import sys
 
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+
     p = sub.add_parser(
         "batch",
         help="simulate the jobs of a JOBS.toml in parallel (resumable; locally or on Ray)",
@@ -16,7 +18,8 @@ def add_parser(sub):
             "jobs are skipped, the others resume. Exit status 0 when every job succeeded, 1 otherwise."
         ),
     )
-    p.add_argument("jobs", metavar="JOBS.toml", help="job list (see docs/batch.md)")
+    p.add_argument("jobs", metavar="JOBS.toml", type=path_argument("the job list, such as jobs.toml"),
+                   help="job list (see docs/batch.md)")
     p.add_argument("--workers", type=_positive_int, metavar="N",
                    help="parallel jobs (default: one per CUDA device, else one per CPU core)")
     p.add_argument("--ray", metavar="ADDRESS",

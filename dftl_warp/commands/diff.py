@@ -21,6 +21,8 @@ from . import strict_json
 
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+
     p = sub.add_parser(
         "diff",
         help="compare two caches per frame and prim: max and RMS point difference; exit 1 beyond --tolerance",
@@ -28,8 +30,9 @@ def add_parser(sub):
                     "frames both sample (none in common: bad input; frames in one file only: a warning). "
                     "Exit status 0 when within --tolerance, 1 otherwise, 2 for bad input.",
     )
-    p.add_argument("a", metavar="A", help="USD stage (a dftl-warp output or any stage with BasisCurves)")
-    p.add_argument("b", metavar="B", help="USD stage to compare with A")
+    p.add_argument("a", metavar="A", type=path_argument("the USD stage A"),
+                   help="USD stage (a dftl-warp output or any stage with BasisCurves)")
+    p.add_argument("b", metavar="B", type=path_argument("the USD stage B"), help="USD stage to compare with A")
     p.add_argument("--tolerance", type=float, default=0.0, metavar="T",
                    help="largest point difference allowed (stage units; default 0: bitwise equal points)")
     p.add_argument("--relative", action="store_true",

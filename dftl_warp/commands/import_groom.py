@@ -30,11 +30,11 @@ def add_parser(sub):
                         "stage's upAxis with the points unchanged, X rotates the points to Y up")
     p.add_argument("--width", type=float, metavar="W",
                    help="hair width in FILE's units, replacing the file's widths (default: the file's, else 80 um)")
-    p.add_argument("--head", metavar="MESH", help="head mesh (.obj or .ply, same units and axes) written as a collider")
+    p.add_argument("--head", metavar="MESH", type=path_argument("the head mesh, such as head.obj"), help="head mesh (.obj or .ply, same units and axes) written as a collider")
     p.add_argument("--head-friction", type=float, metavar="MU", help="dftl:friction of the head collider")
     p.add_argument("--max-strands", type=int, metavar="N", help="keep at most N strands, evenly spaced")
     p.add_argument("--every", type=int, metavar="K", help="keep every K-th strand")
-    p.add_argument("--segments", type=int, metavar="N", help="resample every strand to N segments by arc length")
+    p.add_argument("--segments", type=int, metavar="N", help="resample every strand to N segments by arc length, 1 to 10000")
     p.add_argument("--drop-nonfinite", action="store_true",
                    help="drop strands with NaN/inf points (with a warning) instead of failing")
     p.add_argument("-q", "--quiet", action="store_true", help="no summary line (warnings and errors are still printed)")

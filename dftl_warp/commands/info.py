@@ -11,9 +11,16 @@ def add_parser(sub):
         help="describe a USD stage: hair prims, strands, particles, colliders, features, memory, gravity, units, frames",
         description="Read SCENE the way `dftl-warp simulate` does and describe what it would simulate.",
     )
-    p.add_argument("scene", metavar="SCENE", help="USD stage (.usd, .usda, .usdc, .usdz)")
+    from ..output.paths import path_argument
+
+    p.add_argument("scene", metavar="SCENE", type=path_argument("the USD stage to describe"),
+                   help="USD stage (.usd, .usda, .usdc, .usdz)")
     p.add_argument("--prim", action="append", metavar="PATH", help="only the BasisCurves prims at or below PATH")
     p.add_argument("--json", action="store_true", help="print the description as JSON")
+    from ..options import add_arguments
+
+    # simulate's --guides: the features, hair-hair and memory then describe the guides it would simulate
+    add_arguments(p, ("guides", "guide_method"))
     p.set_defaults(run=run)
 
 
@@ -161,10 +168,12 @@ def material_summary(scene, curve) -> dict:
             "bend_stiffness_scale": curve.bend_scale is not None}
 
 
-def describe(scene) -> dict:
+def describe(scene, guides=None) -> dict:
     """A JSON-able description of a :class:`~dftl_warp.usd.scene.Scene`. Raises
     :class:`~dftl_warp.errors.UserError` where `simulate` would refuse the prims (an elastic prim
-    with a zero-length segment)."""
+    with a zero-length segment). ``guides`` (a :class:`~dftl_warp.guides.scene.GuideSet`,
+    ``simulate --guides``): the features, hair-hair and memory are those of the guides it simulates
+    (plus the render strands' bindings), as ``simulate`` runs them."""
     import numpy as np
 
     from ..simulation.settings import SimulationOptions, group_settings
@@ -178,8 +187,14 @@ def describe(scene) -> dict:
             check_rest_lengths(scene.source, c, c.points if c.rest_points is None else c.rest_points)
     counts = np.concatenate([c.counts for c in scene.curves])
     strands = int(counts.size)
-    memory = {p: device_bytes(scene, p) for p in ("float32", "float64")}
-    features = {p: feature_summary(scene, p) for p in ("float32", "float64")}
+    sim = scene if guides is None else guides.sim_scene   # what simulate runs
+    simulated = sum(int(c.num_strands) for c in sim.curves)
+    bindings = 0 if guides is None else sum(16 * scene.curves[r.index].num_points + 40 * scene.curves[r.index].num_strands
+                                            for r in guides.renders)   # as device_bytes counts a render prim
+    memory = {p: device_bytes(sim, p) + bindings for p in ("float32", "float64")}
+    features = {p: feature_summary(sim, p) for p in ("float32", "float64")}
+    feature_total = {p: f["feature_bytes_per_strand"] * max(simulated, 1) for p, f in features.items()}
+    per_prim = {c.path: int(c.num_strands) for c in sim.curves}
     return {
         "file": scene.source,
         "up_axis": info.up_axis,
@@ -192,10 +207,12 @@ def describe(scene) -> dict:
         "strands": strands,
         "particles": int(counts.sum()),
         "vertices_per_strand": [int(counts.min()), float(counts.mean()), int(counts.max())],
-        "device_bytes_per_strand": {p: b / max(strands, 1) + features[p]["feature_bytes_per_strand"]
-                                    for p, b in memory.items()},
-        "device_bytes": {p: b + int(round(features[p]["feature_bytes_per_strand"] * strands))
-                         + features[p]["fixed_feature_bytes"] for p, b in memory.items()},
+        "simulated_strands": simulated,
+        "guides": None if guides is None else {"method": guides.method, "count": guides.count,
+                                               "render_strands": guides.num_render_strands},
+        "device_bytes_per_strand": {p: (b + feature_total[p]) / max(strands, 1) for p, b in memory.items()},
+        "device_bytes": {p: b + int(round(feature_total[p])) + features[p]["fixed_feature_bytes"]
+                         for p, b in memory.items()},
         "features": features["float32"]["names"],
         "feature_flags": features["float32"]["flags"],
         "roots_bound_to_a_mesh": features["float32"]["bound_roots"],
@@ -214,6 +231,7 @@ def describe(scene) -> dict:
                 "basis": c.basis if c.type == "cubic" else None,
                 "wrap": c.wrap,
                 "strands": c.num_strands,
+                "simulated_strands": per_prim.get(c.path, 0),
                 "particles": c.num_points,
                 "animated_transform": c.animated,
                 "settings": {k: v for k, v in vars(c.settings).items() if v is not None and k != "simulate"},
@@ -250,7 +268,14 @@ def run(args) -> int:
     from ..output import provenance
 
     scene = read_scene(args.scene, prims=args.prim)
-    d = describe(scene)
+    guides = None
+    if args.guides is not None:   # as simulate picks them (its first frame: the time the scene was read at)
+        from ..guides.scene import GuideSet
+
+        guides = GuideSet(scene, scene.read_time, guides=args.guides, guide_method=args.guide_method)
+    elif args.guide_method is not None:
+        scene.warnings.append(f"--guide-method {args.guide_method} does nothing without --guides: ignored")
+    d = describe(scene, guides)
     made = provenance.read(args.scene)  # an output of dftl-warp: how it was made
     if made is not None:
         d["provenance"] = made
@@ -268,11 +293,18 @@ def run(args) -> int:
     lo, mean, hi = d["vertices_per_strand"]
     print(f"  hair        {d['strands']} strands, {d['particles']} particles, "
           f"{lo}..{hi} vertices per strand (mean {mean:.1f})")
+    if d["guides"] is not None:
+        g_ = d["guides"]
+        count = f"{g_['count'] * 100:g}%" if isinstance(g_["count"], float) else str(g_["count"])
+        print(f"  guides      --guides {count} ({g_['method']}): {d['simulated_strands']} of {d['strands']} strands "
+              f"simulated, {g_['render_strands']} render strands deformed from them; the features, hair-hair and "
+              "memory below are the simulated guides'")
     if d["features"]:
         extra = d["feature_bytes_per_strand"]["float32"]
         fixed = d["feature_fixed_bytes"]["float32"]
         bound = f"; {d['roots_bound_to_a_mesh']} roots bound to a mesh" if d["roots_bound_to_a_mesh"] else ""
-        print(f"  features    {', '.join(d['features'])} ({_bytes(extra)} per strand and {_bytes(fixed)} "
+        per = "per simulated strand" if d["guides"] is not None else "per strand"
+        print(f"  features    {', '.join(d['features'])} ({_bytes(extra)} {per} and {_bytes(fixed)} "
               f"fixed in float32{bound})")
         mpu = d["meters_per_unit"]
         for h in d["hair_hair"]:
@@ -306,6 +338,8 @@ def run(args) -> int:
             settings += f", roots on {c['root_mesh']}"
         runs = (f"solver {c['solver']}" if c["solver"] is not None else
                 f"not simulated: deformed from its guides {', '.join(c['guides'])}")
+        if d["guides"] is not None and c["solver"] is not None:
+            runs += f" on {c['simulated_strands']} of its strands (guides), the rest deformed from them"
         print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}; {runs}")
         m = c["material"]
         ei = "" if m["bend_stiffness"] is None else f", EI {m['bend_stiffness']:.4g}"

@@ -40,8 +40,8 @@ def add_parser(sub):
     g.add_argument("--frame", type=float, help="time code to render (default: the stage's start time, or its default time)")
     g.add_argument("--start", type=float, help="first time code of a range (with --end)")
     p.add_argument("--end", type=float, help="last time code of a range, inclusive")
-    p.add_argument("--step", type=float, default=1.0, help="time-code step of a range (default 1)")
-    p.add_argument("--camera", metavar="PRIM", type=path_argument("a UsdGeom.Camera prim path, or auto"),
+    p.add_argument("--step", type=float, default=None, help="time-code step of a --start/--end range (default 1)")
+    p.add_argument("--camera", metavar="PRIM", type=path_argument("a UsdGeom.Camera prim path, or auto", file=False),
                    help="UsdGeom.Camera prim path, or 'auto' to frame the hair (default: the stage's first camera, "
                         "else auto)")
     p.add_argument("--resolution", default="960x540", metavar="WxH",
@@ -93,6 +93,8 @@ def _check_numbers(args) -> None:
         value = getattr(args, flag)
         if value is not None and not math.isfinite(value):
             raise UserError(f"--{flag} {value:g}: expected a finite time code")
+    if args.step is not None and args.step <= 0:
+        raise UserError(f"--step {args.step:g}: must be positive")
     whole_number("--spp", args.spp, 1, MAX_SPP)
     pixel_width("--min-pixel-width", args.min_pixel_width)
     if args.turntable is not None:
@@ -110,14 +112,13 @@ def _frames(args, stage):
             raise UserError("--start needs --end")
         if args.end < args.start:
             raise UserError(f"--end {args.end:g} is before --start {args.start:g}")
-        if args.step <= 0:
-            raise UserError(f"--step {args.step:g}: must be positive")
-        span = (args.end - args.start) / args.step   # frames after the first (inf for a tiny --step)
+        step = 1.0 if args.step is None else args.step
+        span = (args.end - args.start) / step   # frames after the first (inf for a tiny --step)
         if span + 1 > MAX_IMAGES:
-            raise UserError(f"--start {args.start:g} --end {args.end:g} --step {args.step:g}: {span + 1:.6g} frames; "
+            raise UserError(f"--start {args.start:g} --end {args.end:g} --step {step:g}: {span + 1:.6g} frames; "
                             f"one render makes at most {MAX_IMAGES}")
         n = int(span + 1e-9) + 1
-        return [args.start + k * args.step for k in range(n)]
+        return [args.start + k * step for k in range(n)]
     if args.frame is not None:
         return [args.frame]
     r = usd_scene.time_range(stage)
@@ -154,7 +155,7 @@ def _check_frame_numbers(args, times, kind: str) -> None:
         return
     for t in times:
         if t is not None and not is_whole(t):
-            step = f" (--step {args.step:g})" if args.start is not None else ""
+            step = f" (--step {1.0 if args.step is None else args.step:g})" if args.start is not None else ""
             raise UserError(f"-o {args.output}: frame {t:g}{step} is not a whole number: a '#' pattern is "
                             "numbered by frame; render whole frames, or write a video (.mp4, .gif) "
                             "or --contact-sheet")
@@ -255,6 +256,8 @@ def run(args) -> int:
     # warnings once nothing before the first image can fail; -q silences progress, not warnings
     if args.fps is not None and kind != "video":
         warn(f"--fps applies only to a video output (.mp4, .gif, .mov, .webm): ignored for -o {args.output}")
+    if args.step is not None and args.start is None:
+        warn(f"--step {args.step:g} applies only to a --start/--end range: ignored")
     for w in stage_warnings:
         warn(w)
 

@@ -12,6 +12,8 @@ from ..errors import UserError
 
 
 def add_parser(sub):
+    from ..output.paths import path_argument
+
     p = sub.add_parser(
         "study", help="measure accuracy against cost: convergence, energy, stretch, modes, stability",
         description="Run the accuracy study (dftl_warp/study.py): sweeps of step, damping s, correction "
@@ -20,8 +22,8 @@ def add_parser(sub):
     p.add_argument("--fast", action="store_true", help="the small subset that CI runs (seconds)")
     p.add_argument("--device", default=None,
                    help="Warp device, e.g. cpu or cuda:0 (default cuda:0 when there is a CUDA device, else cpu)")
-    p.add_argument("--out", default="study", help="folder for CSV, PNG and accuracy.md (default ./study)")
-    p.add_argument("--docs", default=None, help="also write the report here, image links relative to it")
+    p.add_argument("--out", default="study", type=path_argument("the folder to write into"), help="folder for CSV, PNG and accuracy.md (default ./study)")
+    p.add_argument("--docs", default=None, type=path_argument("the markdown file to write"), help="also write the report here, image links relative to it")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     front = p.add_argument_group(
         "the front at scale (docs/accuracy-h200/front.md)",
@@ -29,15 +31,15 @@ def add_parser(sub):
         "--strands x --particles against the float64 reference; writes front.json, front.md and front.png "
         "into --out, with the quality presets re-derived from it. With --fast: a few settings (a CPU smoke run).")
     front.add_argument("--front", action="store_true", help="run the front at scale instead of the CPU sections")
-    front.add_argument("--front-from", metavar="JSON", default=None,
+    front.add_argument("--front-from", metavar="JSON", default=None, type=path_argument("a front.json to redraw"),
                        help="redraw front.md and front.png into --out from a front.json, without running (the run's "
                             "flags do nothing, --docs is refused; a file that is not a front.json writes nothing)")
     front.add_argument("--strands", type=int, default=None,
-                       help="strands of the front's groom (default 100000; 64 with --fast)")
-    front.add_argument("--particles", type=int, default=32, help="particles per strand (default 32)")
-    front.add_argument("--frames", type=int, default=None, help="frames at 24 fps (default 12; 3 with --fast)")
+                       help="strands of the front's groom, 1 to 10,000,000 (default 100000; 64 with --fast)")
+    front.add_argument("--particles", type=int, default=32, help="particles per strand, 2 to 1024 (default 32)")
+    front.add_argument("--frames", type=int, default=None, help="frames at 24 fps, 1 to 10,000 (default 12; 3 with --fast)")
     front.add_argument("--reference-substeps", type=int, default=64,
-                       help="substeps per frame of the float64 reference that is the truth (default 64)")
+                       help="substeps per frame of the float64 reference that is the truth, 2 to 16384 (default 64)")
     p.set_defaults(run=run)
 
 
@@ -60,6 +62,13 @@ def _command_line(args=None) -> str:
     return " ".join(["dftl-warp", *words])
 
 
+#: the largest sane value of each --front flag: past it a typo that would fill any memory or run
+#: for days (the front at scale is 100,000 strands x 32 particles, 12 frames, 64 substeps)
+FRONT_LIMITS = {"--strands": 10_000_000, "--particles": 1024, "--frames": 10_000, "--reference-substeps": 16384}
+#: the most particles of the front's groom (--strands x --particles): Warp indexes arrays with 32-bit integers
+FRONT_MAX_PARTICLES = 2**31 - 1
+
+
 def _check_front_args(args) -> None:
     if args.strands is None:
         args.strands = 64 if args.fast else 100_000
@@ -69,6 +78,11 @@ def _check_front_args(args) -> None:
                              ("--frames", args.frames, 1), ("--reference-substeps", args.reference_substeps, 2)):
         if value < low:
             raise UserError(f"{flag} {value}: must be at least {low}")
+        if value > FRONT_LIMITS[flag]:
+            raise UserError(f"{flag} {value}: must be at most {FRONT_LIMITS[flag]:,}")
+    if args.strands * args.particles > FRONT_MAX_PARTICLES:
+        raise UserError(f"--strands {args.strands} x --particles {args.particles} = {args.strands * args.particles:,} "
+                        f"particles: at most {FRONT_MAX_PARTICLES:,}")
     if args.docs:
         raise UserError("--docs: the front writes its report into --out (front.md); leave --docs out")
 
@@ -92,10 +106,14 @@ def run_front(args, device, log) -> int:
     from ..study.front import SMOKE_SETTINGS, measure_front
     from ..study.front_report import write_front
 
-    with wp.ScopedDevice(device):
-        result = measure_front(strands=args.strands, particles=args.particles, frames=args.frames,
-                               reference_substeps=args.reference_substeps, device=str(device),
-                               settings=SMOKE_SETTINGS if args.fast else None, log=log)
+    try:
+        with wp.ScopedDevice(device):
+            result = measure_front(strands=args.strands, particles=args.particles, frames=args.frames,
+                                   reference_substeps=args.reference_substeps, device=str(device),
+                                   settings=SMOKE_SETTINGS if args.fast else None, log=log)
+    except MemoryError:
+        raise UserError(f"--strands {args.strands} x --particles {args.particles}: the front's groom does not fit in "
+                        f"the memory of this machine; give fewer") from None
     meta = {"command": _command_line(args), "machine": platform.node() or "unknown host", "cpu": _cpu_name(),
             "cores": os.cpu_count(), "device": str(device), "device_name": device.name, "warp": wp.config.version,
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), "fast": args.fast}
@@ -122,10 +140,16 @@ def run_front_from(args, log) -> int:
               "(it redraws the report from the json, running nothing)", file=sys.stderr)
     try:
         result, meta = load_front(args.front_from)
-        written = write_front(result, meta, args.out)
     except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
         why = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
         raise UserError(f"--front-from {args.front_from}: not a front.json ({why})") from None
+    try:
+        written = write_front(result, meta, args.out)
+    except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:   # made before writing
+        why = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise UserError(f"--front-from {args.front_from}: not a front.json ({why})") from None
+    except OSError as exc:
+        raise UserError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     log(f"study --front-from: wrote {', '.join(written)}")
     return 0
 
@@ -136,9 +160,12 @@ def run(args) -> int:
     import warp as wp
 
     args.started = time.perf_counter()   # the elapsed time printed at the end: the whole run, Warp's start included
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        raise UserError(f"--out {args.out}: exists and is not a folder")
+    from ..output.paths import check_folder
     from ..output.progress import stderr_line
+
+    check_folder(args.out, f"--out {args.out}")   # before the study runs (minutes to hours), not after
+    if args.docs and not args.front_from and not args.front:
+        check_folder(os.path.dirname(args.docs) or ".", f"--docs {args.docs}")
 
     # progress, as every command's: on stderr, prefixed (stdout is left to results)
     log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(stderr_line(msg), file=sys.stderr, flush=True))

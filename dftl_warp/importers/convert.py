@@ -161,13 +161,20 @@ def check_float32(source: str, points: np.ndarray, counts=None, widths=None, str
                     f"points and widths: is the unit right?")
 
 
-def _check_count(name: str, value, low: int = 1):
+#: the most segments ``--segments`` resamples a strand to: past it a typo (hair has tens to hundreds)
+#: that would fill the memory (``--segments 100000000`` ran until killed)
+MAX_SEGMENTS = 10_000
+
+
+def _check_count(name: str, value, low: int = 1, high: int | None = None):
     """An integer option (``max_strands``, ``every``, ``segments``) as an int, or None if unset."""
     if value is None:
         return None
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
     if not ok or value < low:
         raise OptionError(f"{name} / --{name.replace('_', '-')} = {value!r}: expected an integer >= {low}")
+    if high is not None and value > high:
+        raise OptionError(f"{name} / --{name.replace('_', '-')} = {value!r}: expected at most {high}")
     return int(value)
 
 
@@ -230,7 +237,7 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
         raise UserError(f"{output}: the output would overwrite the input")
     max_strands = _check_count("max_strands", max_strands)
     every = _check_count("every", every)
-    segments = _check_count("segments", segments)
+    segments = _check_count("segments", segments, high=MAX_SEGMENTS)
     width = _check_number("width", width)
     head_friction = check_head_friction(head_friction)
     if not isinstance(drop_nonfinite, (bool, np.bool_)):

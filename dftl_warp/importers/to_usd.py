@@ -17,6 +17,7 @@ import tempfile
 
 import numpy as np
 
+from ..durable import replace_file
 from ..errors import UserError
 
 OUTPUT_EXTENSIONS = (".usda", ".usdc", ".usd")
@@ -100,10 +101,7 @@ def write_stage(stage, path) -> None:
             ok = stage.GetRootLayer().Export(tmp)
         if not ok:
             raise UserError(f"{path}: USD could not write the stage")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; give the output ordinary permissions
-        os.replace(tmp, path)
+        replace_file(tmp, path, permissions=True)  # on the disk, then renamed (mkstemp's 0600 made usual)
     except OSError as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..durable import fsync_file
+
 
 def _die_with_parent(parent: int) -> None:
     """Linux: SIGKILL this process when its parent dies (else the closed socket ends it)."""
@@ -99,12 +101,8 @@ class _Chunk:
         """Make the saved layer durable (``fsync``) and rename it into place: whole or absent under
         its own name (batch resume keeps whole chunks)."""
         if fsync:
-            fd = os.open(self.path, os.O_RDONLY)
-            try:
-                os.fsync(fd)
-            finally:
-                os.close(fd)
-        os.replace(self.path, self.final)
+            fsync_file(self.path)
+        os.replace(self.path, self.final)   # into the partial folder: the commit syncs it (durable.replace_folder)
 
     def drop(self) -> None:
         self.layer = None

@@ -30,6 +30,7 @@ import os
 import shutil
 from pathlib import Path
 
+from ..durable import replace_folder
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder
 from .clip_pool import ClipWriterPool, writer_count
@@ -42,7 +43,7 @@ AUTO_CLIP_BYTES = 256 << 20
 #: writer processes; None: one per core, at most 8 (:func:`.clip_pool.writer_count`)
 WRITERS: int | None = None
 #: fsync each clip layer (in its writer process, while the next chunk is authored) before it
-#: counts as saved; off, like the single-layer writer: the disk takes the pages after the run
+#: counts as saved; off: the commit fsyncs every clip once, before it renames the folder into place
 FSYNC = False
 
 
@@ -346,7 +347,7 @@ class ClipsWriter(FrameWriter):
                     "assetPaths": assets, "primPath": path_, "active": active, "times": Vt.Vec2dArray(times),
                     "manifestAssetPath": Sdf.AssetPath(f"{rel}/topology.usdc")}})  # topology = manifest
             shutil.rmtree(self.folder, ignore_errors=True)
-            os.replace(self.partial_folder, self.folder)
+            replace_folder(self.partial_folder, self.folder)   # every clip on the disk, then renamed
             self.top.keep_partial = self.keep_partial
             out = self.top.commit()
             self.top = None

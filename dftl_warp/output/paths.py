@@ -61,6 +61,28 @@ def check_output(output, input_path) -> Path:
     return output
 
 
+def check_folder(folder, name: str) -> Path:
+    """``folder`` as a Path; a UserError ``NAME: ...`` now, before any work, unless it is a folder
+    or can be created as one, and a file can actually be created in it or in the nearest folder
+    above it that exists (root passes ``os.access`` on read-only file systems and ``/proc``).
+    ``name`` says where the folder comes from (``--out study``)."""
+    import tempfile
+
+    folder = Path(os.fspath(folder))
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"{name}: exists and is not a folder")
+    existing = _nearest_folder(folder / "x")
+    if not existing.is_dir():
+        raise UserError(f"{name}: cannot write: {existing} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".dftl-probe.", dir=existing)
+    except OSError as exc:
+        raise UserError(f"{name}: cannot write: cannot create a file in folder {existing} ({_reason(exc)})") from None
+    os.close(fd)
+    os.remove(probe)
+    return folder
+
+
 def input_files(input_path) -> set[str]:
     """Real paths of the stage ``input_path`` and of every layer and asset it uses (as
     :func:`check_not_a_dependency` finds them, missing ones included); just the stage's own when
@@ -107,12 +129,11 @@ def check_not_a_dependency(output, input_path) -> None:
 
 
 @contextlib.contextmanager
-def output_place(output):
-    """Where ``simulate`` writes ``output``: its missing folders created (and removed again,
-    when empty, if the run fails), the output lock held (:mod:`.lock`), and the partial files
-    of killed runs removed (:func:`remove_stale_partials`)."""
-    from .lock import lock_path, output_lock
-
+def created_folders(output):
+    """The missing folders of ``output`` created for a run (a UserError naming ``output`` when one
+    cannot be), and removed again, deepest first, if the run fails while they are still empty: a
+    failed run leaves no new empty folder, and never removes one that was there before or that
+    holds anything (``simulate``'s :func:`output_place`, each ``batch`` job)."""
     output = Path(os.fspath(output))
     missing, created = [], []   # created: deepest first
     folder = output.parent if str(output.parent) else Path(".")
@@ -129,12 +150,24 @@ def output_place(output):
             raise UserError(f"{output}: cannot write: cannot create folder {f} ({_reason(exc)})") from None
         created.insert(0, f)
     try:
-        with output_lock(lock_path(output), message=f"{output}: another dftl-warp run is writing it"):
-            remove_stale_partials(output)
-            yield
+        yield
     except BaseException:
         _remove_empty(created)
         raise
+
+
+@contextlib.contextmanager
+def output_place(output):
+    """Where ``simulate`` writes ``output``: its missing folders created (and removed again,
+    when empty, if the run fails: :func:`created_folders`), the output lock held (:mod:`.lock`),
+    and the partial files of killed runs removed (:func:`remove_stale_partials`)."""
+    from .lock import lock_path, output_lock
+
+    output = Path(os.fspath(output))
+    with created_folders(output), output_lock(lock_path(output),
+                                              message=f"{output}: another dftl-warp run is writing it"):
+        remove_stale_partials(output)
+        yield
 
 
 def remove_stale_partials(output) -> None:
@@ -161,16 +194,25 @@ def _remove_empty(folders) -> None:
             return
 
 
-def path_argument(what: str):
-    """An argparse ``type`` for a file path on the command line: the text as given, or one line
-    for an empty (or blank) one, which named the current folder or nothing at all (``-o ''``:
-    ``.: output must end in .usdc``). ``what`` completes "give ...": the file expected."""
+def user_path(text: str) -> str:
+    """``text`` with a leading ``~`` or ``~user`` expanded to that home folder. The shell expands
+    it only in a word of its own: not in ``--out=~/x``, a quoted ``"~/x"``, a TOML file or a job
+    launcher's argument list, where it made a folder literally named ``~``."""
+    return os.path.expanduser(text)
+
+
+def path_argument(what: str, *, file: bool = True):
+    """The argparse ``type`` of every file or folder path on the command line: the text with a
+    leading ``~`` expanded (:func:`user_path`), or one line for an empty (or blank) one, which
+    named the current folder or nothing at all (``-o ''``: ``.: output must end in .usdc``).
+    ``what`` completes "give ...": the file expected. ``file=False``: not a file (a prim path),
+    only checked for being empty."""
     import argparse
 
     def parse(text: str) -> str:
         if not text.strip():
             raise argparse.ArgumentTypeError(f"empty path: give {what}")
-        return text
+        return user_path(text) if file else text
 
     parse.__name__ = "path"
     return parse

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..durable import replace_file
 from ..errors import UserError
 from .base import FrameWriter, ensure_folder  # noqa: F401  (ensure_folder: re-exported)
 from .paths import check_writable
@@ -347,14 +348,12 @@ class UsdWriter(FrameWriter):
                         raise UserError(f"{self.output}: cannot write {text}")
                 except Tf.ErrorException as exc:
                     raise UserError(f"{self.output}: cannot write: {_tf_error(exc)}") from None
-                _usual_permissions(text)
-                os.replace(text, self.output)
+                replace_file(text, self.output, permissions=True)   # on the disk before it is "done"
                 self._close()
                 _remove(self.partial)
             else:
                 self._close()
-                _usual_permissions(self.partial)
-                os.replace(self.partial, self.output)
+                replace_file(self.partial, self.output, permissions=True)
             if stale:  # nothing names them any more: left, they read as part of this output
                 import shutil
 
@@ -384,13 +383,6 @@ def _rows(array) -> np.ndarray:
     if a.dtype not in (np.float32, np.float64):
         a = a.astype(np.float64)
     return np.ascontiguousarray(a).reshape(-1, 3)
-
-
-def _usual_permissions(path) -> None:
-    """0666 less the umask (mkstemp makes 0600 files)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, 0o666 & ~umask)
 
 
 def uses_clips_folder(path: Path, folder: Path) -> bool:

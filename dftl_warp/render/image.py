@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..durable import replace_file
 from ..errors import UserError
 
 VIDEO_SUFFIXES = (".mp4", ".gif", ".mov", ".webm")
@@ -29,10 +30,7 @@ def _atomic(path, write):
         raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
     try:
         write(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600 files; give the usual permissions
-        os.replace(tmp, path)
+        replace_file(tmp, path, permissions=True)  # on the disk, then renamed (mkstemp's 0600 made usual)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
         raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None

@@ -3,7 +3,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+
+from ..durable import write_file
 
 
 def _by(rows, key):
@@ -17,6 +21,11 @@ def local_orders(rows) -> list:
     """Observed order between successive substep counts: log(e_i / e_{i+1}) / log(k_{i+1} / k_i)."""
     return [float(np.log(a["error"] / b["error"]) / np.log(b["substeps"] / a["substeps"]))
             for a, b in zip(rows[:-1], rows[1:])]
+
+
+def save_figure(fig, path) -> None:
+    """Save the matplotlib figure ``fig`` to ``path`` (its suffix: the format) whole or not at all."""
+    write_file(path, lambda tmp: fig.savefig(tmp, dpi=110))
 
 
 def plot_elastic(results: dict, out) -> dict:
@@ -35,7 +44,7 @@ def plot_elastic(results: dict, out) -> dict:
         ks = np.array(sorted({r["substeps"] for r in rows}), dtype=float)
         finish_convergence_axes(ax, name, ks, max(r["error"] for r in rows), refs[name]["self_error"])
     fig.tight_layout()
-    fig.savefig(out / "elastic.png", dpi=110)
+    save_figure(fig, Path(out) / "elastic.png")
     plt.close(fig)
     return {"elastic": "elastic.png"}
 

@@ -10,10 +10,12 @@ back, so the report can be redrawn (e.g. with other preset targets) without reru
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from ..durable import write_file, write_text
 from ..simulation.quality import QUALITY_PRESETS
 from .front import PRESET_MAX_STRETCH, PRESET_TARGETS, pareto_front, pick_presets, preset_ineligible, presets_source
 
@@ -87,8 +89,11 @@ def plot_front(result: dict, front: list[int], picks: dict, path: Path) -> None:
                  "error against cost (labels: substeps per frame)", fontsize=9)
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with warnings.catch_warnings():   # matplotlib's note that placing the legend "best" took long (a loaded
+        # machine): two lines of Python's warning format on stderr, about matplotlib, not the input
+        warnings.filterwarnings("ignore", message="Creating legend with loc", category=UserWarning)
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
@@ -205,9 +210,9 @@ def write_front(result: dict, meta: dict, out, targets=None) -> list[str]:
         text = json.dumps(data, indent=1, default=float), render_front(result, meta, front, picks)
         plot_front(result, front, picks, Path(image))
         out.mkdir(parents=True, exist_ok=True)
-        paths[0].write_text(text[0])
-        paths[1].write_text(text[1])
-        shutil.move(image, paths[2])
+        write_text(paths[0], text[0])
+        write_text(paths[1], text[1])
+        write_file(paths[2], lambda tmp: shutil.copyfile(image, tmp))
     finally:
         if os.path.exists(image):
             os.unlink(image)

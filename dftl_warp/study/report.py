@@ -16,19 +16,21 @@ from pathlib import Path
 
 import numpy as np
 
+from ..durable import write_file, write_text
 from ..simulation.quality import QUALITY_PRESETS
-from .elastic_report import elastic_markdown, plot_elastic
+from .elastic_report import elastic_markdown, plot_elastic, save_figure
 from .sweeps import fitted_slope
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        path.write_text("")
-        return
-    with path.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    def write(tmp):
+        with open(tmp, "w", newline="") as f:
+            if rows:
+                writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+                writer.writeheader()
+                writer.writerows(rows)
+
+    write_file(path, write)
 
 
 def _by(rows, key):
@@ -59,7 +61,7 @@ def plot_all(results: dict, out: Path) -> dict:
 
     def save(fig, name):
         fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
+        save_figure(fig, out / name)
         plt.close(fig)
         files[name.removesuffix(".png")] = name
 
@@ -165,7 +167,7 @@ def plot_all(results: dict, out: Path) -> dict:
     axes[0, 0].set_ylabel("particles per strand (0.2 m)")
     fig.colorbar(im, ax=axes[0].tolist(), label="log10(max energy / budget)", shrink=0.8)
     fig.suptitle("Stability map: X = energy grew past its budget (monitor warned)", fontsize=10)
-    fig.savefig(out / "stability.png", dpi=110)
+    save_figure(fig, out / "stability.png")
     plt.close(fig)
     files["stability"] = "stability.png"
     return files
@@ -505,11 +507,11 @@ def write_results(results: dict, meta: dict, out, docs=None) -> dict:
         for name, file in plot_elastic(results, out).items():
             written[f"{name}.png"] = out / file
     report = out / "accuracy.md"
-    report.write_text(render_markdown(results, meta, "."))
+    write_text(report, render_markdown(results, meta, "."))
     written["report"] = report
     if docs is not None:
         docs = Path(docs)
         docs.parent.mkdir(parents=True, exist_ok=True)
-        docs.write_text(render_markdown(results, meta, os.path.relpath(out, docs.parent)))
+        write_text(docs, render_markdown(results, meta, os.path.relpath(out, docs.parent)))
         written["docs"] = docs
     return written
