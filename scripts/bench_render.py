@@ -50,7 +50,7 @@ def cpu_name() -> str:
 
 
 def run(device: str, out_dir, strands: int = 100_000, vertices: int = 16, resolution=(1920, 1080),
-        spp: int = 4, frames: int = 2, threads: int | None = None) -> str:
+        spp: int = 4, frames: int = 2, threads: int | None = None, min_pixel_width: float | None = None) -> str:
     from dftl_warp.core.devices import init_warp
 
     init_warp()
@@ -65,7 +65,8 @@ def run(device: str, out_dir, strands: int = 100_000, vertices: int = 16, resolu
     scene = groom_scene(strands, vertices)
     # compile the kernels on a tiny frame first
     Renderer(8, 8, spp=1, device=device).render(groom_scene(10, vertices))
-    renderer = Renderer(width, height, spp=spp, device=device, threads=threads)
+    extra = {} if min_pixel_width is None else {"min_pixel_width": min_pixel_width}
+    renderer = Renderer(width, height, spp=spp, device=device, threads=threads, **extra)
     camera = renderer.default_camera(scene)
     wp.synchronize_device(device)
     load = os.getloadavg()[0]
@@ -103,9 +104,12 @@ def main(argv=None) -> int:
     ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("--frames", type=int, default=2, help="timed frames after the first")
     ap.add_argument("--threads", type=int, help="CPU threads (default: all cores)")
+    ap.add_argument("--min-pixel-width", type=float, default=None,
+                    help="the renderer's minimum pixel width (default: the Renderer's, 1 px; 0: true widths)")
     args = ap.parse_args(argv)
     w, h = (int(v) for v in args.resolution.split("x"))
-    row = run(args.device, args.out, args.strands, args.vertices, (w, h), args.spp, args.frames, args.threads)
+    row = run(args.device, args.out, args.strands, args.vertices, (w, h), args.spp, args.frames, args.threads,
+              args.min_pixel_width)
     print(HEADER)
     print(row)
     return 0
