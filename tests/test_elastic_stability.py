@@ -246,3 +246,31 @@ def test_simulate_gives_a_factor_on_an_authored_ramp(tmp_path, capsys):
     err = capsys.readouterr().err
     line = next(x for x in err.splitlines() if "unstable equilibrium" in x)
     assert "a factor on the authored primvars:dftl:bendStiffnessScale of " in line and "holds half of them" in line, err
+
+
+def test_the_sample_is_the_strands_whatever_the_grouping(monkeypatch):
+    """A groom beyond the budget is tested on a random sample of its strands, and the sample is the
+    same whether its rods are one group, groups of a few strands (``build`` cuts large grooms into
+    groups built on threads) or the parts of a groom split over devices: candidates are drawn in input
+    strand order. The chunked build's arrays are those of one group, value for value."""
+    n = 64
+    rng = np.random.default_rng(4)
+    rest = np.stack([column(rng.uniform(0.5, 3.0) * LB, n) + [0.01 * k, 0, 0] for k in range(9)])
+    counts = np.full(9, n + 1)
+    points = rest.reshape(-1, 3)
+    slots = np.arange(points.shape[0])
+    kw = dict(E=HAIR_E, G=TWIST_G, rho=HAIR_DENSITY, gravity=(0.0, -G0, 0.0), inverse_statics=True)
+    whole = elastic_rest.build(points, counts, slots, np.arange(9), points.shape[0], np.full(points.shape[0], R), **kw)
+    monkeypatch.setattr(elastic_rest, "CHUNK_STRANDS", 2)
+    cut = elastic_rest.build(points, counts, slots, np.arange(9), points.shape[0], np.full(points.shape[0], R), **kw)
+    assert len(whole[2]) == 1 and len(cut[2]) == 5
+    for name in whole[0]:
+        assert np.array_equal(whole[0][name], cut[0][name]), name
+    for name in whole[1]:
+        assert np.array_equal(whole[1][name], cut[1][name]), name
+    results = [unstable_strands(groups, budget=24, seed=3) for groups in (whole[2], cut[2], cut[2][::-1])]
+    assert results[0][2:] == (3, 9)                                   # 3 of the 9 fit the budget of 24
+    for flagged, scales, tested, total in results[1:]:
+        assert np.array_equal(flagged, results[0][0]) and (tested, total) == (3, 9)
+        assert np.allclose(scales, results[0][1])
+    assert results[0][0].size > 0                                     # some of the sample stand unstably

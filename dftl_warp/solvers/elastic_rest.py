@@ -242,6 +242,24 @@ class RodGroup:
         return ke + pe + eb + et
 
 
+#: strands per :class:`RodGroup` of :func:`build`: a groom's strands of one vertex count are cut into
+#: groups of this many, built on threads (numpy releases the GIL in its array loops; each group's
+#: values are those of one large group, strand by strand)
+CHUNK_STRANDS = 16384
+
+
+def threaded_map(fn, items):
+    """``[fn(x) for x in items]``, on a thread per CPU core when there are several items."""
+    items = list(items)
+    if len(items) < 2:
+        return [fn(x) for x in items]
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=min(len(items), os.cpu_count() or 1)) as pool:
+        return list(pool.map(fn, items))
+
+
 #: per-particle model arrays (slot order) the kernel reads, and their widths
 PARTICLE_FIELDS = {"length": 1, "mass": 1, "bend": 1, "twist": 1, "k0": 1, "k1": 1, "k2": 1,
                    "curvature": 3, "rest_rotation": 4}
@@ -277,24 +295,31 @@ def build(points, counts, slot_of_point, strand_order, num_slots, radius, *, E, 
             raise ValueError(f"strand {s} of the model, segment {i}: points {i} and {i + 1} coincide (a zero-length "
                              "segment); the elastic solver needs non-zero rest lengths: remove the coincident "
                              "points, or use --solver dftl, which simulates them")
-        grp = RodGroup(rest, radius[idx], E=E, G=G, rho=rho, gravity=gravity, inverse_statics=inverse_statics,
-                       bend_scale=None if stiffness_scale is None else stiffness_scale[idx])
-        groups.append((int(n), strands, grp))
-        slots = slot_of_point[idx]                                    # (S_g, n)
-        N = n - 1
-        out["length"][slots] = grp.l[:, :n]
-        out["mass"][slots] = grp.m
-        out["bend"][slots[:, :N]] = grp.W
-        out["twist"][slots[:, :N]] = grp.G
-        out["k0"][slots] = grp.k0
-        out["k1"][slots] = grp.k1
-        out["k2"][slots] = grp.k2
-        out["curvature"][slots[:, :N]] = grp.b
-        out["rest_rotation"][slots[:, :N]] = mat_to_quat(grp.Qb)
-        tension[slots] = grp.T_rest
-        ghost[strands] = grp.ghost
-        d0[strands] = grp.d0
-        curved[strands] = grp.curved
+        def rods(piece, rest=rest, idx=idx):
+            grp = RodGroup(rest[piece], radius[idx[piece]], E=E, G=G, rho=rho, gravity=gravity,
+                           inverse_statics=inverse_statics,
+                           bend_scale=None if stiffness_scale is None else stiffness_scale[idx[piece]])
+            return grp, mat_to_quat(grp.Qb)
+
+        pieces = [slice(a, a + CHUNK_STRANDS) for a in range(0, strands.size, CHUNK_STRANDS)]
+        for piece, (grp, quat) in zip(pieces, threaded_map(rods, pieces)):
+            rows = strands[piece]
+            groups.append((int(n), rows, grp))
+            slots = slot_of_point[idx[piece]]                         # (S_g, n)
+            N = n - 1
+            out["length"][slots] = grp.l[:, :n]
+            out["mass"][slots] = grp.m
+            out["bend"][slots[:, :N]] = grp.W
+            out["twist"][slots[:, :N]] = grp.G
+            out["k0"][slots] = grp.k0
+            out["k1"][slots] = grp.k1
+            out["k2"][slots] = grp.k2
+            out["curvature"][slots[:, :N]] = grp.b
+            out["rest_rotation"][slots[:, :N]] = quat
+            tension[slots] = grp.T_rest
+            ghost[rows] = grp.ghost
+            d0[rows] = grp.d0
+            curved[rows] = grp.curved
     # per device strand
     order = np.asarray(strand_order)
     return out, dict(ghost=ghost[order], d0=d0[order], curved=curved[order], tension=tension), groups

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .elastic_rest import skew
+from .elastic_rest import skew, threaded_map
 
 
 def _constrained(grp, rows):
@@ -236,29 +236,35 @@ def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed
     drawn at random (each a search over rebuilt strands: about 20 ms a strand), strands tested,
     strands that could be). Strands whose authored shape needs a moment at a vertex of zero
     stiffness (``RodGroup.unheld``) are no equilibrium at all and are not tested."""
-    candidates = [(k, row) for k, (_, _, grp) in enumerate(groups) if grp.N >= 2 for row in range(grp.S)
-                  if not grp.unheld[row].any()]   # no equilibrium to test: it bends at a hinge
-    total = len(candidates)
+    # the candidates in input strand order, whatever the groups (one device or several, or a vertex
+    # count's strands built in several groups): the sample is the strands', not the grouping's
+    tested = [(k, np.flatnonzero(~grp.unheld.any(axis=1))) for k, (_, _, grp) in enumerate(groups) if grp.N >= 2]
+    group_of = np.concatenate([np.full(rows.size, k) for k, rows in tested] + [np.zeros(0, np.int64)])
+    row_of = np.concatenate([rows for _, rows in tested] + [np.zeros(0, np.int64)])
+    strand_of = np.concatenate([groups[k][1][rows] for k, rows in tested] + [np.zeros(0, np.int64)])
+    by_strand = np.argsort(strand_of, kind="stable")
+    group_of, row_of = group_of[by_strand], row_of[by_strand]
+    total = group_of.size
     rng = np.random.default_rng(seed)
     order = rng.permutation(total) if total else np.zeros(0, np.int64)
-    cost = np.array([groups[candidates[i][0]][2].N for i in order], float) ** 3 / 32.0 ** 3
+    segments = np.array([g.N for _, _, g in groups], float)
+    cost = segments[group_of[order]] ** 3 / 32.0 ** 3 if total else np.zeros(0)
     take = order[_within(cost, budget)] if cost.sum() > budget else order
-    picked = {}
-    for i in take:
-        k, row = candidates[i]
-        picked.setdefault(k, []).append(row)
-    found = []                                                    # (group, rows) of the unstable strands
-    for k, rows in sorted(picked.items()):
+    jobs = []                                                     # (group, rows) to test, a few MB each
+    for k in np.unique(group_of[take]):
         grp = groups[k][2]
-        rows = np.sort(np.asarray(rows))
+        rows = np.sort(row_of[take][group_of[take] == k])
         chunk = max(1, int(2.5e5 // grp.N ** 2))                 # about 70 MB of stiffness arrays at a time
-        for part in np.array_split(rows, -(-rows.size // chunk)):
-            found.append((k, part[stiffness_margins(grp, part) < -1.0e-12]))
+        jobs += [(int(k), part) for part in np.array_split(rows, -(-rows.size // chunk))]
+    margins = threaded_map(lambda job: stiffness_margins(groups[job[0]][2], job[1]), jobs)
+    found = [(k, part[m < -1.0e-12]) for (k, part), m in zip(jobs, margins)]   # (group, rows) of the unstable
     flagged = np.concatenate([groups[k][1][rows] for k, rows in found] + [np.zeros(0, np.int64)])
-    where = [(k, r) for k, rows in found for r in rows]
+    where = sorted((int(groups[k][1][r]), k, r) for k, rows in found for r in rows)   # in input strand order
     sample = np.sort(rng.choice(len(where), min(scale_sample, len(where)), replace=False)) if where else []
-    scales = [np.zeros(0)]
-    for k in sorted({where[i][0] for i in sample}):
-        rows = np.array([where[i][1] for i in sample if where[i][0] == k])
-        scales.append(holding_scales(groups[k][2], rows))
-    return np.sort(flagged), np.concatenate(scales), len(take), total
+    picked = [where[i] for i in sample]
+    scales = [np.zeros(0)] + threaded_map(
+        lambda k: holding_scales(groups[k][2], np.array([r for _, kk, r in picked if kk == k])),
+        sorted({k for _, k, _ in picked}))
+    by_group = np.concatenate([[strand for strand, kk, _ in picked if kk == k] for k in sorted({k for _, k, _ in picked})]
+                              + [np.zeros(0)])
+    return np.sort(flagged), np.concatenate(scales)[np.argsort(by_group, kind="stable")], len(take), total
