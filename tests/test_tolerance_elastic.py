@@ -226,15 +226,17 @@ def test_actual_error_within_a_quarter_and_twice_the_tolerance(tmp_path):
         assert rec["group0.solver"] == "elastic", rec
 
 
-def test_hair_with_widths_stays_elastic_under_tolerance(tmp_path, capsys):
-    """Before: the prim ran as a plain DFTL chain with a warning. Now the automatic solver keeps it
-    elastic, the run says it drove the elastic solver, and nothing warns about a DFTL chain."""
+@pytest.mark.parametrize("flags", [[], ["--solver", "elastic"]])
+def test_hair_with_widths_stays_elastic_under_tolerance(tmp_path, capsys, flags):
+    """Before: the prim ran as a plain DFTL chain with a warning (and ``--solver elastic`` was
+    refused). Now the automatic solver keeps it elastic, the run says it drove the elastic solver,
+    and nothing warns about a DFTL chain."""
     from dftl_warp.output.usd import UsdWriter
     from dftl_warp.simulation.tolerance import RECORD
 
     src = turning_groom(tmp_path / "in.usda", strands=8, end=4)
     out = tmp_path / "out.usdc"
-    assert cli.main(["simulate", str(src), "-o", str(out), "--device", "cpu", "--tolerance", "0.02"]) == 0
+    assert cli.main(["simulate", str(src), "-o", str(out), "--device", "cpu", "--tolerance", "0.02", *flags]) == 0
     err = capsys.readouterr().err
     assert "plain DFTL chain" not in err, err
     assert "elastic" in err and "substeps per frame" in err, err

@@ -21,9 +21,9 @@ in the sample and in the group. Their difference estimates the *global* error of
 falling chain against the reference, 2.6 |x_k - x_2k|; on the collider scene of
 ``tests/test_tolerance.py`` DFTL converges at order 1, so there the estimate is about 1.3 x the
 error; 0.7 for the elastic solver too, measured against a fine run of itself:
-``scripts/elastic_order.py``, docs/tolerance.md). The error of a frame is the RMS over the sample's particles of that difference (stage
-units: the RMS position error over strand length, as the accuracy study measures it); the run's
-error is its maximum over frames.
+``scripts/elastic_order.py``, docs/tolerance.md). The error of a frame is the RMS over the
+sample's particles of that difference (stage units: the RMS position error over strand length, as
+the accuracy study measures it); the run's error is its maximum over frames.
 
 The choice (:class:`ToleranceController`), from the ladder 1, 2, 4, ... 1024, is planned on the
 sample up to :data:`WINDOW` frames ahead of the simulation, because an error made now can grow
