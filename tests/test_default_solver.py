@@ -1,7 +1,6 @@
 """Which solver a prim gets when nobody names one: a BasisCurves prim with widths bends like hair of
 its thickness (the elastic solver); one without widths, or with ``dftl:bending = false``, is the
-plain DFTL chain; where the elastic solver cannot run the scene yet the prim stays DFTL with a
-warning that says why."""
+plain DFTL chain (``--tolerance`` keeps it elastic too: tests/test_tolerance_elastic.py)."""
 
 from __future__ import annotations
 
@@ -60,13 +59,6 @@ def test_several_devices_keep_hair_elastic(tmp_path):
     solver, warnings = _solver(_scene(tmp_path), device="cpu,cpu")
     assert solver == "elastic"
     assert not any("plain DFTL chain" in w for w in warnings), warnings
-
-
-def test_unsupported_scenes_stay_dftl_and_say_why(tmp_path):
-    scene = read_scene(str(_scene(tmp_path)))
-    assert group_settings(scene, SimulationOptions(), 0, tolerance=True).solver == "dftl"
-    assert any("/World/Hair: has widths but runs as a plain DFTL chain" in w and "--tolerance" in w
-               for w in scene.warnings), scene.warnings
 
 
 def test_hair_hair_keeps_hair_elastic(tmp_path):

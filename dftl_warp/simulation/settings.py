@@ -126,11 +126,11 @@ def last_written_frame(scene, first: int, last: int, step: int, flag: str = "--f
     return written
 
 
-def automatic_solver(scene: Scene, options: SimulationOptions, index: int, tolerance: bool = False) -> str:
+def automatic_solver(scene: Scene, options: SimulationOptions, index: int) -> str:
     """The solver of ``scene.curves[index]`` where neither the command line nor the prim sets one:
     ``elastic`` for a prim with widths (hair of that thickness bends: docs/elastic.md) unless it
-    authors ``dftl:bending = false``, else ``dftl``. Where the elastic solver cannot run the scene yet
-    (``--tolerance``) the prim stays on DFTL and the scene's warnings say so."""
+    authors ``dftl:bending = false``, else ``dftl`` (under ``--tolerance`` too, which drives the
+    elastic solver: docs/tolerance.md)."""
     c = scene.curves[index]
     if c.settings.bending is False or c.widths is None:
         return DEFAULT_SOLVER
@@ -141,19 +141,12 @@ def automatic_solver(scene: Scene, options: SimulationOptions, index: int, toler
         if line not in scene.warnings:
             scene.warnings.append(line)
         return DEFAULT_SOLVER
-    if tolerance:
-        line = (f"{scene.source}: {c.path}: has widths but runs as a plain DFTL chain, without hair's bending "
-                "stiffness: the elastic solver does not support --tolerance yet (dftl:bending = false "
-                "or --solver dftl says this is meant)")
-        if line not in scene.warnings:
-            scene.warnings.append(line)
-        return DEFAULT_SOLVER
     return "elastic"
 
 
-def group_settings(scene: Scene, options: SimulationOptions, index: int, tolerance: bool = False) -> GroupSettings:
+def group_settings(scene: Scene, options: SimulationOptions, index: int) -> GroupSettings:
     """Settings of ``scene.curves[index]``: command line, else ``dftl:`` attributes, else defaults
-    (the solver: :func:`automatic_solver`; ``tolerance``: the run has ``--tolerance``)."""
+    (the solver: :func:`automatic_solver`)."""
     s = scene.curves[index].settings
 
     def pick(flag, attr, default):
@@ -161,7 +154,7 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int, toleran
 
     solver = pick(options.solver, s.solver, None)
     if solver is None:
-        solver = automatic_solver(scene, options, index, tolerance)
+        solver = automatic_solver(scene, options, index)
         if solver == DEFAULT_SOLVER and options.quality is not None:
             from .quality import quality_preset
 

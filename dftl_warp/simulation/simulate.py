@@ -104,7 +104,7 @@ class Simulation:
         # prims are grouped by solver settings and by the mesh their roots are bound to, if any
         by_settings: dict[tuple, list[int]] = {}
         for i, c in enumerate(scene.curves):
-            settings = group_settings(scene, options, i, tolerance=tolerance is not None)
+            settings = group_settings(scene, options, i)
             scene.warnings.extend(unused_prim_settings(scene, i, settings, options))
             key = (settings, c.root_mesh.path if c.root_mesh is not None else None,
                    c.material.path if settings.solver == "elastic" and c.material is not None else None)

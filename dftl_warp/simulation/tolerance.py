@@ -20,9 +20,10 @@ in the sample and in the group. Their difference estimates the *global* error of
 (:data:`~.tolerance_sample.ORDER`: 2 for rattle, 4/3 |x_k - x_2k|; 0.7 for DFTL, measured on the
 falling chain against the reference, 2.6 |x_k - x_2k|; on the collider scene of
 ``tests/test_tolerance.py`` DFTL converges at order 1, so there the estimate is about 1.3 x the
-error). The error of a frame is the RMS over the sample's particles of that difference (stage
-units: the RMS position error over strand length, as the accuracy study measures it); the run's
-error is its maximum over frames.
+error; 0.7 for the elastic solver too, measured against a fine run of itself:
+``scripts/elastic_order.py``, docs/tolerance.md). The error of a frame is the RMS over the
+sample's particles of that difference (stage units: the RMS position error over strand length, as
+the accuracy study measures it); the run's error is its maximum over frames.
 
 The choice (:class:`ToleranceController`), from the ladder 1, 2, 4, ... 1024, is planned on the
 sample up to :data:`WINDOW` frames ahead of the simulation, because an error made now can grow
@@ -37,7 +38,12 @@ of every frame from there to the offending one (a first-order error then halves)
 until the estimate stops falling by ``FALL`` or the substeps reach the top of the ladder. The
 simulation takes each frame's ``k`` from the plan.
 
-The solver (``solver`` unset): each candidate (rattle, then dftl; rattle only without features)
+An elastic group's sample is the elastic solver with the group's per-point material, inverse
+statics and rest shape, its clamps driven as the group's (:func:`frame_targets`), its States
+carrying tensions, frames and clamp ghosts (:func:`~.tolerance_sample.copy_state`).
+
+The solver (``solver`` unset, and the group not elastic: a prim with widths keeps the elastic
+solver, its bending): each candidate (rattle, then dftl; rattle only without features)
 runs the controller on the sample alone over the first :data:`PILOT_FRAMES` frames (a pilot, from
 the scene's own roots and colliders), its cost per substep measured; the cheapest total cost wins
 (:func:`pick_solver`). The precision: where the plan in float32 goes past the tolerance and the plan in
@@ -54,7 +60,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .tolerance_sample import SampleRun, copy_state, rescale_corrections, sample_strands
+from .tolerance_sample import SampleRun, copy_state, rescale_corrections, same_rest, sample_strands
 
 #: substeps per frame the controller may choose
 LADDER = tuple(2 ** i for i in range(11))
@@ -319,6 +325,28 @@ class Tolerance:
         return rec
 
 
+def frame_targets(sim, k: int):
+    """``roots(f)``: group ``k``'s root targets over the frame ``f`` -> ``f + 1``, as the simulation
+    sets them (keyword arguments of ``Control.set_root_targets``; None where no prim of the group is
+    animated), with the elastic solver's clamp targets under ``clamps`` (``set_clamp_targets``'s,
+    the clamps' rotations too: they turn with the prims' transforms)."""
+    from . import root_paths
+
+    members = sim.groups[k].members
+    animated = any(sim.scene.curves[i].animated for i in members)
+
+    def roots(f):
+        if not animated:
+            return None
+        g = sim.groups[k]   # the group as it is now (setup may rebuild it)
+        path = root_paths.frame_path(sim, "roots", k, g, f, f + 1)
+        if g.clamps is not None:
+            path["clamps"] = root_paths.frame_path(sim, "clamps", k, g, f, f + 1)
+        return path
+
+    return roots
+
+
 def setup(sim, tolerance: float) -> Tolerance:
     """Pick each group's solver (where none is set) by a pilot and its precision by the plan, and
     attach a controller per group."""
@@ -334,20 +362,18 @@ def setup(sim, tolerance: float) -> Tolerance:
     for k, g in enumerate(sim.groups):
         if len(g.devices) > 1:
             raise UserError("--tolerance runs on one device for now (give one --device)")
-        if g.settings.solver == "elastic":
-            raise UserError("--tolerance does not drive the elastic solver yet")
-        animated = any(scene.curves[i].animated for i in g.members)
-
-        def roots(f, g=g, k=k, animated=animated):
-            """The group's root targets over the frame ``f`` -> ``f + 1``, as the simulation sets them."""
-            return root_paths.frame_path(sim, "roots", k, g, f, f + 1) if animated else None
+        roots = frame_targets(sim, k)
 
         def rebuilt(g, settings, precision):
             new = Group(settings, g.members, scene, frame, replace(options, precision=precision))
+            if settings.solver == "elastic":   # the rest shapes the clean start gave pushed-out strands
+                same_rest(g, new, frame)
             copy_state(g.state, g.model, new.state, new.model)   # the clean start's push-out and preroll kept
             return new
 
-        auto = options.solver is None and all(scene.curves[i].settings.solver is None for i in g.members)
+        # the elastic solver is the hair's bending, not a cheaper way to the same motion: it is kept
+        auto = (options.solver is None and g.settings.solver != "elastic"
+                and all(scene.curves[i].settings.solver is None for i in g.members))
         if auto:
             name, lines = pick_solver(g, scene, frame, last, tolerance, options.precision, roots,
                                       root_paths.shot(sim))
