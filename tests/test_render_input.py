@@ -421,3 +421,63 @@ def test_a_turntable_of_a_fractional_frame_into_a_pattern_renders(groom, tmp_pat
     out = tmp_path / "tt" / "view.##.png"
     assert render(groom, "--turntable", 2, "--frame", 1.5, "--resolution", "8x8", "--spp", 1, "-o", out) == 0
     assert sorted(p.name for p in out.parent.iterdir()) == ["view.00.png", "view.01.png"]
+
+
+def _hand_written(path, counts_decl, extra=""):
+    """A hand-written stage with a camera and /World/Hair: linear curves of 5 points."""
+    path.write_text(f'''#usda 1.0
+(
+    upAxis = "Y"
+)
+def Camera "cam"
+{{
+    double3 xformOp:translate = (0.05, -0.1, 2)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def Xform "World"
+{{
+    def BasisCurves "Hair"
+    {{
+        uniform token type = "linear"
+        {counts_decl}
+        point3f[] points = [(0, 0, 0), (0, -0.1, 0), (0.1, 0, 0), (0.1, -0.1, 0), (0.1, -0.2, 0)]
+        {extra}
+    }}
+}}
+''')
+    return path
+
+
+@pytest.mark.parametrize("counts, extra, message", [
+    ("int[] curveVertexCounts = [2, 3]", 'string[] widths = ["a"] (interpolation = "constant")',
+     "widths = ['a']: expected numbers (float[])"),
+    ("int[] curveVertexCounts = [2, 3]", 'string[] primvars:widths = ["a"] (interpolation = "constant")',
+     "primvars:widths = ['a']: expected numbers (float[])"),
+    ("int[] curveVertexCounts = [2, 3]", 'string[] primvars:displayColor = ["a"] (interpolation = "constant")',
+     "primvars:displayColor = ['a']: expected numbers (color3f[])"),
+    ("int[] curveVertexCounts = [2, 3]", 'float[] primvars:displayColor = [1, 0] (interpolation = "constant")',
+     "primvars:displayColor: 2 numbers are not RGB triples: expected color3f[]"),
+    ("float[] curveVertexCounts = [2.5, 2.5]", "", "curveVertexCounts[0] = 2.5: expected a whole number (int[])"),
+    ("int curveVertexCounts = 5", "",
+     "curveVertexCounts = 5: one number, expected int[] (one count per curve, in brackets)"),
+])
+def test_attributes_of_the_wrong_type_are_the_simulation_readers_one_line(tmp_path, capsys, counts, extra, message):
+    """``string[] widths`` crashed render with a ValueError traceback, ``float[] curveVertexCounts =
+    [2.5, 2.5]`` was truncated to [2, 2] (then refused as summing to 4), and ``int curveVertexCounts
+    = 5`` (no brackets) was a TypeError in render and one curve of 5 in simulate. Now render and
+    info give the same line."""
+    src = _hand_written(tmp_path / "in.usda", counts, extra)
+    out = tmp_path / "out.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 2
+    line = one_error(capsys, f"{src}: /World/Hair: {message}")
+    assert line.endswith(message) and not out.exists()
+    assert cli.main(["info", str(src)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+
+
+def test_whole_float_counts_and_a_scalar_width_still_render(tmp_path):
+    src = _hand_written(tmp_path / "in.usda", "float[] curveVertexCounts = [2.0, 3.0]",
+                        'float widths = 0.02 (interpolation = "constant")')
+    out = tmp_path / "out.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 0
+    assert image.read_png(out)[..., 3].sum() > 0
