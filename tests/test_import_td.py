@@ -157,6 +157,23 @@ def test_tfx_uvs_and_colours_are_named_as_not_imported(tmp_path):
             "imported)") in notes
 
 
+def test_tfx_vertices_pinned_past_the_root_get_one_warning(tmp_path):
+    """TressFX marks immovable vertices with w = 0; vertex 0 alone is pinned as the root, and other
+    pins were dropped without a word. Now one warning counts them and names the first."""
+    pts, _ = strands([4, 4, 4], step=0.02)
+    src = ti.write_tfx(tmp_path / "g.tfx", pts, 4)          # w = 0 at the roots only
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert not [n for n in notes if "pin more than" in n]
+    data = bytearray(src.read_bytes())
+    for vertex in (1, 5, 6):                                # strand 0 vertex 1, strand 1 vertices 1 and 2
+        struct.pack_into("<f", data, 160 + 16 * vertex + 12, 0.0)
+    src.write_bytes(bytes(data))
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert [n for n in notes if "pin more than" in n] == [
+        f"{src}: 2 strands of 3 pin more than the root: 3 vertices after vertex 0 have w = 0 (immovable; first: "
+        "strand 0, vertex 1); only each strand's root is pinned, the others move freely"]
+
+
 def test_ply_properties_and_elements_a_reader_does_not_use_are_named(tmp_path):
     """Vertex colours and normals, a face element, or a per-vertex list of a strand PLY (and a
     head PLY's normals and UVs) were skipped silently, while an OBJ head's vt/vn were warned about."""
