@@ -230,15 +230,13 @@ class GuideSet:
             out[r.index] = (local, vel)
         return out
 
-    def write_binding(self, output) -> None:
-        """``--guides-output binding``: after the writer's commit, author on ``output`` each render
+    def write_binding(self, layer) -> None:
+        """``--guides-output binding``: author on ``layer`` (the output writer's Sdf.Layer, before its
+        commit saves it and moves it into place: the output is never changed after) each render
         prim's binding as primvars (docs/guides.md) and, for guides picked from a dense prim, the guide
         prim's topology (a BasisCurves prim ``<prim>_guides``)."""
         from pxr import Sdf, Vt
 
-        layer = Sdf.Layer.FindOrOpen(str(output))
-        if layer is None:
-            raise UserError(f"{output}: cannot reopen to write the guide binding")
         scene = self.input_scene
         for c in self.sim_scene.curves:
             if not c.path.endswith(GUIDES_SUFFIX) or layer.GetPrimAtPath(c.path) is None:
@@ -280,7 +278,6 @@ class GuideSet:
                 a.SetInfo("interpolation", interp)
                 if elem > 1:
                     a.SetInfo("elementSize", elem)
-        layer.Save()
 
 
 def _attr(spec, name, type_name, value, uniform: bool = False):
