@@ -298,7 +298,8 @@ def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_pa
     assert capsys.readouterr().err.strip().splitlines() == [
         "dftl-warp: warning: camera /cam sees no strand at frame 3 (1 of 3 images): no strand sample lands in the "
         "image (it looks away from the hair, or the hair is outside its clipping range, hidden behind geometry or "
-        "too thin for --spp 2)"]
+        "smaller in the image than the spacing of --spp 2 samples (--min-pixel-width 1 widens strands to 1 pixel, "
+        "it does not lengthen them))"]
     alpha = image.read_png(sheet)[..., 3]   # 3 frames on a 2 x 2 grid of 24 x 16 tiles, 4 pixels apart
     assert alpha[:16, :24].sum() > 0 and alpha[:16, 28:].sum() > 0 and alpha[20:, :24].sum() == 0
     out = tmp_path / "one.png"
@@ -314,6 +315,35 @@ def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_pa
     err = capsys.readouterr().err
     assert "camera /cam sees no strand in turntable views 0, 1 (2 of 2 images): no strand sample" in err, err
     assert sorted(p.name for p in (tmp_path / "t").iterdir()) == ["view.0.png", "view.1.png"]
+
+
+def test_the_no_strand_warning_says_what_min_pixel_width_does(tmp_path, capsys):
+    """Hair 10 um wide in a 24 x 16 image: with the default --min-pixel-width 1 it is drawn and seen
+    (the warning blamed 'too thin for --spp 1', which did not apply); with 0 it is too thin, and
+    the warning says so. A strand shorter than a pixel is missed however wide it is drawn."""
+    def stage(name, strands):
+        s = new_stage(tmp_path / name)
+        add_camera(s, translate=(0, 0.5, 3))
+        add_curves(s, "/hair", strands, widths=[1e-5])
+        s.Save()
+        return tmp_path / name
+
+    thin = stage("thin.usda", [np.array([[x, 0, 0], [x, 0.5, 0.1], [x, 1.0, 0]]) for x in (-0.2, 0.0, 0.2)])
+    dot = stage("dot.usda", [np.array([[0, 0.5, 0], [0, 0.5001, 0]])])
+    out = tmp_path / "o.png"
+    warning = "dftl-warp: warning: camera /cam sees no strand at the stage's default time: no strand sample lands"
+    assert render(thin, "--resolution", "24x16", "--spp", 1, "-o", out) == 0
+    assert capsys.readouterr().err == ""
+    assert render(thin, "--resolution", "24x16", "--spp", 1, "--min-pixel-width", 0, "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(warning) and err.endswith(
+        "hidden behind geometry or too thin for --spp 1 (--min-pixel-width 0 draws true widths; a width of 1 draws "
+        "them at least a pixel wide))\n"), err
+    assert render(dot, "--resolution", "24x16", "--spp", 1, "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(warning) and err.endswith(
+        "hidden behind geometry or smaller in the image than the spacing of --spp 1 samples (--min-pixel-width 1 "
+        "widens strands to 1 pixel, it does not lengthen them))\n"), err
 
 
 def test_renderer_says_whether_the_image_shows_a_strand():
