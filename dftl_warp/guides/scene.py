@@ -234,7 +234,8 @@ class GuideSet:
         """``--guides-output binding``: author on ``layer`` (the output writer's Sdf.Layer, before its
         commit saves it and moves it into place: the output is never changed after) each render
         prim's binding as primvars (docs/guides.md) and, for guides picked from a dense prim, the guide
-        prim's topology (a BasisCurves prim ``<prim>_guides``)."""
+        prim's topology (a BasisCurves prim ``<prim>_guides`` of purpose ``guide``: the render prim
+        holds the same strands, and renderers draw guides only when asked to)."""
         from pxr import Sdf, Vt
 
         scene = self.input_scene
@@ -248,6 +249,8 @@ class GuideSet:
             _attr(spec, "type", Sdf.ValueTypeNames.Token, c.type, True)
             _attr(spec, "basis", Sdf.ValueTypeNames.Token, c.basis, True)
             _attr(spec, "wrap", Sdf.ValueTypeNames.Token, c.wrap, True)
+            # they are strands of the render prim too: drawn only where guides are asked for (not twice)
+            _attr(spec, "purpose", Sdf.ValueTypeNames.Token, "guide", True)
             if c.widths is not None:
                 a = _attr(spec, "widths", Sdf.ValueTypeNames.FloatArray, Vt.FloatArray([float(w) for w in c.widths]))
                 a.SetInfo("interpolation", c.widths_interpolation or "constant")
