@@ -140,7 +140,7 @@ def test_guides_fraction_on_a_dense_groom(tmp_path, capsys):
     assert cli.main(["simulate", str(src), "-o", str(tmp_path / "tiny.usdc"), "--guides", "0.001",
                      "--device", "cpu"]) == 0
     captured = capsys.readouterr()
-    assert f" 1 strands, {N} particles" in captured.out
+    assert f" 1 strand, {N} particles" in captured.out
     lines = [line for line in captured.err.splitlines() if "--guides 0.001" in line]
     assert lines == [f"dftl-warp: warning: {src}: /World/Hair: --guides 0.001 of its 40 strands is 0.04 strands: "
                      "1 guide simulated"], captured.err

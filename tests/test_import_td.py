@@ -194,6 +194,18 @@ def test_tfx_uvs_and_colours_are_named_as_not_imported(tmp_path):
             "imported)") in notes
 
 
+def test_counts_of_one_strand_are_singular(tmp_path, capsys):
+    """'all 1 strands get 8e-05 stage units', '1 strands, 3 points': now '1 strand'."""
+    from dftl_warp import cli
+
+    pts, counts = strands([3], step=0.02)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    assert cli.main(["import", str(src), "-o", str(tmp_path / "o.usda")]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(f"{tmp_path / 'o.usda'}: 1 strand, 3 points from "), out
+    assert "no hair widths in the file; its 1 strand gets " in err and "1 strands" not in err, err
+
+
 def test_tfx_vertices_pinned_past_the_root_get_one_warning(tmp_path):
     """TressFX marks immovable vertices with w = 0; vertex 0 alone is pinned as the root, and other
     pins were dropped without a word. Now one warning counts them and names the first."""

@@ -26,7 +26,7 @@ PTS = np.array([[0.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, -2.0, 0.0]])
     (PTS, [3], [0.1, -0.1, 0.1], "widths[1] is negative"),
     (PTS, [3], -0.1, "widths[0] is negative"),
     (PTS, [3], [0.1, 0.1, np.inf], "widths[2] is not finite"),
-    (PTS, [3], [0.1, 0.1], "2 widths for 1 strands of 3 points: expected one, one per strand or one per point"),
+    (PTS, [3], [0.1, 0.1], "2 widths for 1 strand of 3 points: expected one, one per strand or one per point"),
     (PTS, [2, 1], [0.1, -0.2], "widths[2] is negative"),  # per strand, expanded per point
 ])
 def test_from_strands_rejects_bad_arrays(points, counts, widths, message):
@@ -40,7 +40,7 @@ def test_from_strands_rejects_bad_colors():
         RenderScene.from_strands(PTS, [3], 0.1, [[1, 0, 0], [0, np.nan, 0], [0, 0, 1]])
     with pytest.raises(ValueError, match="colors of shape"):
         RenderScene.from_strands(PTS, [3], 0.1, [1, 0])
-    with pytest.raises(ValueError, match="2 colours for 1 strands of 3 vertices"):
+    with pytest.raises(ValueError, match="2 colours for 1 strand of 3 vertices"):
         RenderScene.from_strands(PTS, [3], 0.1, [[1, 0, 0], [0, 1, 0]])
 
 

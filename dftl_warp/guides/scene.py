@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 from ..usd.scene import CurvesPrim, Scene, transform_points
 from ..core.layout import zero_length_segment
 from .binding import bind, bind_groom, check_strands, pin_roots
@@ -138,7 +138,8 @@ class GuideSet:
             except ValueError as exc:
                 raise UserError(f"{file}: {c.path}: --guides {guides}: {_why(exc, c)}") from None
             if isinstance(count, float) and fraction_strands(count, c.num_strands) < 1:
-                scene.warnings.append(f"{file}: {c.path}: --guides {guides} of its {c.num_strands} strands is "
+                scene.warnings.append(f"{file}: {c.path}: --guides {guides} of its "
+                                      f"{plural(c.num_strands, 'strand')} is "
                                       f"{count * c.num_strands:.3g} strands: 1 guide simulated")
             path = c.path + GUIDES_SUFFIX if output == "binding" else c.path
             picked[i] = (len(sim), np.asarray(chosen, dtype=np.int64))
@@ -351,5 +352,5 @@ def _check_guide_segments(file: str, guide: CurvesPrim, chosen=None) -> None:
 def _why(exc: ValueError, c: CurvesPrim) -> str:
     text = str(exc)
     if "asks for" in text:
-        return f"{text.replace('n_or_fraction asks for', 'asks for')} (the prim has {c.num_strands} strands)"
+        return f"{text.replace('n_or_fraction asks for', 'asks for')} (the prim has {plural(c.num_strands, 'strand')})"
     return text

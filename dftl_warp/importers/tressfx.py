@@ -67,7 +67,8 @@ def read(data: bytes, path: str) -> Groom:
                             f"{HEADER_SIZE}-byte header")
     total = strands * per_strand
     if off_pos + 16 * total > buf.size:
-        raise buf.error(off_pos, f"truncated: {strands} strands x {per_strand} vertices need {16 * total} bytes "
+        raise buf.error(off_pos, f"truncated: {plural(strands, 'strand')} x {per_strand} vertices need "
+                                 f"{16 * total} bytes "
                                  f"of float4 positions, the file has {max(buf.size - off_pos, 0)} left "
                                  f"(file size {buf.size})")
     check_extent(buf, offsets, strands, per_strand)
