@@ -119,6 +119,19 @@ def test_a_bad_check_is_refused_in_the_gates_words(tmp_path, check, message):
     assert good.error is None and good.options["check"] == "stretch<1e-3"
 
 
+@pytest.mark.parametrize("key, value, what", [("output", "  ", "layer to write"), ("output", "", "layer to write"),
+                                              ("input", " ", "stage to simulate")])
+def test_a_blank_path_is_refused_as_an_empty_path_naming_the_job(tmp_path, capsys, key, value, what):
+    """``output = "  "`` named the job '  ' ("job 1 (  ): ...: output    must end in .usdc, ...");
+    now the job keeps a name and the line says the path is empty."""
+    table = {"input": "in.usda", "output": "o.usdc", key: value}
+    path = write_jobs(tmp_path / "jobs.toml", [table, {"input": "in.usda", "output": "p.usdc", "name": " "}])
+    bad, good = load_jobs(path)
+    assert (bad.name, good.name) == (("job1" if key == "output" else "o"), "p")
+    assert bad.error == f"{path}: {key} = {value!r} is an empty path: give the {what}"
+    assert good.error is None
+
+
 def test_the_api_and_the_job_file_agree_on_a_bad_gate():
     from dftl_warp.output.qc import parse_gates
 

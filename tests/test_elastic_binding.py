@@ -240,7 +240,7 @@ def test_a_degenerate_triangle_keeps_the_authored_clamp_with_a_warning():
     state, control = solver.state(), model.control()
     moved = flat @ rotation([0.0, 0.0, 1.0], 0.5).T + [0.0, 0.01, 0.0]
     control.bind_roots(moved)
-    with pytest.warns(UserWarning, match="1 strands are bound to triangles with no frame"):
+    with pytest.warns(UserWarning, match="1 strand is bound to triangles with no frame"):
         solver.bind_clamps(control)
     ghost = ghost_at(solver, state, control, 0.0) + model.origin
     assert np.abs(ghost - (0.5 * (moved[0] + moved[1]) + solver.authored_clamps[0] - root)).max() < 1e-15

@@ -130,7 +130,7 @@ def test_simulate_says_where_a_hinge_cannot_hold_the_shape(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "RuntimeWarning" not in err and "Traceback" not in err, err
     notes = [line for line in err.splitlines() if "bendStiffnessScale 0" in line]
-    assert len(notes) == 1 and "/World/Hair: 2 vertices of 1 strands have primvars:dftl:bendStiffnessScale 0" \
+    assert len(notes) == 1 and "/World/Hair: 2 vertices of 1 strand have primvars:dftl:bendStiffnessScale 0" \
         in notes[0] and "inverse statics cannot hold it" in notes[0], err
     from pxr import Usd
 

@@ -97,7 +97,7 @@ def test_simulate_says_which_strands_can_fall(tmp_path, capsys):
     stage.Save()
     assert cli.main(["simulate", str(tmp_path / "one.usda"), "-o", str(tmp_path / "one.usdc")]) == 0
     err = capsys.readouterr().err
-    assert ("1 of the 2 strands rest in an unstable equilibrium" in err
+    assert ("1 of the 2 strands rests in an unstable equilibrium" in err
             and "primvars:dftl:bendStiffnessScale of 1.99 holds it" in err and "half" not in err), err
 
 
@@ -203,7 +203,7 @@ def test_simulate_names_strands_too_long_to_check(tmp_path, capsys):
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if "not checked for a stable rest shape" in line]
     assert len(lines) == 1 and "/World/Long: 1 strand(s) of more than 434 segments (up to 500)" in lines[0], err
-    assert "/World/Short: 1 of the 1 strands checked rest in an unstable equilibrium" in err, err
+    assert "/World/Short: 1 of the 1 strand checked rests in an unstable equilibrium" in err, err
 
 
 def _mohawk_scaled(tmp_path, scale, interpolation):

@@ -2,6 +2,7 @@
 ``simulate --guides``, ``--guides-output binding`` and the input errors."""
 
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -139,7 +140,7 @@ def test_guides_fraction_on_a_dense_groom(tmp_path, capsys):
     assert cli.main(["simulate", str(src), "-o", str(tmp_path / "tiny.usdc"), "--guides", "0.001",
                      "--device", "cpu"]) == 0
     captured = capsys.readouterr()
-    assert f" 1 strands, {N} particles" in captured.out
+    assert f" 1 strand, {N} particles" in captured.out
     lines = [line for line in captured.err.splitlines() if "--guides 0.001" in line]
     assert lines == [f"dftl-warp: warning: {src}: /World/Hair: --guides 0.001 of its 40 strands is 0.04 strands: "
                      "1 guide simulated"], captured.err
@@ -175,6 +176,34 @@ def test_guides_output_binding_writes_the_guides_and_the_binding(tmp_path, capsy
     assert g.GetPointsAttr().GetNumTimeSamples() == 3
     assert stage.GetPrimAtPath("/World/Hair").GetRelationship("dftl:guides").GetTargets() == [
         Sdf.Path("/World/Hair_guides")]
+
+
+def test_guides_output_binding_is_complete_when_it_is_moved_into_place(tmp_path, monkeypatch):
+    """The binding was authored on the output after the writer had renamed it into place (reopened
+    and saved in place: neither atomic nor flushed to the disk). Now the file renamed onto the output
+    already holds it, and the output is not touched after."""
+    import dftl_warp.output.usd as usd_output
+
+    moved = []
+
+    def replace_file(tmp, target, **kwargs):
+        layer = Sdf.Layer.OpenAsAnonymous(str(tmp))
+        moved.append(layer.GetPropertyAtPath("/World/Hair.primvars:dftl:guideIds") is not None
+                     and layer.GetPrimAtPath("/World/Hair_guides").specifier == Sdf.SpecifierDef)
+        real_replace(tmp, target, **kwargs)
+        moved.append(Path(target).read_bytes())
+
+    real_replace = usd_output.replace_file
+    monkeypatch.setattr(usd_output, "replace_file", replace_file)
+    dense = tmp_path / "dense.usda"
+    s = new_stage(dense, start=1, end=2)
+    rp, rc = strands(RENDER_ANGLES[:10])
+    add_curves(s, "/World/Hair", rp, rc)
+    s.Save()
+    out = tmp_path / "out.usdc"
+    assert run([dense, "-o", out, "--guides", "3", "--guides-output", "binding"]) == 0
+    assert moved[0] is True, "the file moved into place had no binding"
+    assert out.read_bytes() == moved[1], "the output was changed after it was moved into place"
 
 
 def _error(argv, capsys):

@@ -163,7 +163,7 @@ def test_ply_trailing_data_is_an_error_like_data_and_bin(tmp_path, capsys):
             r"\('strand', 2 rows\)")
     # a miscounted strand element still names the counts first
     bad = ascii_ply(tmp_path, "count.ply", head=[h.replace("strand 2", "strand 1") for h in HEAD])
-    with pytest.raises(UserError, match=r"gives 3 vertices for 1 strands"):
+    with pytest.raises(UserError, match=r"gives 3 vertices for 1 strand but"):
         read_groom(bad)
     # head meshes read the same way
     mesh = tmp_path / "head.ply"

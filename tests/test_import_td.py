@@ -114,6 +114,43 @@ def test_ply_head_with_whole_float_indices_and_quads_is_read(tmp_path):
     assert list(mesh.GetFaceVertexIndicesAttr().Get()) == [0, 1, 2, 3]
 
 
+def _head_faces(tmp_path, head):
+    pts, counts = strands([3, 3], step=10.0)
+    _, notes = warned(ti.write_hair(tmp_path / "g.hair", pts, counts), tmp_path / "o.usda", head=head)
+    stage, _ = ti.open_curves(tmp_path / "o.usda")
+    from pxr import UsdGeom
+
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Groom/Head"))
+    faces = np.split(np.asarray(mesh.GetFaceVertexIndicesAttr().Get()),
+                     np.cumsum(mesh.GetFaceVertexCountsAttr().Get())[:-1])
+    return [f.tolist() for f in faces], [n for n in notes if "twice" in n]
+
+
+def test_head_faces_that_name_a_vertex_twice_get_one_warning_and_no_zero_area_face(tmp_path):
+    """``f 1 1 2`` and ``f 1 2 3 1`` were written to the collider as they were, without a word:
+    triangles of zero area. Now the first is dropped, the second keeps its three corners."""
+    head = tmp_path / "head.obj"
+    head.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 1 2\nf 1 2 4 1\nf 1 2 1 3\n")
+    faces, notes = _head_faces(tmp_path, head)
+    assert faces == [[0, 2, 1], [1, 3, 0]]
+    assert notes == [f"{head}: 3 faces of 4 name a vertex twice (first: line 6: f 1 1 2): 2 dropped (no area), "
+                     "1 kept without the repeated corner"]
+    head = ply_head(tmp_path / "head.ply", [[0, 1, 2], [3, 3, 1]])
+    faces, notes = _head_faces(tmp_path, head)
+    assert faces == [[0, 1, 2]]
+    assert notes == [f"{head}: 1 face of 2 names a vertex twice (first: line 15: face 1: vertex_indices 3 3 1): "
+                     "1 dropped (no area)"]
+
+
+def test_a_head_of_only_faces_that_name_a_vertex_twice_is_refused(tmp_path, capsys):
+    pts, counts = strands([3, 3], step=10.0)
+    src, out = ti.write_hair(tmp_path / "g.hair", pts, counts), tmp_path / "o.usda"
+    head = tmp_path / "head.obj"
+    head.write_text("v 0 0 0\nv 1 0 0\nf 1 1 2\n")
+    refused(["import", str(src), "-o", str(out), "--head", str(head)], capsys, str(out),
+            rf"^dftl-warp: error: {re.escape(str(head))}: 1 face of 1 names a vertex twice .*: no faces left$")
+
+
 def test_an_obj_head_saved_with_a_utf8_byte_order_mark_is_read(tmp_path):
     """An OBJ saved by a Windows editor starts with a UTF-8 BOM: it was refused as an unknown
     statement '\\ufeffv 0 0 0' on line 1."""
@@ -155,6 +192,35 @@ def test_tfx_uvs_and_colours_are_named_as_not_imported(tmp_path):
     _, notes = warned(src, tmp_path / "o.usda")
     assert (f"{src}: not imported: float2 strand UVs, float2 vertex UVs, float4 vertex colours (only positions are "
             "imported)") in notes
+
+
+def test_counts_of_one_strand_are_singular(tmp_path, capsys):
+    """'all 1 strands get 8e-05 stage units', '1 strands, 3 points': now '1 strand'."""
+    from dftl_warp import cli
+
+    pts, counts = strands([3], step=0.02)
+    src = ti.write_hair(tmp_path / "g.hair", pts, counts)
+    assert cli.main(["import", str(src), "-o", str(tmp_path / "o.usda")]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(f"{tmp_path / 'o.usda'}: 1 strand, 3 points from "), out
+    assert "no hair widths in the file; its 1 strand gets " in err and "1 strands" not in err, err
+
+
+def test_tfx_vertices_pinned_past_the_root_get_one_warning(tmp_path):
+    """TressFX marks immovable vertices with w = 0; vertex 0 alone is pinned as the root, and other
+    pins were dropped without a word. Now one warning counts them and names the first."""
+    pts, _ = strands([4, 4, 4], step=0.02)
+    src = ti.write_tfx(tmp_path / "g.tfx", pts, 4)          # w = 0 at the roots only
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert not [n for n in notes if "pin more than" in n]
+    data = bytearray(src.read_bytes())
+    for vertex in (1, 5, 6):                                # strand 0 vertex 1, strand 1 vertices 1 and 2
+        struct.pack_into("<f", data, 160 + 16 * vertex + 12, 0.0)
+    src.write_bytes(bytes(data))
+    _, notes = warned(src, tmp_path / "o.usda")
+    assert [n for n in notes if "pin more than" in n] == [
+        f"{src}: 2 strands of 3 pin more than the root: 3 vertices after vertex 0 have w = 0 (immovable; first: "
+        "strand 0, vertex 1); only each strand's root is pinned, the others move freely"]
 
 
 def test_ply_properties_and_elements_a_reader_does_not_use_are_named(tmp_path):

@@ -80,7 +80,9 @@ def test_a_binding_cache_renders_the_curves_its_guides_carry(caches, capsys):
 
 
 def test_a_dense_prim_bound_to_guides_picked_from_it_renders_as_its_curves(tmp_path):
-    """``--guides 4``: the binding cache names /World/Hair_guides; the render curves follow them."""
+    """``--guides 4``: the binding cache names /World/Hair_guides; the render curves follow them. The
+    guides, which the render curves contain, were drawn a second time on top of them; /World/Hair_guides
+    is now of purpose guide, and the binding cache draws what the curves cache draws."""
     src = tmp_path / "dense.usda"
     stage = new_stage(src, start=1, end=3)
     rp, rc = strands(np.linspace(0.1, 2 * np.pi + 0.1, 24, endpoint=False), curl=0.01)
@@ -90,10 +92,12 @@ def test_a_dense_prim_bound_to_guides_picked_from_it_renders_as_its_curves(tmp_p
     assert simulate(src, curves, "--guides", "4") == 0
     assert simulate(src, bound, "--guides", "4", "--guides-output", "binding") == 0
     a, b = Usd.Stage.Open(str(curves)), Usd.Stage.Open(str(bound))
-    n = len(rp)
+    assert UsdGeom.Imageable(b.GetPrimAtPath("/World/Hair_guides")).ComputePurpose() == "guide"
     for t in (1, 3):
-        got = usd_scene.read_render_scene(b, t).points[:n]   # /World/Hair, then its guides /World/Hair_guides
-        np.testing.assert_allclose(got, usd_scene.read_render_scene(a, t).points, atol=2e-7)
+        got = usd_scene.read_render_scene(b, t)
+        want = usd_scene.read_render_scene(a, t)
+        assert got.curve_vertex_counts.tolist() == want.curve_vertex_counts.tolist() == [N] * len(rc)
+        np.testing.assert_allclose(got.points, want.points, atol=2e-7)
 
 
 def _broken(caches, tmp_path, change):

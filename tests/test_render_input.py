@@ -26,7 +26,7 @@ PTS = np.array([[0.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, -2.0, 0.0]])
     (PTS, [3], [0.1, -0.1, 0.1], "widths[1] is negative"),
     (PTS, [3], -0.1, "widths[0] is negative"),
     (PTS, [3], [0.1, 0.1, np.inf], "widths[2] is not finite"),
-    (PTS, [3], [0.1, 0.1], "2 widths for 1 strands of 3 points: expected one, one per strand or one per point"),
+    (PTS, [3], [0.1, 0.1], "2 widths for 1 strand of 3 points: expected one, one per strand or one per point"),
     (PTS, [2, 1], [0.1, -0.2], "widths[2] is negative"),  # per strand, expanded per point
 ])
 def test_from_strands_rejects_bad_arrays(points, counts, widths, message):
@@ -40,7 +40,7 @@ def test_from_strands_rejects_bad_colors():
         RenderScene.from_strands(PTS, [3], 0.1, [[1, 0, 0], [0, np.nan, 0], [0, 0, 1]])
     with pytest.raises(ValueError, match="colors of shape"):
         RenderScene.from_strands(PTS, [3], 0.1, [1, 0])
-    with pytest.raises(ValueError, match="2 colours for 1 strands of 3 vertices"):
+    with pytest.raises(ValueError, match="2 colours for 1 strand of 3 vertices"):
         RenderScene.from_strands(PTS, [3], 0.1, [[1, 0, 0], [0, 1, 0]])
 
 
@@ -298,7 +298,8 @@ def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_pa
     assert capsys.readouterr().err.strip().splitlines() == [
         "dftl-warp: warning: camera /cam sees no strand at frame 3 (1 of 3 images): no strand sample lands in the "
         "image (it looks away from the hair, or the hair is outside its clipping range, hidden behind geometry or "
-        "too thin for --spp 2)"]
+        "smaller in the image than the spacing of --spp 2 samples (--min-pixel-width 1 widens strands to 1 pixel, "
+        "it does not lengthen them))"]
     alpha = image.read_png(sheet)[..., 3]   # 3 frames on a 2 x 2 grid of 24 x 16 tiles, 4 pixels apart
     assert alpha[:16, :24].sum() > 0 and alpha[:16, 28:].sum() > 0 and alpha[20:, :24].sum() == 0
     out = tmp_path / "one.png"
@@ -314,6 +315,35 @@ def test_a_camera_that_sees_no_strand_warns_once_naming_it_and_the_frames(tmp_pa
     err = capsys.readouterr().err
     assert "camera /cam sees no strand in turntable views 0, 1 (2 of 2 images): no strand sample" in err, err
     assert sorted(p.name for p in (tmp_path / "t").iterdir()) == ["view.0.png", "view.1.png"]
+
+
+def test_the_no_strand_warning_says_what_min_pixel_width_does(tmp_path, capsys):
+    """Hair 10 um wide in a 24 x 16 image: with the default --min-pixel-width 1 it is drawn and seen
+    (the warning blamed 'too thin for --spp 1', which did not apply); with 0 it is too thin, and
+    the warning says so. A strand shorter than a pixel is missed however wide it is drawn."""
+    def stage(name, strands):
+        s = new_stage(tmp_path / name)
+        add_camera(s, translate=(0, 0.5, 3))
+        add_curves(s, "/hair", strands, widths=[1e-5])
+        s.Save()
+        return tmp_path / name
+
+    thin = stage("thin.usda", [np.array([[x, 0, 0], [x, 0.5, 0.1], [x, 1.0, 0]]) for x in (-0.2, 0.0, 0.2)])
+    dot = stage("dot.usda", [np.array([[0, 0.5, 0], [0, 0.5001, 0]])])
+    out = tmp_path / "o.png"
+    warning = "dftl-warp: warning: camera /cam sees no strand at the stage's default time: no strand sample lands"
+    assert render(thin, "--resolution", "24x16", "--spp", 1, "-o", out) == 0
+    assert capsys.readouterr().err == ""
+    assert render(thin, "--resolution", "24x16", "--spp", 1, "--min-pixel-width", 0, "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(warning) and err.endswith(
+        "hidden behind geometry or too thin for --spp 1 (--min-pixel-width 0 draws true widths; a width of 1 draws "
+        "them at least a pixel wide))\n"), err
+    assert render(dot, "--resolution", "24x16", "--spp", 1, "-o", out) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(warning) and err.endswith(
+        "hidden behind geometry or smaller in the image than the spacing of --spp 1 samples (--min-pixel-width 1 "
+        "widens strands to 1 pixel, it does not lengthen them))\n"), err
 
 
 def test_renderer_says_whether_the_image_shows_a_strand():
@@ -421,3 +451,63 @@ def test_a_turntable_of_a_fractional_frame_into_a_pattern_renders(groom, tmp_pat
     out = tmp_path / "tt" / "view.##.png"
     assert render(groom, "--turntable", 2, "--frame", 1.5, "--resolution", "8x8", "--spp", 1, "-o", out) == 0
     assert sorted(p.name for p in out.parent.iterdir()) == ["view.00.png", "view.01.png"]
+
+
+def _hand_written(path, counts_decl, extra=""):
+    """A hand-written stage with a camera and /World/Hair: linear curves of 5 points."""
+    path.write_text(f'''#usda 1.0
+(
+    upAxis = "Y"
+)
+def Camera "cam"
+{{
+    double3 xformOp:translate = (0.05, -0.1, 2)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def Xform "World"
+{{
+    def BasisCurves "Hair"
+    {{
+        uniform token type = "linear"
+        {counts_decl}
+        point3f[] points = [(0, 0, 0), (0, -0.1, 0), (0.1, 0, 0), (0.1, -0.1, 0), (0.1, -0.2, 0)]
+        {extra}
+    }}
+}}
+''')
+    return path
+
+
+@pytest.mark.parametrize("counts, extra, message", [
+    ("int[] curveVertexCounts = [2, 3]", 'string[] widths = ["a"] (interpolation = "constant")',
+     "widths = ['a']: expected numbers (float[])"),
+    ("int[] curveVertexCounts = [2, 3]", 'string[] primvars:widths = ["a"] (interpolation = "constant")',
+     "primvars:widths = ['a']: expected numbers (float[])"),
+    ("int[] curveVertexCounts = [2, 3]", 'string[] primvars:displayColor = ["a"] (interpolation = "constant")',
+     "primvars:displayColor = ['a']: expected numbers (color3f[])"),
+    ("int[] curveVertexCounts = [2, 3]", 'float[] primvars:displayColor = [1, 0] (interpolation = "constant")',
+     "primvars:displayColor: 2 numbers are not RGB triples: expected color3f[]"),
+    ("float[] curveVertexCounts = [2.5, 2.5]", "", "curveVertexCounts[0] = 2.5: expected a whole number (int[])"),
+    ("int curveVertexCounts = 5", "",
+     "curveVertexCounts = 5: one number, expected int[] (one count per curve, in brackets)"),
+])
+def test_attributes_of_the_wrong_type_are_the_simulation_readers_one_line(tmp_path, capsys, counts, extra, message):
+    """``string[] widths`` crashed render with a ValueError traceback, ``float[] curveVertexCounts =
+    [2.5, 2.5]`` was truncated to [2, 2] (then refused as summing to 4), and ``int curveVertexCounts
+    = 5`` (no brackets) was a TypeError in render and one curve of 5 in simulate. Now render and
+    info give the same line."""
+    src = _hand_written(tmp_path / "in.usda", counts, extra)
+    out = tmp_path / "out.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 2
+    line = one_error(capsys, f"{src}: /World/Hair: {message}")
+    assert line.endswith(message) and not out.exists()
+    assert cli.main(["info", str(src)]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+
+
+def test_whole_float_counts_and_a_scalar_width_still_render(tmp_path):
+    src = _hand_written(tmp_path / "in.usda", "float[] curveVertexCounts = [2.0, 3.0]",
+                        'float widths = 0.02 (interpolation = "constant")')
+    out = tmp_path / "out.png"
+    assert render(src, "--resolution", "16x16", "--spp", 1, "-o", out) == 0
+    assert image.read_png(out)[..., 3].sum() > 0

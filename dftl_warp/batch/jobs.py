@@ -199,16 +199,20 @@ def _make_job(k: int, table: dict, defaults: dict, folder: Path) -> Job:
 
     raw_name = table.get("name")
     output = table.get("output")
-    name = raw_name if isinstance(raw_name, str) and raw_name else (
-        Path(output).stem if isinstance(output, str) and output else f"job{k}")
+    # a blank name or output (output = "  ") named the job "  " in every line about it
+    name = raw_name.strip() if isinstance(raw_name, str) and raw_name.strip() else (
+        Path(output.strip()).stem if isinstance(output, str) and output.strip() else f"job{k}")
     job = Job(index=k, name=name, input=str(table.get("input", "")), output=str(output or ""))
     try:
         for key in ("input", "output"):
             value = table.get(key)
             if value is None:
                 raise ValueError(f"missing {key!r}")
-            if not isinstance(value, str) or not value:
-                raise ValueError(f"{key} must be a non-empty path string, got {value!r}")
+            if not isinstance(value, str):
+                raise ValueError(f"{key} must be a path string, got {value!r}")
+            if not value.strip():
+                raise ValueError(f"{key} = {value!r} is an empty path: give the "
+                                 f"{'stage to simulate' if key == 'input' else 'layer to write'}")
         if raw_name is not None and not isinstance(raw_name, str):
             raise ValueError(f"name must be a string, got {raw_name!r}")
         options = {**defaults, **_check_options(table, f"job {k}", allowed_extra=JOB_KEYS)}

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import sys
 
+from ..errors import plural
+
 
 def add_parser(sub):
     from ..output.paths import path_argument
@@ -61,7 +63,8 @@ def run(args) -> int:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not args.quiet:
         head = ", head collider /Groom/Head" if result.head else ""
-        print(f"{result.output}: {result.strands} strands, {result.points} points from {args.input} "
+        print(f"{result.output}: {plural(result.strands, 'strand')}, {plural(result.points, 'point')} "
+              f"from {args.input} "
               f"({result.format}); {result.meters_per_unit:g} m per unit, up axis {result.up_axis}; "
               f"widths {result.widths}{head}")
     return 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..errors import plural
 from . import strict_json
 
 
@@ -291,12 +292,13 @@ def run(args) -> int:
     print(f"  frames      {frames}")
     print(f"  gravity     ({g[0]:g}, {g[1]:g}, {g[2]:g}) units/s^2 = {d['gravity_m_per_s2']:.3g} m/s^2")
     lo, mean, hi = d["vertices_per_strand"]
-    print(f"  hair        {d['strands']} strands, {d['particles']} particles, "
+    print(f"  hair        {plural(d['strands'], 'strand')}, {plural(d['particles'], 'particle')}, "
           f"{lo}..{hi} vertices per strand (mean {mean:.1f})")
     if d["guides"] is not None:
         g_ = d["guides"]
         count = f"{g_['count'] * 100:g}%" if isinstance(g_["count"], float) else str(g_["count"])
-        print(f"  guides      --guides {count} ({g_['method']}): {d['simulated_strands']} of {d['strands']} strands "
+        print(f"  guides      --guides {count} ({g_['method']}): {d['simulated_strands']} of "
+              f"{plural(d['strands'], 'strand')} "
               f"simulated, {g_['render_strands']} render strands deformed from them; the features, hair-hair and "
               "memory below are the simulated guides'")
     if d["features"]:
@@ -340,7 +342,8 @@ def run(args) -> int:
                 f"not simulated: deformed from its guides {', '.join(c['guides'])}")
         if d["guides"] is not None and c["solver"] is not None:
             runs += f" on {c['simulated_strands']} of its strands (guides), the rest deformed from them"
-        print(f"    {c['path']}: {c['strands']} strands, {c['particles']} particles, {kind}{extra}{settings}; {runs}")
+        print(f"    {c['path']}: {plural(c['strands'], 'strand')}, {plural(c['particles'], 'particle')}, "
+              f"{kind}{extra}{settings}; {runs}")
         m = c["material"]
         ei = "" if m["bend_stiffness"] is None else f", EI {m['bend_stiffness']:.4g}"
         extras = "".join(t for t, on in ((", restShapePoints", m["rest_shape_points"]),

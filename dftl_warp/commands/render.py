@@ -188,8 +188,15 @@ def _blind_warning(cam_path: str, labels: list, n_images: int, args) -> str:
         where += ", ..."
     if n_images > 1:
         where += f" ({len(labels)} of {n_images} images)"
+    if args.min_pixel_width > 0:   # thin strands are widened: only a strand shorter than the samples' spacing hides
+        wide = f"{args.min_pixel_width:g} pixel{'' if args.min_pixel_width == 1 else 's'}"
+        size = (f"smaller in the image than the spacing of --spp {args.spp} samples (--min-pixel-width "
+                f"{args.min_pixel_width:g} widens strands to {wide}, it does not lengthen them)")
+    else:
+        size = (f"too thin for --spp {args.spp} (--min-pixel-width 0 draws true widths; a width of 1 draws them at "
+                f"least a pixel wide)")
     return (f"{who} sees no strand {where}: no strand sample lands in the image (it looks away from the hair, or the "
-            f"hair is outside its clipping range, hidden behind geometry or too thin for --spp {args.spp})")
+            f"hair is outside its clipping range, hidden behind geometry or {size})")
 
 
 def run(args) -> int:

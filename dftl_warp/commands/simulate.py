@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from ..errors import plural
+
 
 #: the options table's entries offered as flags, in the order ``--help`` lists them
 FLAGS = ("start", "end", "substeps", "damping", "correction", "solver", "iterations", "precision",
@@ -93,8 +95,8 @@ def run(args) -> int:
         print(f"dftl-warp: {line}", file=sys.stderr)
     total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
     print(
-        f"{s.output}: {s.strands} strands, {s.particles} particles in {s.prims} prim(s), "
-        f"{s.frames} frames ({s.first_frame}..{s.last_frame}); "
+        f"{s.output}: {plural(s.strands, 'strand')}, {plural(s.particles, 'particle')} in {plural(s.prims, 'prim')}, "
+        f"{plural(s.frames, 'frame')} ({s.first_frame}..{s.last_frame}); "
         f"loading {s.seconds_loading:.2f} s, simulating {s.seconds_simulating:.2f} s, "
         f"writing {s.seconds_writing:.2f} s, total {total:.2f} s"
     )

@@ -23,6 +23,7 @@ import warp as wp
 
 from ..core.layout import strand_offsets
 from ..core.precision import numpy_type
+from ..errors import plural
 from ..kernels.features.binding import bind_clamps_kernel, bind_roots_kernel, closest_face
 from .base import finite_rows
 
@@ -190,7 +191,9 @@ class BindingControl:
             raise ValueError("root binding: bind the roots of the frame (control.bind_roots) before the clamps")
         if b["degenerate"] and not self._warned_degenerate:
             self._warned_degenerate = True
-            warnings.warn(f"root binding: {b['degenerate']} strands are bound to triangles with no frame at rest "
+            warnings.warn(f"root binding: {plural(b['degenerate'], 'strand')} "
+                          f"{'is' if b['degenerate'] == 1 else 'are'} "
+                          "bound to triangles with no frame at rest "
                           "(zero edge 0 or zero area): their elastic clamp moves with the root without turning",
                           stacklevel=3)
         moving = self.moving and frame_duration > 0

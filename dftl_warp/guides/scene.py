@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 from ..usd.scene import CurvesPrim, Scene, transform_points
 from ..core.layout import zero_length_segment
 from .binding import bind, bind_groom, check_strands, pin_roots
@@ -138,7 +138,8 @@ class GuideSet:
             except ValueError as exc:
                 raise UserError(f"{file}: {c.path}: --guides {guides}: {_why(exc, c)}") from None
             if isinstance(count, float) and fraction_strands(count, c.num_strands) < 1:
-                scene.warnings.append(f"{file}: {c.path}: --guides {guides} of its {c.num_strands} strands is "
+                scene.warnings.append(f"{file}: {c.path}: --guides {guides} of its "
+                                      f"{plural(c.num_strands, 'strand')} is "
                                       f"{count * c.num_strands:.3g} strands: 1 guide simulated")
             path = c.path + GUIDES_SUFFIX if output == "binding" else c.path
             picked[i] = (len(sim), np.asarray(chosen, dtype=np.int64))
@@ -230,15 +231,14 @@ class GuideSet:
             out[r.index] = (local, vel)
         return out
 
-    def write_binding(self, output) -> None:
-        """``--guides-output binding``: after the writer's commit, author on ``output`` each render
+    def write_binding(self, layer) -> None:
+        """``--guides-output binding``: author on ``layer`` (the output writer's Sdf.Layer, before its
+        commit saves it and moves it into place: the output is never changed after) each render
         prim's binding as primvars (docs/guides.md) and, for guides picked from a dense prim, the guide
-        prim's topology (a BasisCurves prim ``<prim>_guides``)."""
+        prim's topology (a BasisCurves prim ``<prim>_guides`` of purpose ``guide``: the render prim
+        holds the same strands, and renderers draw guides only when asked to)."""
         from pxr import Sdf, Vt
 
-        layer = Sdf.Layer.FindOrOpen(str(output))
-        if layer is None:
-            raise UserError(f"{output}: cannot reopen to write the guide binding")
         scene = self.input_scene
         for c in self.sim_scene.curves:
             if not c.path.endswith(GUIDES_SUFFIX) or layer.GetPrimAtPath(c.path) is None:
@@ -250,6 +250,8 @@ class GuideSet:
             _attr(spec, "type", Sdf.ValueTypeNames.Token, c.type, True)
             _attr(spec, "basis", Sdf.ValueTypeNames.Token, c.basis, True)
             _attr(spec, "wrap", Sdf.ValueTypeNames.Token, c.wrap, True)
+            # they are strands of the render prim too: drawn only where guides are asked for (not twice)
+            _attr(spec, "purpose", Sdf.ValueTypeNames.Token, "guide", True)
             if c.widths is not None:
                 a = _attr(spec, "widths", Sdf.ValueTypeNames.FloatArray, Vt.FloatArray([float(w) for w in c.widths]))
                 a.SetInfo("interpolation", c.widths_interpolation or "constant")
@@ -280,7 +282,6 @@ class GuideSet:
                 a.SetInfo("interpolation", interp)
                 if elem > 1:
                     a.SetInfo("elementSize", elem)
-        layer.Save()
 
 
 def _attr(spec, name, type_name, value, uniform: bool = False):
@@ -351,5 +352,5 @@ def _check_guide_segments(file: str, guide: CurvesPrim, chosen=None) -> None:
 def _why(exc: ValueError, c: CurvesPrim) -> str:
     text = str(exc)
     if "asks for" in text:
-        return f"{text.replace('n_or_fraction asks for', 'asks for')} (the prim has {c.num_strands} strands)"
+        return f"{text.replace('n_or_fraction asks for', 'asks for')} (the prim has {plural(c.num_strands, 'strand')})"
     return text

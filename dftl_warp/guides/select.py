@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import plural
 from .binding import check_strands, nearest
 from .frames import normalize
 
@@ -38,7 +39,7 @@ def guide_count(n_or_fraction, num_strands: int) -> int:
     else:
         raise ValueError(f"n_or_fraction must be an integer >= 1 or a fraction in (0, 1], got {v!r}")
     if not 1 <= n <= num_strands:
-        raise ValueError(f"n_or_fraction asks for {n} guides from {num_strands} strands")
+        raise ValueError(f"n_or_fraction asks for {plural(n, 'guide')} from {plural(num_strands, 'strand')}")
     return n
 
 

@@ -8,7 +8,7 @@ import struct
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 
 
 def read_bytes(path) -> bytes:
@@ -71,6 +71,7 @@ def drop_short_strands(path: str, points: np.ndarray, counts: np.ndarray, widths
     keep = counts >= 2
     if keep.all():
         return points, counts, widths
-    warnings.append(f"{path}: dropped {int((~keep).sum())} of {counts.size} strands with fewer than 2 vertices")
+    warnings.append(f"{path}: dropped {int((~keep).sum())} of {plural(counts.size, 'strand')} with fewer than 2 "
+                    "vertices")
     mask = np.repeat(keep, counts)
     return points[mask], counts[keep], None if widths is None else widths[mask]

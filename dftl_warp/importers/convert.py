@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 from ..options import OPTIONS, BadValue, OptionError
 from . import Groom, GroomImportWarning, read_groom, reader_for
 from ._binary import check_finite
@@ -77,7 +77,7 @@ def subsample(groom: Groom, every: int | None, max_strands: int | None, notes: l
         keep = keep[pick]
     if keep.size == n:
         return groom
-    notes.append(f"{source + ': ' if source else ''}kept {keep.size} of {n} strands (--every/--max-strands)")
+    notes.append(f"{source + ': ' if source else ''}kept {keep.size} of {plural(n, 'strand')} (--every/--max-strands)")
     return select(groom, keep)
 
 
@@ -132,7 +132,8 @@ def coincident_note(source: str, groom: Groom, resampled: bool) -> str | None:
     n = np.unique(owner).size
     after = " after --segments resampling" if resampled else ""
     return (f"{source}: {strand}: points {i} and {i + 1} coincide{after} (a zero-length segment; {n} of "
-            f"{groom.num_strands} strands have coincident consecutive points); kept, but the elastic solver "
+            f"{plural(groom.num_strands, 'strand')} {'has' if n == 1 else 'have'} coincident consecutive points); "
+            f"kept, but the elastic solver "
             f"(simulate's default for hair with widths) refuses them: simulate with --solver dftl, which "
             f"handles them, or remove the coincident points")
 
@@ -259,7 +260,7 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
         starts = np.concatenate([[0], np.cumsum(groom.counts)])[:-1]
         bad_strand = np.logical_or.reduceat(~finite, starts) if finite.size else np.zeros(0, bool)
         if bad_strand.any():
-            notes.append(f"{source}: dropped {int(bad_strand.sum())} of {total} strands with NaN/inf points")
+            notes.append(f"{source}: dropped {int(bad_strand.sum())} of {plural(total, 'strand')} with NaN/inf points")
             groom = select(groom, np.flatnonzero(~bad_strand))
     else:
         check_finite(source, groom.points, groom.counts)
@@ -280,7 +281,8 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
     else:
         w = DEFAULT_WIDTH_M / mpu
         widths, how = np.array([w]), f"constant {w:g} (80 um)"
-        notes.append(f"{source}: no hair widths in the file; all {groom.num_strands} strands get {w:g} "
+        every = f"all {groom.num_strands} strands get" if groom.num_strands != 1 else "its 1 strand gets"
+        notes.append(f"{source}: no hair widths in the file; {every} {w:g} "
                      f"stage units (80 um; --width sets another)")
     mesh = read_mesh(head) if head is not None else None
     notes.extend(mesh.warnings if mesh is not None else [])

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import plural
 from . import Groom, Reader
 from ._binary import Buffer, drop_short_strands
 
@@ -50,13 +51,15 @@ def read(data: bytes, path: str) -> Groom:
         raise buf.error(12, f"arrays = 0x{arrays:x} has no points array (bit 1)")
     offset = HEADER_SIZE
     if arrays & SEGMENTS_BIT:
-        segments = buf.array("<u2", hair_count, offset, f"segments array of {hair_count} strands").astype(np.int64)
+        segments = buf.array("<u2", hair_count, offset,
+                             f"segments array of {plural(hair_count, 'strand')}").astype(np.int64)
         seg_offset = offset
         offset += 2 * hair_count
     else:
         # no per-strand array: check the total before allocating one entry per (claimed) strand
         if hair_count * (d_segments + 1) != point_count:
-            raise buf.error(16, f"d_segments gives {hair_count * (d_segments + 1)} points for {hair_count} strands "
+            raise buf.error(16, f"d_segments gives {hair_count * (d_segments + 1)} points for "
+                                f"{plural(hair_count, 'strand')} "
                                 f"but the header says point_count = {point_count}")
         buf.need(offset, 12 * point_count, f"points array of {point_count} points")
         segments = np.full(hair_count, d_segments, dtype=np.int64)
@@ -65,7 +68,7 @@ def read(data: bytes, path: str) -> Groom:
     total = int(counts.sum())
     if total != point_count:
         where = "segments array" if arrays & SEGMENTS_BIT else "d_segments"
-        raise buf.error(seg_offset, f"{where} gives {total} points for {hair_count} strands "
+        raise buf.error(seg_offset, f"{where} gives {total} points for {plural(hair_count, 'strand')} "
                                     f"but the header says point_count = {point_count}")
     points = buf.array("<f4", 3 * point_count, offset, f"points array of {point_count} points")
     with np.errstate(invalid="ignore"):   # corrupted bytes may be signalling NaNs (convert.py: check_finite)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 from ._binary import read_bytes
 
 
@@ -59,7 +59,7 @@ def read_obj(data: bytes, path: str) -> MeshData:
     ``v/vt``, ``v//vn`` or ``v/vt/vn``; 1-based, negative from the last vertex so far). What
     :data:`IGNORED` lists is counted in one warning; anything else is an error naming the line."""
     text = data.decode("utf-8", errors="replace").removeprefix("\ufeff")  # a BOM, as Windows editors save
-    points, counts, indices = [], [], []
+    points, counts, indices, lines = [], [], [], []
     seen = {"vt": 0, "vn": 0}
     skipped: dict[str, int] = {}
     for no, words in obj_statements(text):
@@ -73,6 +73,7 @@ def read_obj(data: bytes, path: str) -> MeshData:
                 raise UserError(f"{where}: a face needs at least 3 vertices")
             counts.append(len(face))
             indices.extend(face)
+            lines.append(no)
         elif key in IGNORED:
             seen[key] = seen.get(key, 0) + 1       # vt, vn: the range of the faces' texture, normal indices
             skipped[key] = skipped.get(key, 0) + 1
@@ -80,7 +81,8 @@ def read_obj(data: bytes, path: str) -> MeshData:
             raise UserError(f"{where}: free-form geometry ({key!r}) is not read: export the head as polygons (f)")
         else:
             raise UserError(f"{where}: unknown OBJ statement {' '.join(words)[:60]!r}")
-    mesh = _mesh(path, np.array(points, dtype=np.float64).reshape(-1, 3), counts, indices)
+    mesh = _mesh(path, np.array(points, dtype=np.float64).reshape(-1, 3), counts, indices,
+                 lambda k, corners: f"line {lines[k]}: f {' '.join(str(i + 1) for i in corners)}")
     if skipped:
         listed = ", ".join(f"{n} {k}" for k, n in skipped.items())
         mesh.warnings.append(f"{path}: ignored what a collider does not use: {listed}")
@@ -151,7 +153,8 @@ def read_ply_mesh(data: bytes, path: str) -> MeshData:
         what = "is not a whole number" if values[i] != np.round(values[i]) else \
             f"is out of range (0..{points.shape[0] - 1})"
         raise UserError(f"{path}: {face.where(k)}: face {k}: vertex index {values[i]:g} {what}")
-    mesh = _mesh(path, points, counts, values.astype(np.int64))
+    mesh = _mesh(path, points, counts, values.astype(np.int64), lambda k, corners: f"{face.where(k)}: face {k}: "
+                 f"{key} {' '.join(map(str, corners))}")
     note = unused_note(elements, {"vertex": {"x", "y", "z"}, "face": {key}}, path, "a collider uses only the "
                        "vertices' positions and the faces")
     if note:
@@ -159,13 +162,51 @@ def read_ply_mesh(data: bytes, path: str) -> MeshData:
     return mesh
 
 
-def _mesh(path, points, counts, indices) -> MeshData:
+def _mesh(path, points, counts, indices, where) -> MeshData:
+    """MeshData of the faces (``where(k, corners)``: face k as the file has it, for messages), without the
+    repeats of a vertex a face lists (:func:`without_repeats`), with one warning if there are any."""
     if not len(counts):
         raise UserError(f"{path}: no faces")
     bad = ~np.isfinite(points).all(axis=1)
     if bad.any():
         raise UserError(f"{path}: vertex {int(np.flatnonzero(bad)[0])} is not finite")
-    return MeshData(points, np.asarray(counts, dtype=np.int32), np.asarray(indices, dtype=np.int32))
+    counts, indices, note = without_repeats(np.asarray(counts, dtype=np.int64), np.asarray(indices, np.int64),
+                                            path, where)
+    if not len(counts):
+        raise UserError(f"{note}: no faces left")
+    return MeshData(points, counts.astype(np.int32), indices.astype(np.int32), [note] if note else [])
+
+
+def without_repeats(counts: np.ndarray, indices: np.ndarray, path: str, where):
+    """(counts, indices, warning or "") of polygons that name a vertex twice: a corner repeated next
+    to itself (``f 1 2 3 3``, also last to first: ``f 1 2 3 1``) is one corner; a face left with
+    fewer than 3, or that still comes back to a vertex (``f 1 2 1 3``), has no area of its own
+    and is dropped. Such faces would give the collider triangles of zero area, with no normal."""
+    owner = np.repeat(np.arange(len(counts)), counts)
+    pairs = np.unique(np.stack([owner, indices], axis=1), axis=0)
+    repeats = np.flatnonzero(np.bincount(pairs[:, 0], minlength=len(counts)) < counts)
+    if not repeats.size:
+        return counts, indices, ""
+    starts = np.cumsum(counts) - counts
+    faces = np.split(indices, starts[1:])
+    dropped = fixed = 0
+    for k in repeats:
+        face = faces[k]
+        face = face[face != np.roll(face, 1)] if len(np.unique(face)) > 1 else face[:1]
+        if len(face) < 3 or len(np.unique(face)) < len(face):
+            face, dropped = face[:0], dropped + 1
+        else:
+            fixed += 1
+        faces[k] = face
+    k = int(repeats[0])
+    done = ", ".join(x for x in (f"{dropped} dropped (no area)" if dropped else "",
+                                 f"{fixed} kept without the repeated corner" if fixed else "") if x)
+    verb = "names" if len(repeats) == 1 else "name"
+    note = (f"{path}: {plural(len(repeats), 'face')} of {len(counts)} {verb} a vertex twice (first: "
+            f"{where(k, indices[starts[k]:starts[k] + counts[k]].tolist())}): {done}")
+    new_counts = np.array([len(f) for f in faces], dtype=np.int64)
+    keep = new_counts > 0
+    return new_counts[keep], np.concatenate([faces[i] for i in np.flatnonzero(keep)] or [indices[:0]]), note
 
 
 def read_mesh(path) -> MeshData:

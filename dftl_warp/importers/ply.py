@@ -24,7 +24,7 @@ import re
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 from . import Groom, Reader
 from ._binary import Buffer, drop_short_strands
 
@@ -405,7 +405,7 @@ def read(data: bytes, path: str) -> Groom:
         k = int(np.flatnonzero(counts < 0)[0])
         raise UserError(f"{path}: strand {k}: negative vertex count {counts[k]} ({how})")
     if int(counts.sum()) != n:
-        raise UserError(f"{path}: {how} gives {int(counts.sum())} vertices for {counts.size} strands but the "
+        raise UserError(f"{path}: {how} gives {int(counts.sum())} vertices for {plural(counts.size, 'strand')} but the "
                         f"'vertex' element has {n}")
     elements.check_end()
     widths = None

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import plural
+
 #: median strand length (m) outside which --units is questioned: shorter than stubble, longer
 #: than floor-length hair
 HAIR_LENGTHS_M = (2e-3, 3.0)
@@ -60,7 +62,8 @@ def short_note(source: str, points: np.ndarray, counts: np.ndarray) -> str | Non
     if median <= 0 or not short.any():
         return None
     i = int(np.argmin(np.where(short, lengths, np.inf)))
-    return (f"{source}: {int(short.sum())} of {lengths.size} strands are shorter than {SHORT_FRACTION:.0%} of the "
+    return (f"{source}: {int(short.sum())} of {plural(lengths.size, 'strand')} are shorter than "
+            f"{SHORT_FRACTION:.0%} of the "
             f"median strand ({median:.3g} units); the shortest, strand {i}, is {lengths[i]:.3g} units long with "
             f"{int(counts[i])} points. They are written as read: remove them if they are not hair")
 

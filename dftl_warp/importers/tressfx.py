@@ -12,7 +12,8 @@
            32  uint32    reserved[32]
           160  (arrays, at the offsets above, from the start of the file)
 
-Positions are xyz plus w, where w = 0 marks an immovable vertex (the root). The per-strand
+Positions are xyz plus w, where w = 0 marks an immovable vertex (the root; others are warned
+about: only the root is pinned, :func:`pin_notes`). The per-strand
 thickness is a multiplier of the renderer's fibre radius, not a width, so it is not imported
 (``--width`` applies). The format has no unit: AMD's own sample (Ratboy) is in metres, Y up,
 which are the defaults; other exports (e.g. the Sintel sample, in Blender units ~ cm) need
@@ -32,6 +33,7 @@ import math
 
 import numpy as np
 
+from ..errors import plural
 from . import Groom, Reader
 from ._binary import Buffer
 
@@ -65,20 +67,35 @@ def read(data: bytes, path: str) -> Groom:
                             f"{HEADER_SIZE}-byte header")
     total = strands * per_strand
     if off_pos + 16 * total > buf.size:
-        raise buf.error(off_pos, f"truncated: {strands} strands x {per_strand} vertices need {16 * total} bytes "
+        raise buf.error(off_pos, f"truncated: {plural(strands, 'strand')} x {per_strand} vertices need "
+                                 f"{16 * total} bytes "
                                  f"of float4 positions, the file has {max(buf.size - off_pos, 0)} left "
                                  f"(file size {buf.size})")
     check_extent(buf, offsets, strands, per_strand)
     xyzw = buf.array("<f4", 4 * total, off_pos, "positions").reshape(-1, 4)
     points = xyzw[:, :3].astype(np.float64)
     counts = np.full(strands, per_strand, dtype=np.int64)
-    warnings = []
+    warnings = pin_notes(xyzw[:, 3].reshape(strands, per_strand), path)
     if off_thick:
         warnings.append(f"{path}: per-strand thickness is a renderer scale, not a width; not imported")
     others = [what for (field, name, what, _, _), offset in zip(ARRAYS, offsets) if offset and field not in (12, 24)]
     if others:
         warnings.append(f"{path}: not imported: {', '.join(others)} (only positions are imported)")
     return Groom(points, counts, warnings=warnings)
+
+
+def pin_notes(inverse_mass: np.ndarray, path: str) -> list:
+    """One warning when vertices other than the roots are immovable (w = 0, the (strands,
+    per_strand) ``inverse_mass``): dftl-warp pins each strand's root, vertex 0, alone (a curve has
+    no way to pin others), so they simulate free."""
+    extra = inverse_mass[:, 1:] == 0
+    if not extra.any():
+        return []
+    strand, vertex = (int(i) for i in np.argwhere(extra)[0])
+    n_strands, n_vertices = int(extra.any(axis=1).sum()), int(extra.sum())
+    return [f"{path}: {plural(n_strands, 'strand')} of {len(inverse_mass)} pin more than the root: "
+            f"{plural(n_vertices, 'vertex', 'vertices')} after vertex 0 have w = 0 (immovable; first: strand "
+            f"{strand}, vertex {vertex + 1}); only each strand's root is pinned, the others move freely"]
 
 
 def check_extent(buf, offsets, strands: int, per_strand: int) -> None:

@@ -18,6 +18,7 @@ import struct
 
 import numpy as np
 
+from ..errors import plural
 from . import Groom, Reader
 from ._binary import Buffer
 
@@ -52,13 +53,13 @@ def read_strand_list(data: bytes, path: str, floats_per_vertex: int, name: str) 
         counts[k] = n
         offset += n * stride
     if offset != size:
-        raise buf.error(offset, f"{size - offset} bytes after the last of {count} strands: the counts do not "
+        raise buf.error(offset, f"{size - offset} bytes after the last of {plural(count, 'strand')}: the counts do not "
                                 f"add up (is this really a {name} file?)")
     keep = counts >= 2
     warnings = []
     dropped = int(count - keep.sum())
     if dropped:
-        warnings.append(f"{path}: dropped {dropped} of {count} strands with fewer than 2 vertices")
+        warnings.append(f"{path}: dropped {dropped} of {plural(count, 'strand')} with fewer than 2 vertices")
     offsets, counts = offsets[keep], counts[keep]
     total = int(counts.sum())
     # byte offset of every kept vertex, then gather the xyz floats

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import UserError
 from ..guides.binding import MAX_K, Binding, check_strands, deform_reference, pin_roots, reference_points
 from ..guides.frames import arc_fractions
+from ..usd import curves as curve_checks
 from ..usd.guides import read_guide_paths
 from ..usd.scene import transform_points
 
@@ -42,14 +43,17 @@ def _values(prim, name: str, where: str, count: int, width: int = 1) -> np.ndarr
     if value is None:
         raise UserError(f"{where}: a guide binding without primvars:{name}: cannot deform its curves (write it with "
                         "simulate --guides-output binding)")
-    v = np.asarray(value, dtype=np.float64).reshape(-1, width) if width > 1 else np.asarray(value, dtype=np.float64)
+    v = curve_checks.numbers(value, f"primvars:{name}", where)
+    if v.size % width:
+        raise UserError(f"{where}: primvars:{name} has {v.size} numbers: expected {count} values of {width}")
+    v = v.reshape(-1, width) if width > 1 else v
     if len(v) != count or not np.isfinite(v).all():
         raise UserError(f"{where}: primvars:{name} has {len(v)} {'finite ' if len(v) == count else ''}values, "
                         f"expected {count} finite ones")
     return v
 
 
-def _guides(stage, paths, time):
+def _guides(stage, paths, time, source):
     """(world points, counts) of the guide prims at ``time``, concatenated in ``paths`` order."""
     from pxr import UsdGeom
 
@@ -60,7 +64,7 @@ def _guides(stage, paths, time):
         p = np.asarray(g.GetPointsAttr().Get(time) or [], dtype=np.float64).reshape(-1, 3)
         m = np.array(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(time), dtype=np.float64)
         pts.append(transform_points(m, p))
-        counts.append(np.asarray(g.GetCurveVertexCountsAttr().Get(time) or [], dtype=np.int64))
+        counts.append(curve_checks.vertex_counts(g.GetCurveVertexCountsAttr().Get(time), f"{source}: {path}"))
     return np.concatenate(pts), np.concatenate(counts)
 
 
@@ -86,7 +90,7 @@ def read_binding(prim, counts: np.ndarray, source: str):
     if not paths:
         raise UserError(f"{where}: primvars:{IDS} without rel dftl:guides: a guide binding must name its guide prims")
     stage = prim.GetStage()
-    gp, gc = _guides(stage, paths, rest_time(stage, paths))
+    gp, gc = _guides(stage, paths, rest_time(stage, paths), source)
     try:
         gp, gc, gs = check_strands(gp, gc, "guide points", "guide curveVertexCounts")
     except ValueError as exc:
@@ -128,7 +132,7 @@ def deformed_points(prim, points: np.ndarray, counts: np.ndarray, time, source: 
     binding, paths = read_binding(prim, counts, source)
     if time.IsDefault():
         return points
-    gp, gc = _guides(prim.GetStage(), paths, time)
+    gp, gc = _guides(prim.GetStage(), paths, time, source)
     if not np.array_equal(gc, binding.guide_counts):
         raise UserError(f"{source}: {prim.GetPath()}: its guides {', '.join(paths)} change their curveVertexCounts "
                         "after the binding's frame")

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.bounds import box
+from ..errors import plural
 from ..core.layout import strand_offsets
 from ..core.model import check_strand_arrays
 #: default linear hair colour at the root and at the tip (a mid brown)
@@ -89,7 +90,7 @@ class RenderScene:
         elif w.size == len(counts) and w.size != n:
             w = np.repeat(w, counts)
         elif w.size != n:
-            raise ValueError(f"{w.size} widths for {len(counts)} strands of {n} points: expected one, "
+            raise ValueError(f"{w.size} widths for {plural(len(counts), 'strand')} of {n} points: expected one, "
                              f"one per strand or one per point")
         _check_values(w, "widths", nonnegative=True)
         if colors is not None:
@@ -203,7 +204,7 @@ def strand_colors(counts, colors=None) -> np.ndarray:
     elif len(c) == len(counts):
         c = np.repeat(c, counts, axis=0)
     else:
-        raise ValueError(f"{len(c)} colours for {len(counts)} strands of {n} vertices")
+        raise ValueError(f"{len(c)} colours for {plural(len(counts), 'strand')} of {n} vertices")
     return c * (ROOT_DARKENING + (1.0 - ROOT_DARKENING) * u)
 
 

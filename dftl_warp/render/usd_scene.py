@@ -109,7 +109,8 @@ def render_notes(stage, source: str | None = None) -> list:
     for prim in _drawn_prims(stage, time):
         if not prim.IsA(UsdGeom.BasisCurves):
             continue
-        counts = np.asarray(UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get(time) or [], dtype=np.int64)
+        counts = curve_checks.vertex_counts(UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get(time),
+                                            f"{source}: {prim.GetPath()}")
         short = np.flatnonzero((counts >= 0) & (counts < 2))
         if len(short):
             notes.append(f"{source}: {prim.GetPath()}: {len(short)} of {len(counts)} curves have fewer than 2 "
@@ -256,10 +257,13 @@ def _primvar(prim, name, time, where: str = ""):
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
     if not pv or not pv.HasAuthoredValue():
         return None, None
-    v = curve_checks.flattened(pv, time, where or str(prim.GetPath()))
+    where = where or str(prim.GetPath())
+    v = curve_checks.flattened(pv, time, where)
     if v is None:
         return None, None
-    return np.asarray(v, dtype=np.float64), str(pv.GetInterpolation())
+    name = pv.GetAttr().GetName()
+    v = curve_checks.colors(v, name, where) if name == "primvars:displayColor" else curve_checks.numbers(v, name, where)
+    return v, str(pv.GetInterpolation())
 
 
 def _expected(interp, n_curves, n_vertices, n_varying):
@@ -273,11 +277,11 @@ def _read_curves(prim, time, source):
     curves = UsdGeom.BasisCurves(prim)
     path = prim.GetPath()
     pts = curves.GetPointsAttr().Get(time)
-    counts = curves.GetCurveVertexCountsAttr().Get(time)
-    if pts is None or counts is None or len(counts) == 0:
+    # the simulation reader's checks: a scalar, strings or fractions are one line, not a crash or a truncation
+    counts = curve_checks.vertex_counts(curves.GetCurveVertexCountsAttr().Get(time), f"{source}: {path}")
+    if pts is None or len(counts) == 0:
         return None
     pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
-    counts = np.asarray(counts, dtype=np.int64)
     if (counts < 0).any():
         raise UserError(f"{source}: {path}: curveVertexCounts[{int(np.argmax(counts < 0))}] is negative")
     if counts.sum() != len(pts):
@@ -320,8 +324,9 @@ def _read_curves(prim, time, source):
     widths, w_interp = _primvar(prim, "widths", time, f"{source}: {path}")
     if widths is None:
         w = curves.GetWidthsAttr().Get(time)
+        w = None if w is None else curve_checks.numbers(w, "widths", f"{source}: {path}")  # a scalar: one value
         if w is not None and len(w):
-            widths, w_interp = np.asarray(w, dtype=np.float64), str(curves.GetWidthsInterpolation())
+            widths, w_interp = w, str(curves.GetWidthsInterpolation())
     if widths is None:
         w_v, w_var = np.full((len(pts), 1), default_width(pts)), None
     else:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.layout import zero_length_segment  # noqa: F401  (also imported from here)
-from ..errors import UserError
+from ..errors import UserError, plural
 from ..features import Drag, find
 from ..solvers.elastic_material import default_radius, stage_material
 from ..usd.scene import transform_points
@@ -174,11 +174,12 @@ def note_unstable(scene, group) -> None:
     flagged, scales, tested, total = group.solver.unstable_strands()
     if flagged.size == 0:
         return
-    of = (f"of the {tested} strands" if tested == total else
-          f"of the {tested} strands checked" if tested + untested == total else
-          f"of a random sample of {tested} of the {total} strands")
+    of = (f"of the {plural(tested, 'strand')}" if tested == total else
+          f"of the {plural(tested, 'strand')} checked" if tested + untested == total else
+          f"of a random sample of {tested} of the {plural(total, 'strand')}")
     them = "of them" if scales.size == flagged.size else f"of a random sample of {scales.size} of them"
-    _note(scene, f"{_prims(group, flagged)}: {flagged.size} {of} rest in an unstable equilibrium for hair this "
+    rest = "rests" if flagged.size == 1 else "rest"
+    _note(scene, f"{_prims(group, flagged)}: {flagged.size} {of} {rest} in an unstable equilibrium for hair this "
                  "stiff (standing beyond their buckling length, or held by their twist, docs/elastic.md) and can "
                  f"fall at the first disturbance; {_holding(scales, them, group.solver.stiffness_scale)}")
 
@@ -238,6 +239,8 @@ def note_unheld(scene, group) -> None:
     strands, vertices = group.solver.unheld_vertices()
     if strands.size == 0:
         return
-    _note(scene, f"{_prims(group, strands)}: {vertices} vertices of {strands.size} strands have "
+    _note(scene, f"{_prims(group, strands)}: {plural(vertices, 'vertex', 'vertices')} of "
+                 f"{plural(strands.size, 'strand')} "
+                 f"{'has' if vertices == 1 else 'have'} "
                  "primvars:dftl:bendStiffnessScale 0 (no bending stiffness) where the authored shape is bent "
                  "under its weight: inverse statics cannot hold it, so the hair bends there from the first frame")

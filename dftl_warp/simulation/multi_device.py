@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.devices import parse_devices  # noqa: F401  (re-exported)
-from ..errors import UserError
+from ..errors import UserError, plural
 from ..features import Drag, HairHair, RootBinding
 
 
@@ -352,7 +352,8 @@ def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid
         if v.ndim == 0:
             return values
         if v.shape[0] != num_strands:
-            raise UserError(f"{where}: {what} has {v.shape[0]} values for {num_strands} strands; cannot split it")
+            raise UserError(f"{where}: {what} has {v.shape[0]} values for {plural(num_strands, 'strand')}; "
+                            "cannot split it")
         return v[s0:s1]
 
     out = []

@@ -569,9 +569,9 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
                     from .tolerance import RECORD
 
                     writer.set_record(RECORD, sim.tolerance.record())
-                writer.commit()
                 if sim.guides is not None and sim.guides.output == "binding":   # the binding as primvars
-                    sim.guides.write_binding(output)
+                    sim.guides.write_binding(writer.layer)   # before the commit moves the output into place
+                writer.commit()
                 times["writing"] += time.perf_counter() - a
         finally:
             if bar is not None:

@@ -128,6 +128,15 @@ def numbers(values, name: str, where: str, expected: str = "float[]") -> np.ndar
     return arr.astype(np.float64).reshape(-1)
 
 
+def colors(values, name: str, where: str) -> np.ndarray:
+    """``displayColor`` values as (K, 3) floats: UserError naming the attribute when they are not
+    numbers or not whole RGB triples (``float[] primvars:displayColor = [1, 0]``)."""
+    arr = numbers(values, name, where, "color3f[]")
+    if arr.size % 3:
+        raise UserError(f"{where}: {name}: {arr.size} numbers are not RGB triples: expected color3f[]")
+    return arr.reshape(-1, 3)
+
+
 def whole_numbers(values, name: str, where: str) -> np.ndarray:
     """:func:`numbers` as int64, each a whole number (``float[] curveVertexCounts = [3.5, 4]`` is
     refused, not read as [3, 4])."""
@@ -137,6 +146,18 @@ def whole_numbers(values, name: str, where: str) -> np.ndarray:
         i = int(bad[0])
         raise UserError(f"{where}: {name}[{i}] = {arr[i]:g}: expected a whole number (int[])")
     return arr.astype(np.int64)
+
+
+def vertex_counts(values, where: str) -> np.ndarray:
+    """``curveVertexCounts`` as authored (None: none) as int64, for both readers: a scalar
+    (``int curveVertexCounts = 7``, no brackets) is refused rather than read as one curve, and so
+    are values that are not whole numbers (:func:`whole_numbers`)."""
+    if values is None:
+        return np.zeros(0, dtype=np.int64)
+    if np.ndim(values) == 0:
+        raise UserError(f"{where}: curveVertexCounts = {values}: one number, expected int[] (one count per curve, "
+                        f"in brackets)")
+    return whole_numbers(values, "curveVertexCounts", where)
 
 
 def flattened(primvar, time, where: str):

@@ -207,7 +207,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     points_attr = curves.GetPointsAttr()
     raw_counts = curves.GetCurveVertexCountsAttr().Get(code)
     raw_points = points_attr.Get(code)
-    counts = curve_checks.whole_numbers(raw_counts if raw_counts is not None else [], "curveVertexCounts", where)
+    counts = curve_checks.vertex_counts(raw_counts, where)
     points = np.array(raw_points if raw_points is not None else [], dtype=np.float64)
     if points.size and (points.ndim != 2 or points.shape[1] != 3):
         specs = points_attr.GetPropertyStack(code)
@@ -272,7 +272,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
                         f"while the points move: the output blocks them (renderers compute curve normals)")
     color_pv = UsdGeom.Gprim(prim).GetDisplayColorPrimvar()
     color = color_pv.Get(code) if color_pv and color_pv.HasAuthoredValue() else None
-    color = None if color is None else np.array(color, dtype=np.float64).reshape(-1, 3)
+    color = None if color is None else curve_checks.colors(color, color_pv.GetAttr().GetName(), where)
     return CurvesPrim(
         path=str(prim.GetPath()),
         points=points,
