@@ -61,6 +61,7 @@ from dataclasses import replace
 import numpy as np
 
 from .tolerance_sample import SampleRun, copy_state, rescale_corrections, same_rest, sample_strands
+from ..errors import plural
 
 #: substeps per frame the controller may choose
 LADDER = tuple(2 ** i for i in range(11))
@@ -261,7 +262,7 @@ def pick_solver(group, scene, frame: int, last: int, tolerance: float, precision
             ctl.choose(frame_dt, None, f, f + 1)
         results.append((ctl.cost(), name, ctl))
     results.sort(key=lambda r: r[0])
-    lines = [f"tolerance {tolerance:g}: pilot of {len(idx)} strands: " + ", ".join(
+    lines = [f"tolerance {tolerance:g}: pilot of {plural(len(idx), 'strand')}: " + ", ".join(
         f"{name} up to {max((k for _, k, _ in c.history), default=1)} substeps, {cost * 1e3:.3g} ms"
         for cost, name, c in results) + f"; chose {results[0][1]}"]
     return results[0][1], lines
