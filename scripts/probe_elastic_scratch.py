@@ -8,11 +8,19 @@ arithmetic, 8 substeps), printing ms per step and each variant's distance to it 
 
     PROBE_MODE=local python scripts/probe_elastic_scratch.py cuda:0 1000000 32,64,128
     PROBE_MODE=global python scripts/probe_elastic_scratch.py cuda:0 1000000 64,128,256
+    PROBE_MODE=shared python scripts/probe_elastic_scratch.py cuda:0 1000000 8,14   # block sizes
 
-On the H200 (2026-11-27) both were 16-130x slower than the kernel as it is (7.0 ms a step), each
-thread 8x slower per strand (the local run there used blocks of 32 at 64 threads per SM, this
-script blocks of 64), and the global variant moved the hair by up to 0.36 m: what this
-measures is Warp's code for the kernel wrapped in a strand loop, not where the scratch lives.
+``PROBE_MODE=shared`` keeps one thread per strand, launched in blocks of the given sizes, and moves
+the scratch into a private row of shared memory per thread (at most 14 threads a block: 48 KB).
+
+Measured on one H200, 2026-11-28 (JSONs in docs/elastic/scratch-probe/; docs/elastic.md "Cost"):
+every variant equal to the kernel to the bit after a frame; the kernel as it is 7.1 ms a step; global
+slices 37.8 / 21.2 / 11.9 ms at 64 / 128 / 256 threads per SM, local 66.6 / 38.5 / 21.4 at 32 / 64 /
+128, shared rows 37.8 / 38.7 ms in blocks of 8 / 14. The time per strand of a thread is the same
+wherever its scratch lives; the step scales with the threads in flight. The figures of 2026-11-27
+(16-130x slower, results moved by 0.36 m) were wrong: the launcher never matched the kernel's key
+(``elastic_kernel__locals__elastic_step``), so its launch size was never applied and every thread of
+the persistent loops stepped every strand.
 """
 import gc, importlib, json, os, re, sys, time
 from pathlib import Path
@@ -92,10 +100,46 @@ def transform(threads: int) -> str:
     return s
 
 
+#: scratch words per particle: D^-1 packed (10), B_{k-1,k} (12), w (4)
+WORDS = 26
+
+
+def transform_shared(block: int) -> str:
+    """One thread per strand as the kernel is, launched in blocks of ``block`` threads, the factor
+    scratch in a private row of shared memory per thread (``fused.shared_row_func``: [slot][thread],
+    33 x 26 float32 words, 3.4 KB a thread): 14 threads fill the 48 KB a block may hold statically."""
+    s = SRC
+    s = s.replace('    prior = correction == "prior"\n',
+                  '    prior = correction == "prior"\n'
+                  f'    row = shared_row_func(real, {MAXP * WORDS}, {block})\n', 1)
+    s = s.replace("from ..core.layout import particle\n",
+                  "from ..core.layout import particle\nfrom .fused import shared_row_func\n", 1)
+
+    def reads(first, n):
+        return ", ".join(f"row(k * {WORDS} + {first + c}, real(0.0), 0)" for c in range(n))
+
+    m = re.search(r"\n( +)factor_inv\[kk\] = Di_packed\n", s)
+    sp = m.group(1)
+    writes = "".join(f"{sp}row(k * {WORDS} + {c}, Di_packed[{c}], 1)\n" for c in range(10))
+    writes += "".join(f"{sp}row(k * {WORDS} + {10 + 4 * i + j}, B1[{i}, {j}], 1)\n" for i in range(3) for j in range(4))
+    writes += "".join(f"{sp}row(k * {WORDS} + {22 + c}, wk[{c}], 1)\n" for c in range(4))
+    old = f"\n{sp}factor_inv[kk] = Di_packed\n{sp}factor_up[kk] = B1\n{sp}factor_rhs[kk] = wk\n"
+    assert old in s
+    s = s.replace(old, "\n" + writes, 1)
+    rep = [("yk = factor_rhs[kk]", f"yk = vec4({reads(22, 4)})"),
+           ("wp.transpose(factor_up[kk])", f"wp.transpose(mat34({reads(10, 12)}))"),
+           ("unpack_symmetric(factor_inv[kk])", f"unpack_symmetric(vec10({reads(0, 10)}))")]
+    for a, b in rep:
+        assert s.count(a) == 1, a
+        s = s.replace(a, b)
+    assert "factor_inv[" not in s and "factor_up[" not in s and "factor_rhs[" not in s
+    return s
+
+
 def load(threads: int):
     name = f"elastic_probe_{threads}"
-    (ROOT / "kernels/solvers" / f"{name}.py").write_text(transform_global(threads) if MODE == "global"
-                                                          else transform(threads))
+    text = {"global": transform_global, "shared": transform_shared}.get(MODE, transform)(threads)
+    (ROOT / "kernels/solvers" / f"{name}.py").write_text(text)
     return importlib.import_module(f"dftl_warp.kernels.solvers.{name}")
 
 
@@ -105,8 +149,9 @@ class Launcher:
     def __getattr__(self, a):
         return getattr(wp, a)
     def launch(self, kernel, dim=None, **kw):
-        if self.probe is not None and getattr(kernel, "key", "").startswith("elastic_step"):
-            dim = self.probe[0]
+        if self.probe is not None and "elastic_step" in getattr(kernel, "key", ""):
+            if MODE != "shared":   # shared: every strand's thread, in blocks of probe[1]
+                dim = self.probe[0]
             kw["block_dim"] = self.probe[1]
         return wp.launch(kernel, dim=dim, **kw)
 
@@ -154,11 +199,12 @@ def main():
     rows.append(("global scratch (as it is), all strands", base_ms, 0.0))
     print(f"baseline: {base_ms:.3f} ms/step", flush=True)
     for p in per_sm:
-        for block in ((32,) if p <= 32 else (64,)):
-            threads = sms * p
+        for block in ((p,) if MODE == "shared" else (32,) if p <= 32 else (64,)):
+            threads = p if MODE == "shared" else sms * p
             ms, x = run(pts, counts, (threads, block), 3, 8, device)
             diff = float(np.abs(x - base_x).max())
-            rows.append((f"{MODE} scratch, {p} threads/SM ({threads}), blocks of {block}", ms, diff))
+            what = f"{p} threads/SM ({threads})" if MODE != "shared" else "one thread per strand"
+            rows.append((f"{MODE} scratch, {what}, blocks of {block}", ms, diff))
             print(f"{rows[-1][0]}: {ms:.3f} ms/step, max |x - x_base| after 1 frame {diff:.3g} m", flush=True)
     if out:
         out.mkdir(parents=True, exist_ok=True)
