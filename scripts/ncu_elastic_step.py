@@ -12,19 +12,26 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import warp as wp  # noqa: E402
 
-wp.config.quiet = True
-wp.init()
+def main() -> int:
+    import warp as wp
 
-import dftl_warp as dw  # noqa: E402
-from bench_elastic import curly_groom  # noqa: E402
+    wp.config.quiet = True
+    wp.init()
 
-pts, counts = curly_groom(int(sys.argv[1]) if len(sys.argv) > 1 else 262144)
-model = dw.Model.from_strands(pts, counts, device=sys.argv[2] if len(sys.argv) > 2 else "cuda:0", widths=80e-6)
-solver = dw.make_solver(model, "elastic", compute_precision="float32")
-state, control = solver.state(), model.control()
-for _ in range(3):
-    solver.step(state, state, control, 1.0 / 192)
-wp.synchronize()
-print("done")
+    import dftl_warp as dw
+    from bench_elastic import curly_groom
+
+    pts, counts = curly_groom(int(sys.argv[1]) if len(sys.argv) > 1 else 262144)
+    model = dw.Model.from_strands(pts, counts, device=sys.argv[2] if len(sys.argv) > 2 else "cuda:0", widths=80e-6)
+    solver = dw.make_solver(model, "elastic", compute_precision="float32")
+    state, control = solver.state(), model.control()
+    for _ in range(3):
+        solver.step(state, state, control, 1.0 / 192)
+    wp.synchronize()
+    print("done")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
