@@ -37,7 +37,7 @@ _PUBLIC = {
     "FTLSolver": ("dftl_warp.solvers.dftl", "FTLSolver"),
     "PBDSolver": ("dftl_warp.solvers.pbd", "PBDSolver"),
     "ReferenceSolver": ("dftl_warp.solvers.reference", "ReferenceSolver"),
-    # ---- features (colliders, root binding, drag and wind, hair-hair, shape retention)
+    # ---- features (colliders, root binding, drag and wind, hair-hair)
     "features": ("dftl_warp.features", None),
     # ---- USD in, frames out
     "read_scene": ("dftl_warp.usd.read", "read_scene"),

@@ -6,7 +6,7 @@
 - :mod:`.pipelined`: a frame's substeps in one launch for strands of any length, one lane per substep;
 - :mod:`.diagnostics`, :mod:`.energy`: energy, stretch and speed reductions;
 - :mod:`.featured`: the step specialized to a scene's features (``wp.static`` flags), using
-  :mod:`.collide` (colliders), :mod:`.grid` (hair-hair), :mod:`.shape` (shape retention);
+  :mod:`.collide` (colliders), :mod:`.grid` (hair-hair);
 - :mod:`.binding`: roots bound to a deforming mesh;
 - :mod:`.reference`, :mod:`.pbd`: the RATTLE reference integrator and position-based dynamics;
 - :mod:`.output`: device state to per-prim local-space samples;

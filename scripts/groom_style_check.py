@@ -3,7 +3,7 @@
 ``dftl-warp simulate`` and measure the style metrics of issue 17 ("Real grooms").
 
     python scripts/groom_style_check.py GROOM.usda [--head auto|none|sphere|MESH.obj|MESH.ply]
-        [--motion static|turn] [--frames 48] [--fps F [--resolution-every K]] [--shape-stiffness S] [--device cpu]
+        [--motion static|turn] [--frames 48] [--fps F [--resolution-every K]] [--device cpu]
         [--json out.json] [--markdown out.md] [--sheet before_after.png] [--label NAME]
         [--keep DIR] [any other flag of `dftl-warp simulate`, e.g. --solver pbd --substeps 4]
 

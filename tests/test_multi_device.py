@@ -113,7 +113,7 @@ def test_more_devices_than_strands(tmp_path):
 
 
 def _featured_stage(path, hair_hair=False):
-    """The far stage plus a moving sphere collider, per-prim drag and shape retention, wind."""
+    """The far stage plus a moving sphere collider, per-prim drag, wind."""
     from pxr import Gf, UsdGeom, UsdPhysics
 
     stage = new_stage(path, meters_per_unit=0.01, start=1, end=10)

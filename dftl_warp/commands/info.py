@@ -328,7 +328,7 @@ def run(args) -> int:
           f"(total {_bytes(d['device_bytes']['float32'])} / {_bytes(d['device_bytes']['float64'])}, "
           f"features included, with each prim's solver"
           + (", render prims as their guide bindings)" if any(c["guides"] for c in d["curves"]) else ")"))
-    print(f"  curves      {len(d['curves'])} prim(s)")
+    print(f"  curves      {plural(len(d['curves']), 'prim')}")
     for c in d["curves"]:
         kind = c["type"] + (f" {c['basis']}" if c["basis"] else "") + f", {c['wrap']}"
         extra = ", animated transform" if c["animated_transform"] else ""

@@ -306,7 +306,7 @@ class Tolerance:
             if ks:
                 out.append(f"group {i}: tolerance {self.tolerance:g}: {c.sample.name}, {min(ks)}..{max(ks)} "
                            f"substeps per frame (mean {np.mean(ks):.3g}), largest estimated error "
-                           f"{c.max_error:.3g} on {len(c.sample.idx)} sampled strands")
+                           f"{c.max_error:.3g} on {plural(len(c.sample.idx), 'sampled strand')}")
         return out
 
     def record(self) -> dict:

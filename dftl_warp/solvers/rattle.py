@@ -23,7 +23,7 @@ faster (the on-chip kernel spills registers). Longer strands take the global-mem
 Memory: besides the State, two vec3 and three scalars of scratch per particle (36 bytes in float32;
 none when every strand runs on chip) and 8 bytes per strand; the scratch is the solver's, so one
 solver advances one state at a time.
-Features (colliders, hair-hair, shape retention) are not part of this solver: it steps gravity and
+Features (colliders, drag, wind, hair-hair) are not part of this solver: it steps gravity and
 roots only, and refuses a model with features.
 """
 
