@@ -156,7 +156,7 @@ class Simulation:
         import warp as wp
 
         from ..features import update_frame
-        from ..features.clean_start import StartReport, inside_note, preroll, resolve_start
+        from ..features.clean_start import inside_note, preroll, resolve_parts
         from .elastic_setup import rest_where_moved
 
         notes = []
@@ -175,11 +175,8 @@ class Simulation:
                 if has_colliders:
                     # per strand, so a split group is pushed out part by part exactly as on one device
                     parts = list(zip(g._parts, g.control.parts)) if split else [((g.model, g.state), g.control)]
-                    reports = [resolve_start(m, st, c, inside_only=True) for (m, st), c in parts]
-                    report = reports[0] if len(reports) == 1 else StartReport(
-                        *(sum(getattr(r, f) for r in reports) for f in ("particles", "inside", "touching")),
-                        *(max(getattr(r, f) for r in reports) for f in ("max_depth", "max_depth_radii",
-                                                                         "max_penetration", "max_penetration_radii")))
+                    # the groom's report decides whether and how long to push out, as on one device
+                    report = resolve_parts([(m, st, c) for (m, st), c in parts], inside_only=True)
                     if report.inside:   # a clean scene says nothing
                         notes.append(report.line(units))
                         if g.settings.solver == "elastic":   # elastic strands rest where they were moved
