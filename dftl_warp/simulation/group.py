@@ -135,8 +135,9 @@ class Group:
             advice = None   # the default: DFTL with s < 1
             if not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
                 advice = "more substeps per frame (--substeps, or --quality production) may hold it"
-            monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice)
-                        for s, st in zip(solvers, states)]
+            prims = [(c.path, c.num_strands) for c in curves]
+            monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice,
+                                      prims=prims) for s, st in zip(solvers, states)]
             self.monitor = SplitMonitor(monitors) if split else monitors[0]
         self._parts = list(zip(models, states))
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)
