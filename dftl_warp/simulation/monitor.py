@@ -132,6 +132,25 @@ class EnergyMonitor:
         self._first = True
         self.measure(state)
 
+    def save(self) -> dict:
+        """The records a resumed run continues from (numpy arrays; :meth:`load`): each strand's
+        budget records, whether the next check is the first, and the warning given (empty: none)."""
+        out = {f"record{i}": r.numpy() for i, r in enumerate(self._records)}
+        out["first"] = np.array(self._first)
+        out["message"] = np.array(self.message or "")
+        return out
+
+    def load(self, saved: dict) -> None:
+        """Continue from :meth:`save`'s records (of a monitor of the same strands)."""
+        for i, r in enumerate(self._records):
+            values = np.asarray(saved[f"record{i}"])
+            if values.shape[0] != r.shape[0]:
+                raise ValueError(f"saved energy records have {values.shape[0]} strands, not {r.shape[0]}")
+            r.assign(wp.array(values, dtype=r.dtype, device=r.device))
+        self._first = bool(saved["first"])
+        self.message = str(saved["message"]) or None
+        self.warned = self.message is not None
+
     def measure(self, state) -> np.ndarray:
         """Update the per-strand records and verdicts with ``state`` on the device (no warning);
         returns the totals (available energy of the finite strands J/kg, budget J/kg, strands over

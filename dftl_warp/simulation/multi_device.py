@@ -332,6 +332,19 @@ class SplitMonitor:
         for monitor, s in zip(self.parts, state.parts):
             monitor.restart(s)
 
+    def save(self) -> dict:
+        """Every part's records (:meth:`EnergyMonitor.save <dftl_warp.simulation.monitor.EnergyMonitor.save>`)."""
+        out = {f"part{j}.{k}": v for j, m in enumerate(self.parts) for k, v in m.save().items() if k != "message"}
+        out["message"] = np.array(self.message or "")
+        return out
+
+    def load(self, saved: dict) -> None:
+        for j, m in enumerate(self.parts):
+            m.load({**{k.split(".", 1)[1]: v for k, v in saved.items() if k.startswith(f"part{j}.")},
+                    "message": ""})
+        self.message = str(saved["message"]) or None
+        self.warned = self.message is not None
+
     def check(self, state: SplitState, frame=None) -> bool:
         import warnings
 

@@ -37,10 +37,9 @@ from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve
 from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
-from . import root_paths, transform_roots
+from . import root_paths, saved_state, transform_roots
 from .elastic_setup import note_unstable
 from .group import Group
-from .multi_device import EXTRA_FIELDS
 from .summary import Summary  # noqa: F401  (re-exported: what simulate_usd returns)
 from .settings import unused_prim_settings, unused_solver_options
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
@@ -317,57 +316,13 @@ class Simulation:
     # -- state for batch / resume ----------------------------------------------------------------
 
     def save_state(self) -> dict:
-        """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
-        state = {"frame": np.array(self.frame)}
-        for k, g in enumerate(self.groups):
-            for name in EXTRA_FIELDS:   # the elastic solver's State: tensions, frames, clamp ghosts
-                if getattr(g.state, name, None) is not None:
-                    state[f"group{k}.{name}"] = getattr(g.state, name).numpy()
-            if getattr(g.state, "storage", None) is not None:  # interleaved: the fields share one buffer
-                state[f"group{k}.storage"] = g.state.storage.numpy()
-                continue
-            state[f"group{k}.positions"] = g.state.positions.numpy()
-            state[f"group{k}.velocities"] = g.state.velocities.numpy()
-            if g.state.corrections is not None:
-                state[f"group{k}.corrections"] = g.state.corrections.numpy()
-        return state
+        """Everything needed to continue from the current frame, as numpy arrays (device layout;
+        :func:`~dftl_warp.simulation.saved_state.save_state`)."""
+        return saved_state.save_state(self)
 
     def load_state(self, state: dict) -> None:
         """Continue from a :meth:`save_state` of the same scene and options."""
-        import warp as wp
-
-        for k, g in enumerate(self.groups):
-            for name in EXTRA_FIELDS:
-                target = getattr(g.state, name, None)
-                if target is None:
-                    continue
-                key = f"group{k}.{name}"
-                if key not in state or np.asarray(state[key]).shape[0] != target.shape[0]:
-                    raise ValueError(f"saved state has no {key} of {target.shape[0]} entries")
-                target.assign(wp.array(np.asarray(state[key]), dtype=target.dtype, device=target.device))
-            storage = getattr(g.state, "storage", None)
-            if storage is not None:
-                key = f"group{k}.storage"
-                if key not in state or np.asarray(state[key]).shape[0] != storage.shape[0]:
-                    raise ValueError(f"saved state has no {key} of {storage.shape[0]} slots")
-                storage.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
-                continue
-            for name in ("positions", "velocities", "corrections"):
-                target = getattr(g.state, name)
-                key = f"group{k}.{name}"
-                if target is None:
-                    continue
-                if key not in state:
-                    raise ValueError(f"saved state has no {key}")
-                target.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
-        self.frame = int(state["frame"])
-        self._matrices = {}
-        self._at_rest = False
-        if self.guides is not None:
-            self.guides.reset()
-        for g in self.groups:
-            if g.control.features is not None:
-                g.control.features.resync()  # colliders start the next frame where it says
+        saved_state.load_state(self, state)
 
 
 def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True,
