@@ -172,11 +172,24 @@ def still_inside(model, state, control) -> tuple[np.ndarray, np.ndarray, np.ndar
     return model.layout.strand_order[s[order]], i[order] + 1, depth[order], rad[s, i][order]
 
 
+def strand_name(prims, strand: int, path: bool = True) -> str:
+    """``"<prim> strand <k>"`` for strand ``strand`` of a group whose prims are ``prims``: (path,
+    number of strands) or (path, number of strands, the input strand of each: guides picked from a
+    dense prim, None: the strands themselves) in order; ``path=False``: the prim's path left out
+    where the group has one prim."""
+    offsets = np.cumsum([0] + [p[1] for p in prims])
+    p = int(np.searchsorted(offsets, strand, side="right")) - 1
+    local = int(strand - offsets[p])
+    ids = prims[p][2] if len(prims[p]) > 2 else None
+    name = f"strand {local}" if ids is None else f"strand {int(ids[local])}"
+    return name if not path and len(prims) == 1 else f"{prims[p][0]} {name}"
+
+
 def inside_note(parts, prims, units: str = "m") -> str | None:
     """One line for the particles still inside a collider (:func:`still_inside`) in ``parts``
     ((model, state), control) pairs holding consecutive strands of a group, naming the deepest
-    one's prim, strand and point; ``prims``: (path, number of strands) of the group's prims in
-    order. None when nothing is inside."""
+    one's prim, strand and point; ``prims``: the group's prims (:func:`strand_name`). None when
+    nothing is inside."""
     found, offset = [], 0
     for (model, state), control in parts:
         s, i, d, r = still_inside(model, state, control)
@@ -186,12 +199,10 @@ def inside_note(parts, prims, units: str = "m") -> str | None:
     if len(strands) == 0:
         return None
     k = int(np.argmax(depth))
-    offsets = np.cumsum([0] + [n for _, n in prims])
-    p = int(np.searchsorted(offsets, strands[k], side="right")) - 1
     radii = f" ({depth[k] / radius[k]:.3g} hair radii)" if radius[k] > 0 else ""
     return (f"clean start: {len(strands)} particle(s) of {len(np.unique(strands))} strand(s) are still inside a "
-            f"collider after moving out, up to {depth[k]:.3g} {units} deep{radii} at {prims[p][0]} strand "
-            f"{int(strands[k] - offsets[p])}, point {int(particles[k])}: no point at their rest lengths from "
+            f"collider after moving out, up to {depth[k]:.3g} {units} deep{radii} at "
+            f"{strand_name(prims, int(strands[k]))}, point {int(particles[k])}: no point at their rest lengths from "
             "the root is outside (a strand through a thin part of the collider, or folded inside it); they stay "
             "in until the motion throws them out: check the groom there")
 

@@ -43,12 +43,15 @@ class Group:
     and the total), ``point_ranges`` (points of each part), ``dt`` (substep, s), ``monitor``.
     """
 
-    def __init__(self, settings, members: list[int], scene, frame: int, options):
+    def __init__(self, settings, members: list[int], scene, frame: int, options, input_strands=None):
         import warp as wp
 
         self.settings = settings
         self.members = members
         self.curves = curves = [scene.curves[i] for i in members]
+        #: (path, strands, input strand of each or None) of the member prims, as messages name a strand
+        #: (``input_strands``: prim index -> those of guides picked from a dense prim)
+        self.prims = [(c.path, c.num_strands, (input_strands or {}).get(i)) for i, c in zip(members, curves)]
         self.point_offsets = strand_offsets([c.num_points for c in curves], with_end=True)
         points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
@@ -135,9 +138,8 @@ class Group:
             advice = None   # the default: DFTL with s < 1
             if not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
                 advice = "more substeps per frame (--substeps, or --quality production) may hold it"
-            prims = [(c.path, c.num_strands) for c in curves]
             monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice,
-                                      prims=prims) for s, st in zip(solvers, states)]
+                                      prims=self.prims) for s, st in zip(solvers, states)]
             self.monitor = SplitMonitor(monitors) if split else monitors[0]
         self._parts = list(zip(models, states))
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)

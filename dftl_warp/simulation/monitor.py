@@ -80,8 +80,8 @@ class EnergyMonitor:
         self.meters_per_unit = float(meters_per_unit)
         #: what the warning advises (default: the remedy for DFTL with damping s < 1)
         self.advice = advice or "DFTL with damping s < 1 at small steps pumps energy in: use s = 1"
-        #: (path, number of strands) of the prims whose strands the model holds, in order: the warning
-        #: names a strand of a group of several prims as its prim's (None: a strand of the model)
+        #: the prims whose strands the model holds, in order (features.clean_start.strand_name): the
+        #: warning names a strand as its prim's, or the input's (None: a strand of the model)
         self.prims = prims
         self.warned = False
         self.message: str | None = None
@@ -198,8 +198,7 @@ class EnergyMonitor:
 
     def compose(self, energy, budget, bad, frame=None) -> str:
         """The warning for the verdicts (input strand order; strands of several monitors
-        concatenated) of a check at ``frame``: the worst strand named, as the strand of its prim
-        where ``prims`` names more than one."""
+        concatenated) of a check at ``frame``: the worst strand named as its prim's (:attr:`prims`)."""
         over = bad | (energy > budget)
         at = f" at frame {frame}" if frame is not None else ""
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -215,8 +214,8 @@ class EnergyMonitor:
                 f"this setting is unstable ({self.advice})")
 
     def _name(self, strand: int) -> str:
-        if not self.prims or len(self.prims) < 2:
+        if not self.prims:
             return f"strand {strand}"
-        offsets = np.cumsum([0] + [n for _, n in self.prims])
-        p = int(np.searchsorted(offsets, strand, side="right")) - 1
-        return f"{self.prims[p][0]} strand {strand - int(offsets[p])}"
+        from ..features.clean_start import strand_name
+
+        return strand_name(self.prims, strand, path=False)

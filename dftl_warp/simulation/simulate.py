@@ -109,7 +109,8 @@ class Simulation:
                    c.material.path if settings.solver == "elastic" and c.material is not None else None)
             by_settings.setdefault(key, []).append(i)
         # one Group per key, on one device or split over the list (simulation.group)
-        self.groups = [Group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
+        picked = {} if self.guides is None else self.guides.input_strands
+        self.groups = [Group(key[0], m, scene, self.frame, options, picked) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         #: group index -> (frame, world root targets at that frame): the last advance's end targets
         self._end_roots: dict = {}
@@ -185,7 +186,7 @@ class Simulation:
                     notes.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
                                          resolve=has_colliders).line(units))
                 if has_colliders:   # what the push-out (and the preroll) could not free, in one line
-                    notes += filter(None, [inside_note(parts, [(c.path, c.num_strands) for c in g.curves], units)])
+                    notes += filter(None, [inside_note(parts, g.prims, units)])
                 if g.control.features is not None:
                     g.control.features.resync()
         return notes
