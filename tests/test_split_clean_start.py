@@ -49,3 +49,23 @@ def test_split_clean_start_equals_single_device(tmp_path, preroll):
     assert preroll or np.abs(touching).max() > 0.1 * RADIUS
     assert split_notes == notes
     assert split.tobytes() == single.tobytes(), np.abs(split - single).max()
+
+
+def test_clean_start_lines_name_their_prims_where_groups_are_several(tmp_path):
+    """Prims simulated in different groups (here DFTL chains and an elastic rod) each get
+    their clean start's and preroll's lines; before, the lines were alike and named no prim."""
+    path = _stage(tmp_path / "ball.usda")
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    add_curves(stage, "/World/Rod", chain(11, 0.8, direction=(0.0, -1.0, 0.0), origin=(0.5, -0.4, 0.0)), [11],
+               widths=2 * RADIUS, bending=True)
+    stage.Save()
+    sim = Simulation(read_scene(str(path)), SimulationOptions(device="cpu", preroll=0.1), 1)
+    assert len(sim.groups) == 2
+    inside = [n for n in sim.start_notes if "started inside a collider" in n]
+    prerolls = [n for n in sim.start_notes if n.startswith("preroll: ")]
+    assert sorted(n.split(": ")[1] for n in inside) == ["/World/Hair", "/World/Rod"], inside
+    assert sorted(n.split(": ")[1] for n in prerolls) == ["/World/Hair", "/World/Rod"], prerolls
+    single = Simulation(read_scene(str(_stage(tmp_path / "one.usda"))), SimulationOptions(device="cpu"), 1)
+    assert any(n.startswith("clean start: 5 of 20 free particles") for n in single.start_notes), single.start_notes

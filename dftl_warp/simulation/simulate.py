@@ -168,6 +168,7 @@ class Simulation:
             if not has_colliders and seconds <= 0:
                 continue
             split = len(g.devices) > 1
+            mine = []
             with wp.ScopedDevice(self.device):
                 roots = self._roots_world(g, self.frame)
                 g.control.set_root_targets(roots, roots)
@@ -178,13 +179,16 @@ class Simulation:
                     # the groom's report decides whether and how long to push out, as on one device
                     report = resolve_parts([(m, st, c) for (m, st), c in parts], inside_only=True)
                     if report.inside:   # a clean scene says nothing
-                        notes.append(report.line(units))
+                        mine.append(report.line(units))
                         if g.settings.solver == "elastic":   # elastic strands rest where they were moved
-                            notes += rest_where_moved(g, self.frame)
+                            mine += rest_where_moved(g, self.frame)
                 if seconds > 0:
                     tcps = self.scene.stage.time_codes_per_second
-                    notes.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
-                                         resolve=has_colliders).line(units))
+                    mine.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
+                                        resolve=has_colliders).line(units))
+                # several groups: each line names its prims after its tag ('preroll: /A, /B: ...')
+                whose = ", ".join(c.path for c in g.curves) if len(self.groups) > 1 else None
+                notes += [line if whose is None else line.replace(": ", f": {whose}: ", 1) for line in mine]
                 if has_colliders:   # what the push-out (and the preroll) could not free, in one line
                     notes += filter(None, [inside_note(parts, g.prims, units)])
                 if g.control.features is not None:
