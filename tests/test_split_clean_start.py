@@ -69,3 +69,29 @@ def test_clean_start_lines_name_their_prims_where_groups_are_several(tmp_path):
     assert sorted(n.split(": ")[1] for n in prerolls) == ["/World/Hair", "/World/Rod"], prerolls
     single = Simulation(read_scene(str(_stage(tmp_path / "one.usda"))), SimulationOptions(device="cpu"), 1)
     assert any(n.startswith("clean start: 5 of 20 free particles") for n in single.start_notes), single.start_notes
+
+
+def test_a_group_of_one_strand_on_several_devices_with_a_collider(tmp_path):
+    """A one-strand group on three devices fits in one part; with a collider its clean start crashed
+    ('SplitModel' object has no attribute 'strand_count'). It now runs as on one device."""
+    path = tmp_path / "one.usda"
+    stage = new_stage(path, meters_per_unit=0.01, start=1, end=3)
+    ball = UsdGeom.Sphere.Define(stage, "/World/Ball")
+    ball.CreateRadiusAttr(2.0)
+    UsdGeom.XformCommonAPI(ball).SetTranslate(Gf.Vec3d(0.0, -6.0, 0.0))
+    UsdPhysics.CollisionAPI.Apply(ball.GetPrim())
+    add_curves(stage, "/World/Rod", chain(11, 0.8, direction=(0.0, -1.0, 0.0), origin=(1.0, -0.4, 0.0)), [11],
+               widths=2 * RADIUS, bending=True)
+    add_curves(stage, "/World/Chains", np.concatenate([chain(8, 0.8, direction=(0.0, -1.0, 0.0), origin=(x, 0.0, 0.0))
+                                                       for x in (0.5, 3.0)]), [8, 8])
+    stage.GetRootLayer().Save()
+    out = {}
+    for device in ("cpu", "cpu,cpu,cpu"):
+        sim = Simulation(read_scene(str(path)), SimulationOptions(device=device, preroll=0.05), 1)
+        frames = [sim.samples()]
+        for _ in range(2):
+            sim.advance()
+            frames.append(sim.samples())
+        out[device] = sim.start_notes, [p.tobytes() for f in frames for p, _ in f]
+    assert any("/World/Rod: " in n and "started inside" in n for n in out["cpu"][0]), out["cpu"][0]
+    assert out["cpu,cpu,cpu"] == out["cpu"]

@@ -58,8 +58,10 @@ class Group:
         check_extent(points, self.point_offsets, curves, scene.source, options.precision)
         features, widths = group_features(scene, curves, frame)
         devices = parse_devices(options.device)
-        split = len(devices) > 1
-        ranges = split_strands(counts, len(devices)) if split else [(0, len(counts))]
+        ranges = split_strands(counts, len(devices)) if len(devices) > 1 else [(0, len(counts))]
+        # a group of fewer strands than devices may fit in one part: it is then a plain one-device group
+        # (on the first device), not composites over one part, which the clean start took for plain ones
+        split = len(ranges) > 1
         starts = strand_offsets(counts, with_end=True)
         self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
         origin = grid_extent = None
