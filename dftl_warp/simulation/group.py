@@ -52,6 +52,7 @@ class Group:
         #: (path, strands, input strand of each or None) of the member prims, as messages name a strand
         #: (``input_strands``: prim index -> those of guides picked from a dense prim)
         self.prims = [(c.path, c.num_strands, (input_strands or {}).get(i)) for i, c in zip(members, curves)]
+        self.input_strands = input_strands
         self.point_offsets = strand_offsets([c.num_points for c in curves], with_end=True)
         points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
