@@ -170,7 +170,8 @@ def state_signature(sim) -> str:
     from ..core.devices import parse_devices
 
     kinds = ",".join("cuda" if d.startswith("cuda") else d for d in parse_devices(sim.options.device))
-    shapes = {k: [list(np.shape(v)), str(np.asarray(v).dtype)] for k, v in sim.save_state().items() if k != "frame"}
+    shapes = {k: [list(np.shape(v)), str(np.asarray(v).dtype)] for k, v in sim.save_state().items()
+              if k != "frame" and ".monitor." not in k}   # the energy check's records: not the layout
     return json.dumps({"devices": kinds, "arrays": shapes}, sort_keys=True)
 
 

@@ -120,15 +120,37 @@ def resolve_start(model, state, control, *, iterations: int = 4, rounds: int = 8
     ``tolerance`` hair radii. Returns the report of the state as it was (before). With
     ``inside_only``, a state with no particle inside a collider (only within the contact distance:
     resting on it, which the step's own contact handles) is left as it is."""
-    before = measure_start(model, state, control)
+    return resolve_parts([(model, state, control)], iterations=iterations, rounds=rounds, tolerance=tolerance,
+                         inside_only=inside_only)
+
+
+def combine_reports(reports) -> StartReport:
+    """The report of a groom whose parts (split over devices) gave ``reports``."""
+    if len(reports) == 1:
+        return reports[0]
+    return StartReport(*(sum(getattr(r, f) for r in reports) for f in ("particles", "inside", "touching")),
+                       *(max(getattr(r, f) for r in reports) for f in ("max_depth", "max_depth_radii",
+                                                                        "max_penetration", "max_penetration_radii")))
+
+
+def resolve_parts(parts, *, iterations: int = 4, rounds: int = 8, tolerance: float = 1.0e-3,
+                  inside_only: bool = False) -> StartReport:
+    """:func:`resolve_start` of a groom held in ``parts`` ((model, state, control) of each device's
+    strands), moved out as one: whether to move at all, and when the rounds stop, is decided on the
+    whole groom's report, so a split groom ends exactly as on one device. Returns the whole groom's
+    report before."""
+    before = combine_reports([measure_start(m, st, c) for m, st, c in parts])
     if before.touching == 0 or (inside_only and before.inside == 0):
         return before
-    Features, flags, st, keep = _struct(model, control)
-    kernel = resolve_kernel(model.scalar, Features, flags)
+    sweeps = []
+    for m, st, c in parts:
+        Features, flags, struct, keep = _struct(m, c)
+        sweeps.append((m, st, resolve_kernel(m.scalar, Features, flags), struct, keep))
     for _ in range(rounds):
-        wp.launch(kernel, dim=model.num_strands, device=model.device,
-                  inputs=[*_head(model), model.rest_lengths, st, int(iterations), state.positions])
-        after = measure_start(model, state, control)
+        for m, st, kernel, struct, _ in sweeps:
+            wp.launch(kernel, dim=m.num_strands, device=m.device,
+                      inputs=[*_head(m), m.rest_lengths, struct, int(iterations), st.positions])
+        after = combine_reports([measure_start(m, st, c) for m, st, c in parts])
         if after.touching == 0 or after.max_penetration_radii <= tolerance:
             break
     return before
@@ -150,11 +172,24 @@ def still_inside(model, state, control) -> tuple[np.ndarray, np.ndarray, np.ndar
     return model.layout.strand_order[s[order]], i[order] + 1, depth[order], rad[s, i][order]
 
 
+def strand_name(prims, strand: int, path: bool = True) -> str:
+    """``"<prim> strand <k>"`` for strand ``strand`` of a group whose prims are ``prims``: (path,
+    number of strands) or (path, number of strands, the input strand of each: guides picked from a
+    dense prim, None: the strands themselves) in order; ``path=False``: the prim's path left out
+    where the group has one prim."""
+    offsets = np.cumsum([0] + [p[1] for p in prims])
+    p = int(np.searchsorted(offsets, strand, side="right")) - 1
+    local = int(strand - offsets[p])
+    ids = prims[p][2] if len(prims[p]) > 2 else None
+    name = f"strand {local}" if ids is None else f"strand {int(ids[local])}"
+    return name if not path and len(prims) == 1 else f"{prims[p][0]} {name}"
+
+
 def inside_note(parts, prims, units: str = "m") -> str | None:
     """One line for the particles still inside a collider (:func:`still_inside`) in ``parts``
     ((model, state), control) pairs holding consecutive strands of a group, naming the deepest
-    one's prim, strand and point; ``prims``: (path, number of strands) of the group's prims in
-    order. None when nothing is inside."""
+    one's prim, strand and point; ``prims``: the group's prims (:func:`strand_name`). None when
+    nothing is inside."""
     found, offset = [], 0
     for (model, state), control in parts:
         s, i, d, r = still_inside(model, state, control)
@@ -164,12 +199,10 @@ def inside_note(parts, prims, units: str = "m") -> str | None:
     if len(strands) == 0:
         return None
     k = int(np.argmax(depth))
-    offsets = np.cumsum([0] + [n for _, n in prims])
-    p = int(np.searchsorted(offsets, strands[k], side="right")) - 1
     radii = f" ({depth[k] / radius[k]:.3g} hair radii)" if radius[k] > 0 else ""
     return (f"clean start: {len(strands)} particle(s) of {len(np.unique(strands))} strand(s) are still inside a "
-            f"collider after moving out, up to {depth[k]:.3g} {units} deep{radii} at {prims[p][0]} strand "
-            f"{int(strands[k] - offsets[p])}, point {int(particles[k])}: no point at their rest lengths from "
+            f"collider after moving out, up to {depth[k]:.3g} {units} deep{radii} at "
+            f"{strand_name(prims, int(strands[k]))}, point {int(particles[k])}: no point at their rest lengths from "
             "the root is outside (a strand through a thin part of the collider, or folded inside it); they stay "
             "in until the motion throws them out: check the groom there")
 
@@ -247,8 +280,7 @@ def preroll(solver, state, control, seconds: float, frame_dt: float, substeps: i
     parts = ([(s.model, st, c) for s, st, c in zip(solver.parts, state.parts, control.parts)]
              if hasattr(state, "parts") else [(solver.model, state, control)])
     if resolve:
-        for m, st, c in parts:
-            resolve_start(m, st, c)
+        resolve_parts(parts)
     tol = settle_tolerance(*(m for m, _, _ in parts)) if tolerance is None else float(tolerance)
     frames = int(math.ceil(float(seconds) / float(frame_dt) - 1e-9)) if seconds > 0 else 0
     most = int(math.ceil(float(longest) * frames)) if frames else 0
@@ -273,8 +305,8 @@ def preroll(solver, state, control, seconds: float, frame_dt: float, substeps: i
             st.write("velocities", None, zero=True)
             if st.corrections is not None:
                 st.write("corrections", None, zero=True)
-            if resolve:
-                resolve_start(m, st, c)
+        if resolve:
+            resolve_parts(parts)
         if control.features is not None:
             control.features.resync()
     return PrerollReport(done, done * float(frame_dt), done > 0 and motion <= tol, motion, tol)

@@ -124,6 +124,9 @@ class GuideSet:
         file = scene.source
         sim, sim_index = [], {}  # simulated prims, path -> index in sim
         picked = {}  # output index -> (sim index, strand indices) of a dense prim
+        #: simulated prim index -> the input strand of each of its strands, for guides picked from a
+        #: dense prim and simulated under its path (``curves`` output): messages name the input's strand
+        self.input_strands: dict[int, np.ndarray] = {}
         for i, c in enumerate(scene.curves):
             if c.guides:
                 continue
@@ -143,6 +146,8 @@ class GuideSet:
                                       f"{count * c.num_strands:.3g} strands: 1 guide simulated")
             path = c.path + GUIDES_SUFFIX if output == "binding" else c.path
             picked[i] = (len(sim), np.asarray(chosen, dtype=np.int64))
+            if output == "curves":
+                self.input_strands[len(sim)] = picked[i][1]
             sim_index[c.path] = len(sim)
             sim.append(_subset(c, chosen, path))
         if output == "binding" and picked:

@@ -43,20 +43,26 @@ class Group:
     and the total), ``point_ranges`` (points of each part), ``dt`` (substep, s), ``monitor``.
     """
 
-    def __init__(self, settings, members: list[int], scene, frame: int, options):
+    def __init__(self, settings, members: list[int], scene, frame: int, options, input_strands=None):
         import warp as wp
 
         self.settings = settings
         self.members = members
         self.curves = curves = [scene.curves[i] for i in members]
+        #: (path, strands, input strand of each or None) of the member prims, as messages name a strand
+        #: (``input_strands``: prim index -> those of guides picked from a dense prim)
+        self.prims = [(c.path, c.num_strands, (input_strands or {}).get(i)) for i, c in zip(members, curves)]
+        self.input_strands = input_strands
         self.point_offsets = strand_offsets([c.num_points for c in curves], with_end=True)
         points = np.concatenate([transform_points(c.transform(frame), c.points) for c in curves])
         counts = np.concatenate([c.counts for c in curves])
         check_extent(points, self.point_offsets, curves, scene.source, options.precision)
         features, widths = group_features(scene, curves, frame)
         devices = parse_devices(options.device)
-        split = len(devices) > 1
-        ranges = split_strands(counts, len(devices)) if split else [(0, len(counts))]
+        ranges = split_strands(counts, len(devices)) if len(devices) > 1 else [(0, len(counts))]
+        # a group of fewer strands than devices may fit in one part: it is then a plain one-device group
+        # (on the first device), not composites over one part, which the clean start took for plain ones
+        split = len(ranges) > 1
         starts = strand_offsets(counts, with_end=True)
         self.point_ranges = [(int(starts[s0]), int(starts[s1])) for s0, s1 in ranges]
         origin = grid_extent = None
@@ -135,8 +141,8 @@ class Group:
             advice = None   # the default: DFTL with s < 1
             if not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
                 advice = "more substeps per frame (--substeps, or --quality production) may hold it"
-            monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice)
-                        for s, st in zip(solvers, states)]
+            monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice,
+                                      prims=self.prims) for s, st in zip(solvers, states)]
             self.monitor = SplitMonitor(monitors) if split else monitors[0]
         self._parts = list(zip(models, states))
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)

@@ -71,7 +71,7 @@ class EnergyMonitor:
     """
 
     def __init__(self, solver, setting: str, state=None, *, factor: float = 2.0, floor_fraction: float = 1.0e-4,
-                 meters_per_unit: float = 1.0, advice: str | None = None):
+                 meters_per_unit: float = 1.0, advice: str | None = None, prims=None):
         self.solver = solver
         self.model = model = solver.model
         self.setting = setting
@@ -80,6 +80,9 @@ class EnergyMonitor:
         self.meters_per_unit = float(meters_per_unit)
         #: what the warning advises (default: the remedy for DFTL with damping s < 1)
         self.advice = advice or "DFTL with damping s < 1 at small steps pumps energy in: use s = 1"
+        #: the prims whose strands the model holds, in order (features.clean_start.strand_name): the
+        #: warning names a strand as its prim's, or the input's (None: a strand of the model)
+        self.prims = prims
         self.warned = False
         self.message: str | None = None
         #: (frame, total available energy J/kg, total budget J/kg) of every check
@@ -129,6 +132,25 @@ class EnergyMonitor:
         self._first = True
         self.measure(state)
 
+    def save(self) -> dict:
+        """The records a resumed run continues from (numpy arrays; :meth:`load`): each strand's
+        budget records, whether the next check is the first, and the warning given (empty: none)."""
+        out = {f"record{i}": r.numpy() for i, r in enumerate(self._records)}
+        out["first"] = np.array(self._first)
+        out["message"] = np.array(self.message or "")
+        return out
+
+    def load(self, saved: dict) -> None:
+        """Continue from :meth:`save`'s records (of a monitor of the same strands)."""
+        for i, r in enumerate(self._records):
+            values = np.asarray(saved[f"record{i}"])
+            if values.shape[0] != r.shape[0]:
+                raise ValueError(f"saved energy records have {values.shape[0]} strands, not {r.shape[0]}")
+            r.assign(wp.array(values, dtype=r.dtype, device=r.device))
+        self._first = bool(saved["first"])
+        self.message = str(saved["message"]) or None
+        self.warned = self.message is not None
+
     def measure(self, state) -> np.ndarray:
         """Update the per-strand records and verdicts with ``state`` on the device (no warning);
         returns the totals (available energy of the finite strands J/kg, budget J/kg, strands over
@@ -157,24 +179,43 @@ class EnergyMonitor:
             return True
         if totals[2] == 0:
             return False
-        energy, budget, bad = (a.numpy() for a in self._out)
-        bad = bad.astype(bool)
-        over = bad | (energy > budget)
-        at = f" at frame {frame}" if frame is not None else ""
-        strand = int(self.model.layout.strand_order[int(np.argmax(np.where(bad, np.inf, energy / budget)))])
-        count = int(over.sum())
-        which = f"strand {strand}" + (f" (and {count - 1} more)" if count > 1 else "")
-        if bad.any():
-            self.message = (f"{self.setting}: {which}: non-finite positions or velocities{at}; "
-                            "this setting is unstable")
-        else:
-            k = int(np.argmax(energy / budget))
-            joules = self.meters_per_unit**2  # (stage units / s)^2 -> J/kg
-            self.message = (
-                f"{self.setting}: {which}: energy grew to {energy[k] * joules:.3g} J/kg{at}, more than "
-                f"{budget[k] * joules:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
-                f"this setting is unstable ({self.advice})"
-            )
+        self.message = self.compose(*self.verdicts(), frame)
         self.warned = True
         warnings.warn(self.message, EnergyGrowthWarning, stacklevel=2)
         return True
+
+    def verdicts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The last measure's available energy, budget (model units) and not-finite flag of every
+        strand, in input strand order."""
+        order = self.model.layout.strand_order
+        out = []
+        for a in self._out:
+            values = a.numpy()
+            inputs = np.empty_like(values)
+            inputs[order] = values
+            out.append(inputs)
+        return out[0], out[1], out[2].astype(bool)
+
+    def compose(self, energy, budget, bad, frame=None) -> str:
+        """The warning for the verdicts (input strand order; strands of several monitors
+        concatenated) of a check at ``frame``: the worst strand named as its prim's (:attr:`prims`)."""
+        over = bad | (energy > budget)
+        at = f" at frame {frame}" if frame is not None else ""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = energy / budget
+        k = int(np.argmax(np.where(bad, np.inf, ratio)))
+        count = int(over.sum())
+        which = f"{self._name(k)}" + (f" (and {count - 1} more)" if count > 1 else "")
+        if bad.any():
+            return f"{self.setting}: {which}: non-finite positions or velocities{at}; this setting is unstable"
+        joules = self.meters_per_unit**2  # (stage units / s)^2 -> J/kg
+        return (f"{self.setting}: {which}: energy grew to {energy[k] * joules:.3g} J/kg{at}, more than "
+                f"{budget[k] * joules:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
+                f"this setting is unstable ({self.advice})")
+
+    def _name(self, strand: int) -> str:
+        if not self.prims:
+            return f"strand {strand}"
+        from ..features.clean_start import strand_name
+
+        return strand_name(self.prims, strand, path=False)

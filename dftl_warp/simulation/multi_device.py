@@ -319,7 +319,9 @@ class SplitSolver:
 
 
 class SplitMonitor:
-    """One energy monitor per part (dftl_warp.simulation.monitor); warns once, for the first part that does."""
+    """One energy monitor per part (dftl_warp.simulation.monitor), judged as one: a check measures
+    every part, and its one warning names the worst strand of the whole group (input order) and
+    counts the strands over budget in all parts, as one device's monitor does."""
 
     def __init__(self, monitors):
         self.parts = list(monitors)
@@ -330,14 +332,33 @@ class SplitMonitor:
         for monitor, s in zip(self.parts, state.parts):
             monitor.restart(s)
 
+    def save(self) -> dict:
+        """Every part's records (:meth:`EnergyMonitor.save <dftl_warp.simulation.monitor.EnergyMonitor.save>`)."""
+        out = {f"part{j}.{k}": v for j, m in enumerate(self.parts) for k, v in m.save().items() if k != "message"}
+        out["message"] = np.array(self.message or "")
+        return out
+
+    def load(self, saved: dict) -> None:
+        for j, m in enumerate(self.parts):
+            m.load({**{k.split(".", 1)[1]: v for k, v in saved.items() if k.startswith(f"part{j}.")},
+                    "message": ""})
+        self.message = str(saved["message"]) or None
+        self.warned = self.message is not None
+
     def check(self, state: SplitState, frame=None) -> bool:
+        import warnings
+
+        from .monitor import EnergyGrowthWarning
+
+        over = sum(float(monitor.measure(s)[2]) for monitor, s in zip(self.parts, state.parts))
         if self.warned:
+            return True
+        if over == 0:
             return False
-        for monitor, s in zip(self.parts, state.parts):
-            if monitor.check(s, frame):
-                self.warned, self.message = True, monitor.message
-                return True
-        return False
+        energy, budget, bad = (np.concatenate(v) for v in zip(*(m.verdicts() for m in self.parts)))
+        self.warned, self.message = True, self.parts[0].compose(energy, budget, bad, frame)
+        warnings.warn(self.message, EnergyGrowthWarning, stacklevel=2)
+        return True
 
 
 def part_features(features, s0: int, s1: int, num_strands: int, where: str, grid_extent=None) -> list:

@@ -37,10 +37,9 @@ from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve
 from ..errors import UserError
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
-from . import root_paths, transform_roots
+from . import root_paths, saved_state, transform_roots
 from .elastic_setup import note_unstable
 from .group import Group
-from .multi_device import EXTRA_FIELDS
 from .summary import Summary  # noqa: F401  (re-exported: what simulate_usd returns)
 from .settings import unused_prim_settings, unused_solver_options
 from .settings import (  # noqa: F401  (re-exported: the simulation's settings)
@@ -110,7 +109,8 @@ class Simulation:
                    c.material.path if settings.solver == "elastic" and c.material is not None else None)
             by_settings.setdefault(key, []).append(i)
         # one Group per key, on one device or split over the list (simulation.group)
-        self.groups = [Group(key[0], m, scene, self.frame, options) for key, m in by_settings.items()]
+        picked = {} if self.guides is None else self.guides.input_strands
+        self.groups = [Group(key[0], m, scene, self.frame, options, picked) for key, m in by_settings.items()]
         self._roots_local = [c.points[c.root_indices] for c in scene.curves]
         #: group index -> (frame, world root targets at that frame): the last advance's end targets
         self._end_roots: dict = {}
@@ -156,7 +156,7 @@ class Simulation:
         import warp as wp
 
         from ..features import update_frame
-        from ..features.clean_start import StartReport, inside_note, preroll, resolve_start
+        from ..features.clean_start import inside_note, preroll, resolve_parts
         from .elastic_setup import rest_where_moved
 
         notes = []
@@ -168,6 +168,7 @@ class Simulation:
             if not has_colliders and seconds <= 0:
                 continue
             split = len(g.devices) > 1
+            mine = []
             with wp.ScopedDevice(self.device):
                 roots = self._roots_world(g, self.frame)
                 g.control.set_root_targets(roots, roots)
@@ -175,21 +176,21 @@ class Simulation:
                 if has_colliders:
                     # per strand, so a split group is pushed out part by part exactly as on one device
                     parts = list(zip(g._parts, g.control.parts)) if split else [((g.model, g.state), g.control)]
-                    reports = [resolve_start(m, st, c, inside_only=True) for (m, st), c in parts]
-                    report = reports[0] if len(reports) == 1 else StartReport(
-                        *(sum(getattr(r, f) for r in reports) for f in ("particles", "inside", "touching")),
-                        *(max(getattr(r, f) for r in reports) for f in ("max_depth", "max_depth_radii",
-                                                                         "max_penetration", "max_penetration_radii")))
+                    # the groom's report decides whether and how long to push out, as on one device
+                    report = resolve_parts([(m, st, c) for (m, st), c in parts], inside_only=True)
                     if report.inside:   # a clean scene says nothing
-                        notes.append(report.line(units))
+                        mine.append(report.line(units))
                         if g.settings.solver == "elastic":   # elastic strands rest where they were moved
-                            notes += rest_where_moved(g, self.frame)
+                            mine += rest_where_moved(g, self.frame)
                 if seconds > 0:
                     tcps = self.scene.stage.time_codes_per_second
-                    notes.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
-                                         resolve=has_colliders).line(units))
+                    mine.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
+                                        resolve=has_colliders).line(units))
+                # several groups: each line names its prims after its tag ('preroll: /A, /B: ...')
+                whose = ", ".join(c.path for c in g.curves) if len(self.groups) > 1 else None
+                notes += [line if whose is None else line.replace(": ", f": {whose}: ", 1) for line in mine]
                 if has_colliders:   # what the push-out (and the preroll) could not free, in one line
-                    notes += filter(None, [inside_note(parts, [(c.path, c.num_strands) for c in g.curves], units)])
+                    notes += filter(None, [inside_note(parts, g.prims, units)])
                 if g.control.features is not None:
                     g.control.features.resync()
         return notes
@@ -320,57 +321,13 @@ class Simulation:
     # -- state for batch / resume ----------------------------------------------------------------
 
     def save_state(self) -> dict:
-        """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
-        state = {"frame": np.array(self.frame)}
-        for k, g in enumerate(self.groups):
-            for name in EXTRA_FIELDS:   # the elastic solver's State: tensions, frames, clamp ghosts
-                if getattr(g.state, name, None) is not None:
-                    state[f"group{k}.{name}"] = getattr(g.state, name).numpy()
-            if getattr(g.state, "storage", None) is not None:  # interleaved: the fields share one buffer
-                state[f"group{k}.storage"] = g.state.storage.numpy()
-                continue
-            state[f"group{k}.positions"] = g.state.positions.numpy()
-            state[f"group{k}.velocities"] = g.state.velocities.numpy()
-            if g.state.corrections is not None:
-                state[f"group{k}.corrections"] = g.state.corrections.numpy()
-        return state
+        """Everything needed to continue from the current frame, as numpy arrays (device layout;
+        :func:`~dftl_warp.simulation.saved_state.save_state`)."""
+        return saved_state.save_state(self)
 
     def load_state(self, state: dict) -> None:
         """Continue from a :meth:`save_state` of the same scene and options."""
-        import warp as wp
-
-        for k, g in enumerate(self.groups):
-            for name in EXTRA_FIELDS:
-                target = getattr(g.state, name, None)
-                if target is None:
-                    continue
-                key = f"group{k}.{name}"
-                if key not in state or np.asarray(state[key]).shape[0] != target.shape[0]:
-                    raise ValueError(f"saved state has no {key} of {target.shape[0]} entries")
-                target.assign(wp.array(np.asarray(state[key]), dtype=target.dtype, device=target.device))
-            storage = getattr(g.state, "storage", None)
-            if storage is not None:
-                key = f"group{k}.storage"
-                if key not in state or np.asarray(state[key]).shape[0] != storage.shape[0]:
-                    raise ValueError(f"saved state has no {key} of {storage.shape[0]} slots")
-                storage.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
-                continue
-            for name in ("positions", "velocities", "corrections"):
-                target = getattr(g.state, name)
-                key = f"group{k}.{name}"
-                if target is None:
-                    continue
-                if key not in state:
-                    raise ValueError(f"saved state has no {key}")
-                target.assign(wp.array(np.asarray(state[key]), dtype=g.model.vec3, device=g.model.device))
-        self.frame = int(state["frame"])
-        self._matrices = {}
-        self._at_rest = False
-        if self.guides is not None:
-            self.guides.reset()
-        for g in self.groups:
-            if g.control.features is not None:
-                g.control.features.resync()  # colliders start the next frame where it says
+        saved_state.load_state(self, state)
 
 
 def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write_first: bool = True,

@@ -279,6 +279,8 @@ class Tolerance:
         #: called once per group with a one-line warning when a frame's estimate passes the tolerance
         self.warn = warn
         self.source = source
+        #: per group: its prims' paths, as the lines name the group
+        self.names: list[str] = []
         self._unmet: set = set()
 
     def substeps(self, index: int, group, frame_dt: float, roots, frame: int, nxt: int) -> int:
@@ -292,7 +294,7 @@ class Tolerance:
         if err > self.tolerance and index not in self._unmet and self.warn is not None:
             self._unmet.add(index)
             most = " (the most it takes)" if k >= LADDER[-1] else ""
-            self.warn(f"{self.source}: group {index}: --tolerance {self.tolerance:g} not met from frame {frame}: "
+            self.warn(f"{self.source}: {self.names[index]}: --tolerance {self.tolerance:g} not met from frame {frame}: "
                       f"estimated error {err:.3g} ({err / self.tolerance:.1f}x) at {k} substeps per frame{most}; "
                       "the record dftl:tolerance has every frame's estimate")
         return k
@@ -301,10 +303,10 @@ class Tolerance:
         """What was chosen: the pilot's lines, each change, and one summary line per group."""
         out = list(self.notes)
         for i, c in enumerate(self.controllers):
-            out += [f"group {i}: {line}" for line in c.changes]
+            out += [f"{self.names[i]}: {line}" for line in c.changes]
             ks = [k for _, k, _ in c.history]
             if ks:
-                out.append(f"group {i}: tolerance {self.tolerance:g}: {c.sample.name}, {min(ks)}..{max(ks)} "
+                out.append(f"{self.names[i]}: tolerance {self.tolerance:g}: {c.sample.name}, {min(ks)}..{max(ks)} "
                            f"substeps per frame (mean {np.mean(ks):.3g}), largest estimated error "
                            f"{c.max_error:.3g} on {plural(len(c.sample.idx), 'sampled strand')}")
         return out
@@ -316,6 +318,7 @@ class Tolerance:
                "estimator": "step doubling on sampled strands: RMS position error over strand length, "
                             "Richardson from k and 2k substeps (stage units)"}
         for i, c in enumerate(self.controllers):
+            rec[f"group{i}.prims"] = self.names[i]
             rec[f"group{i}.solver"] = c.sample.name
             rec[f"group{i}.precision"] = str(c.sample.model.precision)
             rec[f"group{i}.strands_sampled"] = int(len(c.sample.idx))
@@ -364,9 +367,11 @@ def setup(sim, tolerance: float) -> Tolerance:
         if len(g.devices) > 1:
             raise UserError("--tolerance runs on one device for now (give one --device)")
         roots = frame_targets(sim, k)
+        name = ", ".join(scene.curves[i].path for i in g.members)   # the lines name the group by its prims
+        t.names.append(name)
 
         def rebuilt(g, settings, precision):
-            new = Group(settings, g.members, scene, frame, replace(options, precision=precision))
+            new = Group(settings, g.members, scene, frame, replace(options, precision=precision), g.input_strands)
             if settings.solver == "elastic":   # the rest shapes the clean start gave pushed-out strands
                 same_rest(g, new, frame)
             copy_state(g.state, g.model, new.state, new.model)   # the clean start's push-out and preroll kept
@@ -378,7 +383,7 @@ def setup(sim, tolerance: float) -> Tolerance:
         if auto:
             name, lines = pick_solver(g, scene, frame, last, tolerance, options.precision, roots,
                                       root_paths.shot(sim))
-            t.notes += lines
+            t.notes += [f"{name}: {line}" for line in lines]
             if name != g.settings.solver:
                 g = sim.groups[k] = rebuilt(g, replace(g.settings, solver=name), options.precision)
 
@@ -394,7 +399,7 @@ def setup(sim, tolerance: float) -> Tolerance:
         if options.precision == "float32" and c.planned_max() > LIMIT * tolerance:
             wide = controller(g, "float64")
             if wide.planned_max() <= LIMIT * tolerance:
-                t.notes.append(f"tolerance {tolerance:g}: group {k} runs in float64: planned in float32 the "
+                t.notes.append(f"{name}: tolerance {tolerance:g}: runs in float64: planned in float32 the "
                                f"estimate reaches {c.planned_max():.3g}, in float64 {wide.planned_max():.3g}")
                 g = sim.groups[k] = rebuilt(g, g.settings, "float64")
                 c = wide
