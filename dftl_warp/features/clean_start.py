@@ -95,12 +95,23 @@ def _depths(model, state, control):
     return pen, rad, np.arange(1, shape[1])[None, :] < counts[:, None]
 
 
+def _inside(model, pen, rad, valid):
+    """Which entries of :func:`_depths` are inside a collider: deeper than their hair radius, and
+    than a few units in the last place of the model's coordinates (hair without width moved onto a
+    surface sits there to the arithmetic's round-off, which is no penetration: 1e-8 m on a float32
+    head, which was named as hair still inside)."""
+    rest = model.rest_positions
+    extent = float(np.abs(rest).max()) if rest is not None and rest.size else 0.0
+    floor = 8.0 * float(np.finfo(np.dtype(model.precision)).eps) * extent
+    return valid & (pen > np.maximum(rad, floor))
+
+
 def measure_start(model, state, control) -> StartReport:
     """How many particles of ``state`` are inside the colliders at ``control``'s frame-start pose."""
     if control.features is None or control.features.colliders is None:
         return StartReport(model.num_points - model.num_strands, 0, 0, 0.0, 0.0, 0.0, 0.0)
     pen, rad, valid = _depths(model, state, control)
-    inside = valid & (pen > rad)
+    inside = _inside(model, pen, rad, valid)
     touching = valid & (pen > 0)
     depth = np.where(inside, pen - rad, 0.0)
     excess = np.where(touching, pen, 0.0)
@@ -166,7 +177,7 @@ def still_inside(model, state, control) -> tuple[np.ndarray, np.ndarray, np.ndar
     if control.features is None or control.features.colliders is None:
         return empty
     pen, rad, valid = _depths(model, state, control)
-    s, i = np.nonzero(valid & (pen > rad))
+    s, i = np.nonzero(_inside(model, pen, rad, valid))
     depth = (pen - rad)[s, i]
     order = np.argsort(-depth, kind="stable")
     return model.layout.strand_order[s[order]], i[order] + 1, depth[order], rad[s, i][order]
