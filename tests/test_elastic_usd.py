@@ -168,26 +168,15 @@ def test_bad_material_is_one_line_and_exit_2(tmp_path, capfd, extra, message):
 
 
 def test_checkpoint_carries_the_elastic_state(tmp_path):
+    from resume_check import assert_resumes_exactly
+
     from dftl_warp.simulation.settings import SimulationOptions
-    from dftl_warp.simulation.simulate import Simulation
     from dftl_warp.usd.read import read_scene
 
     src = tmp_path / "ckpt.usda"
     stage(src, 1.0, ratios=(1.0,), end=30, parent=[(1, 0.0), (30, 60.0)], drag=0.0)
-    scene = read_scene(str(src))
-    opts = SimulationOptions(device="cpu", precision="float64")
-    a = Simulation(scene, opts, 1)
-    for _ in range(6):
-        a.advance()
-    saved = a.save_state()
-    assert {"group0.tensions", "group0.frames", "group0.clamps"} <= set(saved)
-    b = Simulation(scene, opts, 1)
-    b.load_state(saved)
-    for _ in range(6):
-        a.advance()
-        b.advance()
-    pa, pb = a.samples()[0][0], b.samples()[0][0]
-    assert np.array_equal(pa, pb)
+    assert_resumes_exactly(read_scene(str(src)), SimulationOptions(device="cpu", precision="float64"), 6, 6,
+                           keys=("group0.tensions", "group0.frames", "group0.clamps"))
 
 
 def test_several_devices_write_the_single_device_file(tmp_path):

@@ -94,20 +94,11 @@ def test_split_elastic_groom_with_hair_hair_equals_single_device(tmp_path):
 
 
 def test_split_elastic_checkpoint_resumes_exactly(tmp_path):
+    from resume_check import assert_resumes_exactly
+
     path = _stage(tmp_path / "ckpt.usda", collider=False)
-    scene = read_scene(str(path))
-    opts = SimulationOptions(device="cpu,cpu", precision="float64")
-    a = Simulation(scene, opts, 1)
-    for _ in range(3):
-        a.advance()
-    saved = a.save_state()
-    assert {"group0.tensions", "group0.frames", "group0.clamps"} <= set(saved)
-    b = Simulation(scene, opts, 1)
-    b.load_state(saved)
-    for _ in range(3):
-        a.advance()
-        b.advance()
-    assert np.array_equal(a.samples()[0][0], b.samples()[0][0])
+    assert_resumes_exactly(read_scene(str(path)), SimulationOptions(device="cpu,cpu", precision="float64"), 3, 3,
+                           keys=("group0.tensions", "group0.frames", "group0.clamps"))
 
 
 def test_split_elastic_notes_equal_single_device(tmp_path, capsys):
