@@ -184,7 +184,7 @@ def test_hair_the_push_out_cannot_free_is_named_in_one_line(tmp_path):
     summary = simulate_usd(tmp_path / "in.usda", out, device="cpu", substeps=4)
     lines = [w for w in summary.start_notes if "still inside" in w]
     assert len(lines) == 1, summary.start_notes
-    assert "at /World/Hair strand 1, point 1:" in lines[0] and "of 1 strand(s)" in lines[0], lines[0]
+    assert "at /World/Hair strand 1, point 1:" in lines[0] and "5 particles of 1 strand are" in lines[0], lines[0]
     assert lines[0] in summary.warnings
     deep = float(lines[0].split("up to ")[1].split(" m deep")[0])
     radii = float(lines[0].split("deep (")[1].split(" hair radii")[0])

@@ -202,7 +202,7 @@ def test_simulate_names_strands_too_long_to_check(tmp_path, capsys):
     assert cli.main(["simulate", str(tmp_path / "in.usda"), "-o", str(tmp_path / "out.usdc")]) == 0
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if "not checked for a stable rest shape" in line]
-    assert len(lines) == 1 and "/World/Long: 1 strand(s) of more than 434 segments (up to 500)" in lines[0], err
+    assert len(lines) == 1 and "/World/Long: 1 strand of more than 434 segments (up to 500)" in lines[0], err
     assert "/World/Short: 1 of the 1 strand checked rests in an unstable equilibrium" in err, err
 
 

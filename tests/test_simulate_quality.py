@@ -83,7 +83,7 @@ def test_quality_preset_keeps_the_elastic_solver_of_prims_with_widths(tmp_path, 
     # one prim per group; only /World/Styled has widths, so the elastic group is it
     assert sorted((g["solver"], g["substeps"], g["prims"]) for g in summary.groups) == [("dftl", 16, 1),
                                                                                         ("elastic", 16, 1)]
-    assert any("1 prim(s) with widths keep the elastic solver" in w for w in summary.warnings)
+    assert any("1 prim with widths keeps the elastic solver" in w for w in summary.warnings)
     reference = simulate_usd(str(path), str(tmp_path / "ref.usdc"), quality="reference", substeps=16,
                              precision="float32")
     assert {g["solver"] for g in reference.groups} == {"elastic", "rattle"}

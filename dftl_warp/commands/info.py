@@ -315,7 +315,7 @@ def run(args) -> int:
                   f"units/s^2 ({h['repulsion'] * mpu:g} m/s^2) per unit density relative to the rest volume "
                   f"fraction {h['rest_volume_fraction']:.3g} (densest node at rest {h['rest_peak']:.3g}; threshold "
                   f"{_threshold(h)}), friction {h['friction']:g}/s, grid {nodes} nodes, "
-                  f"rebuilt every {h['splat_interval']} substep(s)")
+                  f"rebuilt every {plural(h['splat_interval'], 'substep')}")
     else:
         # the bare step is DFTL's only where every prim runs DFTL
         bare = "; the step is the bare DFTL step" if {c["solver"] for c in d["curves"]} <= {"dftl", None} else ""

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from ..errors import plural
 from ..kernels.features.clean_start import motion_kernel, penetration_kernel, resolve_kernel, scale_velocities_kernel
 from ..kernels.features.collide import collider_flags
 from ..kernels.features.step import feature_struct
@@ -211,7 +212,9 @@ def inside_note(parts, prims, units: str = "m") -> str | None:
         return None
     k = int(np.argmax(depth))
     radii = f" ({depth[k] / radius[k]:.3g} hair radii)" if radius[k] > 0 else ""
-    return (f"clean start: {len(strands)} particle(s) of {len(np.unique(strands))} strand(s) are still inside a "
+    verb = "is" if len(strands) == 1 else "are"
+    return (f"clean start: {plural(len(strands), 'particle')} of {plural(len(np.unique(strands)), 'strand')} {verb} "
+            f"still inside a "
             f"collider after moving out, up to {depth[k]:.3g} {units} deep{radii} at "
             f"{strand_name(prims, int(strands[k]))}, point {int(particles[k])}: no point at their rest lengths from "
             "the root is outside (a strand through a thin part of the collider, or folded inside it); they stay "

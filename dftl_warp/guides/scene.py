@@ -193,8 +193,8 @@ class GuideSet:
     def notes(self) -> list[str]:
         g = sum(c.num_strands for c in self.sim_scene.curves)
         how = f"{self.method}, " if self.count is not None else ""
-        return [f"guides: {g} guide strand(s) simulated, {self.num_render_strands} render strand(s) in "
-                f"{len(self.renders)} prim(s) deformed from them ({how}k <= 4, bound at the first frame in world "
+        return [f"guides: {plural(g, 'guide strand')} simulated, {plural(self.num_render_strands, 'render strand')} in "
+                f"{plural(len(self.renders), 'prim')} deformed from them ({how}k <= 4, bound at the first frame in world "
                 f"space; render velocities: backward difference)"]
 
     def reset(self) -> None:

@@ -154,11 +154,15 @@ def rest_where_moved(group, frame: int) -> list[str]:
     notes = []
     if adopted.size:
         group.clamps = ClampDriver(group, frame)
-        notes.append(f"clean start: {adopted.size} elastic strand(s) rest where they were moved out "
-                     "(their authored shape lay inside the collider)")
+        one = adopted.size == 1
+        notes.append(f"clean start: {plural(adopted.size, 'elastic strand')} {'rests' if one else 'rest'} where "
+                     f"{'it was' if one else 'they were'} moved out ({'its' if one else 'their'} authored shape lay "
+                     "inside the collider)")
     if kept.size:
-        notes.append(f"clean start: {kept.size} elastic strand(s) with authored physics:restShapePoints "
-                     "started inside a collider and keep their rest shape, which presses them into it")
+        one = kept.size == 1
+        notes.append(f"clean start: {plural(kept.size, 'elastic strand')} with authored physics:restShapePoints "
+                     f"started inside a collider and {'keeps its' if one else 'keep their'} rest shape, which presses "
+                     f"{'it' if one else 'them'} into it")
     return notes
 
 
@@ -195,8 +199,8 @@ def note_untested(scene, group) -> int:
 
     long, most = group.solver.unchecked_strands()
     if long.size:
-        _note(scene, f"{_prims(group, long)}: {long.size} strand(s) of more than {longest_tested()} segments (up to "
-                     f"{most}) were "
+        _note(scene, f"{_prims(group, long)}: {plural(long.size, 'strand')} of more than {longest_tested()} segments "
+                     f"(up to {most}) {'was' if long.size == 1 else 'were'} "
                      "not checked for a stable rest shape (the check's cost grows as the cube of the segments): "
                      "a long curl or a standing strand held by inverse statics may fall at the first disturbance "
                      "unannounced; resample them to fewer points to have them checked")
@@ -207,7 +211,7 @@ def _prims(group, strands) -> str:
     """The prims (up to 3, then a count) of the group's input ``strands``."""
     owner = np.repeat(np.arange(len(group.curves)), [c.num_strands for c in group.curves])
     prims = [group.curves[i].path for i in np.unique(owner[strands])]
-    return ", ".join(prims[:3]) + (f" and {len(prims) - 3} more prim(s)" if len(prims) > 3 else "")
+    return ", ".join(prims[:3]) + (f" and {plural(len(prims) - 3, 'more prim')}" if len(prims) > 3 else "")
 
 
 def _holding(scales, them: str, authored=None) -> str:

@@ -34,7 +34,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve_device
-from ..errors import UserError
+from ..errors import UserError, plural
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
 from . import root_paths, saved_state, transform_roots
@@ -475,7 +475,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the elastic "
                               f"solver, whose arithmetic it sets (the others compute in the precision)")
     if quality is not None and elastic:
-        sim.start_notes.append(f"quality {quality}: {elastic} prim(s) with widths keep the elastic solver, with the "
+        sim.start_notes.append(f"quality {quality}: {plural(elastic, 'prim')} with widths "
+                               f"{'keeps' if elastic == 1 else 'keep'} the elastic solver, with the "
                                f"preset's substeps and precision (its error under a preset is not measured yet: "
                                f"the presets are measured on chains, docs/accuracy-h200/front.md)")
     if sim.guides is not None and sim.guides.output == "binding" and out_opts["clips"] is not None:
