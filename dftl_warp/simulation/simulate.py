@@ -25,7 +25,6 @@ The first frame is the input at rest: zero velocities.
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 import warnings
@@ -286,12 +285,12 @@ class Simulation:
 
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
-            shot = (self.first_frame, math.inf if self.last_frame is None else self.last_frame)
+            shot = root_paths.shot(self)
             for k, g in enumerate(self.groups):
-                if any(self.scene.curves[i].animated for i in g.members) and transform_roots.drive(
-                        self, k, g, self.frame, nxt):
+                animated = any(self.scene.curves[i].animated for i in g.members)
+                if animated and transform_roots.drive(self, k, g, self.frame, nxt):
                     root_paths.warn_fast_turns(self, g, self.frame, nxt)
-                elif any(self.scene.curves[i].animated for i in g.members):
+                elif animated:
                     # the C1 path from the roots at this frame, the next and their neighbours, each
                     # computed once (this frame's are the last frame's end targets, the same array,
                     # so the Control reuses their device-order copy too)

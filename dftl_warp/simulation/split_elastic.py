@@ -88,11 +88,9 @@ class SplitElasticSolver(SplitSolver):
         """Every part adopts the rest shape of its own ``strands`` (group input indices; by default
         those moved from their rest shape); returns the group's input indices that changed."""
         adopted = []
+        strands = None if strands is None else np.asarray(strands, dtype=np.int64).reshape(-1)
         for solver, s, (s0, s1) in zip(self.parts, state.parts, self.strand_ranges):
-            own = None
-            if strands is not None:
-                strands = np.asarray(strands, dtype=np.int64).reshape(-1)
-                own = strands[(strands >= s0) & (strands < s1)] - s0
+            own = None if strands is None else strands[(strands >= s0) & (strands < s1)] - s0
             adopted.append(solver.adopt_rest_shape(s, strands=own) + s0)
         return np.concatenate(adopted)
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.state import frame_velocity
+from .root_paths import shot
 
 
 class TransformRoots:
@@ -54,7 +55,7 @@ class TransformRoots:
 
         g = self.group
         duration = (nxt - frame) / sim.scene.stage.time_codes_per_second
-        first, last = sim.first_frame, np.inf if sim.last_frame is None else sim.last_frame
+        first, last = shot(sim)
 
         def matrices(f):
             return np.stack([sim._matrix(i, f) for i in g.members])

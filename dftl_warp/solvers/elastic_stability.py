@@ -261,10 +261,10 @@ def unstable_strands(groups, *, budget: int = 2500, scale_sample: int = 64, seed
     flagged = np.concatenate([groups[k][1][rows] for k, rows in found] + [np.zeros(0, np.int64)])
     where = sorted((int(groups[k][1][r]), k, r) for k, rows in found for r in rows)   # in input strand order
     sample = np.sort(rng.choice(len(where), min(scale_sample, len(where)), replace=False)) if where else []
-    picked = [where[i] for i in sample]
-    scales = [np.zeros(0)] + threaded_map(
-        lambda k: holding_scales(groups[k][2], np.array([r for _, kk, r in picked if kk == k])),
-        sorted({k for _, k, _ in picked}))
-    by_group = np.concatenate([[strand for strand, kk, _ in picked if kk == k] for k in sorted({k for _, k, _ in picked})]
-                              + [np.zeros(0)])
-    return np.sort(flagged), np.concatenate(scales)[np.argsort(by_group, kind="stable")], len(take), total
+    picked = [where[i] for i in sample]                           # (strand, group, row), in strand order
+    keys = sorted({k for _, k, _ in picked})
+    per_group = {k: [(strand, r) for strand, kk, r in picked if kk == k] for k in keys}
+    scales = threaded_map(lambda k: holding_scales(groups[k][2], np.array([r for _, r in per_group[k]])), keys)
+    strands = [strand for k in keys for strand, _ in per_group[k]]   # the scales' order: back to strand order
+    scales = np.concatenate([np.zeros(0)] + scales)[np.argsort(strands, kind="stable")]
+    return np.sort(flagged), scales, len(take), total
