@@ -16,6 +16,7 @@ thread). A frame above zero means local memory, whose traffic the GPU pays besid
 from __future__ import annotations
 
 import argparse
+import contextlib
 import struct
 import sys
 import tempfile
@@ -92,6 +93,19 @@ def rows():
             yield f"{solver}: {name}", feats(), extra
 
 
+@contextlib.contextmanager
+def cuda_phases():
+    """A solver made on the CPU gets the elastic step's CUDA kernels (one per sweep), as on a GPU."""
+    import dftl_warp.solvers.elastic as solver_module
+
+    make = solver_module.elastic_step_kernels
+    solver_module.elastic_step_kernels = lambda *a: make(*a[:-1], True)
+    try:
+        yield
+    finally:
+        solver_module.elastic_step_kernels = make
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--arch", type=int, default=90, help="CUDA architecture (90: H100, H200)")
@@ -104,7 +118,7 @@ def main(argv=None) -> int:
     wp.init()
     pts = np.stack([np.zeros(4), -np.arange(4) * 0.01, np.zeros(4)], 1)
     print(f"| scene | kernel | registers | stack frame (B) |\n|---|---|---:|---:|")
-    default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
+    default_cap = dict(elastic_kernels.CUDA_MAX_REGISTERS_F32)
     todo = []
     for name, feats, extra in rows():
         if args.only and not name.startswith(tuple(args.only)):
@@ -113,13 +127,15 @@ def main(argv=None) -> int:
         todo += [(name if cap is None else f"{name}, cap {cap or 'none'}", feats, extra, cap) for cap in caps]
     with tempfile.TemporaryDirectory() as tmp:
         for name, feats, extra, cap in todo:
-            elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None else (cap or None)
+            elastic_kernels.CUDA_MAX_REGISTERS_F32.update(
+                default_cap if cap is None else dict.fromkeys(default_cap, cap or None))
             elastic_kernels.elastic_kernel.cache_clear()
             model = dw.Model.from_strands(pts, [4], widths=1e-4, features=feats, device="cpu")
             if extra.get("solver", "dftl") == "dftl":
                 solver = dw.DFTLSolver(model, gravity=G, fused=False)
             else:
-                solver = dw.make_solver(model, extra["solver"], gravity=G, **extra.get("solver_options", {}))
+                with cuda_phases():
+                    solver = dw.make_solver(model, extra["solver"], gravity=G, **extra.get("solver_options", {}))
             for kernel in solver.kernels():
                 if not kernel.key.startswith(("featured_step", "bare_step", "elastic_kernel", "velocity_features",
                                                "grid_splat", "grid_bounds")):
@@ -129,7 +145,7 @@ def main(argv=None) -> int:
                     if function.endswith("_cuda_kernel_forward"):
                         print(f"| {name} | `{kernel.key.split('__')[0]}` | {r['registers']} | {r.get('frame', 0)} |",
                               flush=True)
-    elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap
+    elastic_kernels.CUDA_MAX_REGISTERS_F32.update(default_cap)
     elastic_kernels.elastic_kernel.cache_clear()
     return 0
 

@@ -159,10 +159,10 @@ class Launcher:
 def run(pts, counts, probe, frames, substeps, device):
     lau = E.wp if isinstance(E.wp, Launcher) else Launcher()
     E.wp = lau
-    orig = E.elastic_kernel
+    orig = E.elastic_step_kernels
     if probe is not None:
         mod = load(probe[0])
-        E.elastic_kernel = mod.elastic_kernel
+        E.elastic_step_kernels = lambda *a: mod.elastic_step_kernels(*a[:-1], False)  # one kernel
     lau.probe = probe
     try:
         model = dw.Model.from_strands(pts, counts, device=device, widths=80e-6)
@@ -181,7 +181,7 @@ def run(pts, counts, probe, frames, substeps, device):
             times.append(time.perf_counter() - t)
         return float(np.median(times)) / substeps * 1e3, x1
     finally:
-        E.elastic_kernel = orig
+        E.elastic_step_kernels = orig
         lau.probe = None
         gc.collect()
 

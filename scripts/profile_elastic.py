@@ -61,22 +61,22 @@ def main() -> int:
     curly = curly_groom(args.strands)
     rows = [dict(row="bare DFTL step", frame_s=frame_time("dftl", *curly, args.device, args.substeps, args.repeats))]
     elastic = dict(radius=40e-6, compute_precision="float32")
-    default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
+    default_cap = dict(elastic_kernels.CUDA_MAX_REGISTERS_F32)
     try:
         for cap in args.caps:
-            elastic_kernels.CUDA_MAX_REGISTERS_F32 = cap or None
+            elastic_kernels.CUDA_MAX_REGISTERS_F32.update(dict.fromkeys(default_cap, cap or None))
             elastic_kernels.elastic_kernel.cache_clear()
             label = f"elastic, float32 arithmetic, register cap {cap or 'none'}"
             rows.append(dict(row=label, cap=cap, frame_s=frame_time("elastic", *curly, args.device, args.substeps,
                                                                     args.repeats, **elastic)))
         if not args.no_straight:
-            elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap
+            elastic_kernels.CUDA_MAX_REGISTERS_F32.update(default_cap)
             elastic_kernels.elastic_kernel.cache_clear()
-            rows.append(dict(row=f"elastic, straight strands (no frame sweep), cap {default_cap}",
+            rows.append(dict(row=f"elastic, straight strands (no frame sweep), caps {default_cap}",
                              frame_s=frame_time("elastic", *straight_groom(args.strands), args.device, args.substeps,
                                                 args.repeats, **elastic)))
     finally:
-        elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap
+        elastic_kernels.CUDA_MAX_REGISTERS_F32.update(default_cap)
         elastic_kernels.elastic_kernel.cache_clear()
     bare = rows[0]["frame_s"]
     lines = [f"Command: `python scripts/profile_elastic.py --device {args.device} --strands {args.strands} "

@@ -186,7 +186,7 @@ def main(argv=None) -> int:
                         tag = tag if block is None else f"{tag}, {block} threads per block"
                         tag = tag if aux is None else f"{tag}, splat and pass capped at {aux or 'none'}"
                         todo.append((tag, feats, extra, cap, on, block, aux))
-    default_cap = elastic_kernels.CUDA_MAX_REGISTERS_F32
+    default_cap = dict(elastic_kernels.CUDA_MAX_REGISTERS_F32)
     default_sweep_cap = featured_kernels.CUDA_MAX_REGISTERS
     default_block = feature_step.SWEEP_BLOCK_DIM
     default_splat_block = hair_hair.SPLAT_BLOCK_DIM
@@ -202,7 +202,8 @@ def main(argv=None) -> int:
         hair_hair.SPLAT_BLOCK_DIM = default_splat_block if block is None else block
         elastic_solver.ELASTIC_BLOCK_DIM = default_elastic_block if block is None else block
         elastic = extra.get("solver") == "elastic"
-        elastic_kernels.CUDA_MAX_REGISTERS_F32 = default_cap if cap is None or not elastic else (cap or None)
+        elastic_kernels.CUDA_MAX_REGISTERS_F32.update(
+            default_cap if cap is None or not elastic else dict.fromkeys(default_cap, cap or None))
         featured_kernels.CUDA_MAX_REGISTERS = default_sweep_cap if cap is None or elastic else (cap or None)
         elastic_kernels.elastic_kernel.cache_clear()
         featured_kernels.featured_step_kernel.cache_clear()

@@ -60,7 +60,7 @@ def main(argv=None) -> int:
     model = dw.Model.from_strands(pts, [4], device="cpu", widths=80e-6)
     solver = dw.make_solver(model, "elastic", compute_precision=args.arithmetic)
     with tempfile.TemporaryDirectory() as tmp:
-        paths = wp.compile_aot_module(solver._kernel.module, arch=args.arch, module_dir=tmp, use_ptx=True)
+        paths = wp.compile_aot_module(solver._kernels[0].module, arch=args.arch, module_dir=tmp, use_ptx=True)
         ptx = Path(next(p for p in paths if str(p).endswith(".ptx"))).read_text(errors="replace")
     counts = line_counts(ptx)
     source = KERNEL.read_text().splitlines()

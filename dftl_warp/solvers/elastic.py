@@ -69,7 +69,7 @@ import warp as wp
 from ..core.model import DEFAULT_HAIR_WIDTH
 from ..core.precision import numpy_type, scalar_type
 from ..core.state import State
-from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_kernel
+from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_step_kernels
 from . import elastic_rest
 from .base import DEFAULT_GRAVITY, Solver, check_bool, check_gravity, register
 
@@ -263,7 +263,9 @@ class ElasticSolver(Solver):
                          wp.zeros(n, dtype=wp.types.vector(4, real), device=dev)]
         self._dummy = wp.zeros(1, dtype=model.vec3, device=dev)
         flags = model.feature_flags
-        self._kernel = elastic_kernel(model.scalar, real, correction) if not flags else None
+        cuda = wp.get_device(dev).is_cuda
+        #: the step's kernels, launched in order with the same arguments (its sweeps, one each on CUDA)
+        self._kernels = elastic_step_kernels(model.scalar, real, correction, frozenset(), False, cuda)
         #: the featured DFTL step's host side (collider poses per substep, the feature struct, the
         #: velocity pass of hair-hair, drag and wind: ``kernels/features/air_grid.py``)
         self._features = None
@@ -273,8 +275,8 @@ class ElasticSolver(Solver):
             from ..features.step import FeatureStep, velocity_pass_flags
 
             pass_flags, sweep_flags = velocity_pass_flags(flags)
-            self._kernel = elastic_kernel(model.scalar, real, correction, sweep_flags, accelerations=bool(pass_flags))
-            self._features = FeatureStep(model, self._kernel, velocity_form="acceleration" if pass_flags else None,
+            self._kernels = elastic_step_kernels(model.scalar, real, correction, sweep_flags, bool(pass_flags), cuda)
+            self._features = FeatureStep(model, self._kernels[0], velocity_form="acceleration" if pass_flags else None,
                                          real=real)
 
     def _build_rest(self, points) -> None:
@@ -499,7 +501,7 @@ class ElasticSolver(Solver):
     # -- stepping --------------------------------------------------------------------------------
 
     def kernels(self) -> list:
-        return self._features.kernels() if self._features is not None else [self._kernel]
+        return (self._features.kernels() if self._features is not None else []) + list(self._kernels)
 
     def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``)."""
@@ -523,7 +525,7 @@ class ElasticSolver(Solver):
         self._launch(state, state, control, dt, root_alpha)
 
     def _launch(self, state_in, state_out, control, dt: float, root_alpha: float) -> None:
-        """The velocity pass (where the features need one) and the step's kernel."""
+        """The velocity pass (where the features need one) and the step's kernels."""
         m = self.model
         f = self._fields
         prior = self.carries_corrections
@@ -536,27 +538,24 @@ class ElasticSolver(Solver):
         else:
             features = self._no_features
             accelerations = self._no_accelerations
-        wp.launch(
-            self._kernel,
-            dim=m.num_strands,
-            block_dim=ELASTIC_BLOCK_DIM,
-            inputs=[
-                m.strand_base, m.strand_stride, m.strand_count,
-                f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],
-                f["rest_rotation"], self._clamp_direction, self._curved,
-                control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
-                self._clamp_start, self._clamp_end, self._clamp_deviation_start, self._clamp_deviation_end,
-                self._clamp_rotation_start, self._clamp_rotation_end,
-                self._clamp_relative,
-                float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag, features,
-                state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,
-                state_in.tensions, state_in.frames, state_in.clamps,
-                *self._scratch, accelerations,
-            ],
-            outputs=[state_out.positions, state_out.velocities, state_out.corrections if prior else self._dummy,
-                     state_out.tensions, state_out.frames, state_out.clamps],
-            device=m.device,
-        )
+        inputs = [
+            m.strand_base, m.strand_stride, m.strand_count,
+            f["length"], f["mass"], f["bend"], f["twist"], f["k0"], f["k1"], f["k2"], f["curvature"],
+            f["rest_rotation"], self._clamp_direction, self._curved,
+            control.root_start, control.root_end, control.root_deviation_start, control.root_deviation_end,
+            self._clamp_start, self._clamp_end, self._clamp_deviation_start, self._clamp_deviation_end,
+            self._clamp_rotation_start, self._clamp_rotation_end,
+            self._clamp_relative,
+            float(root_alpha), self._gravity_real, float(dt), self.damping, self.drag, features,
+            state_in.positions, state_in.velocities, state_in.corrections if prior else self._dummy,
+            state_in.tensions, state_in.frames, state_in.clamps,
+            *self._scratch, accelerations,
+        ]
+        outputs = [state_out.positions, state_out.velocities, state_out.corrections if prior else self._dummy,
+                   state_out.tensions, state_out.frames, state_out.clamps]
+        for kernel in self._kernels:
+            wp.launch(kernel, dim=m.num_strands, block_dim=ELASTIC_BLOCK_DIM, inputs=inputs, outputs=outputs,
+                      device=m.device)
 
     # -- diagnostics -----------------------------------------------------------------------------
 

@@ -24,24 +24,13 @@ C. **back substitution, root -> tip**, fused with the follow-the-leader projecti
 Precision: ``scalar`` is the storage precision of the State, ``real`` the computation's (the model
 arrays and the scratch are in ``real``). Module options as the DFTL step kernels (no FMA contraction).
 
-Memory traffic per free particle per step (``real`` scalars unless said; ``s`` = storage scalars):
+Memory traffic per free particle per step: the model (14 scalars; +9 re-read by A on curved
+strands), the State in and out (positions, velocities, tensions, frames, corrections in the prior
+form) and the scratch (``D^-1`` 10 symmetric, ``B_{k-1,k}`` 12, ``w`` 4) written in B, read in C.
 
-- model (read): length 1 (+1 neighbour, cached), mass 1, bend 1, twist 1, k0 k1 k2 3, curvature 3,
-  rest rotation 4 = 14 (A reads bend, twist, curvature, rest rotation again: +9 on curved strands);
-- state in: positions 3 s (A and B: 2 reads), velocities 3 s, tensions 1 s, frames 4 s (A reads and
-  B re-reads the updated ones), corrections 3 s (prior form);
-- state out: positions 3 s, velocities 3 s, tensions 1 s, frames 4 s, corrections 3 s (prior form);
-- scratch: ``D^-1`` 10 (symmetric), ``B_{k-1,k}`` 12 (its last row is zero), ``w`` 4: written in
-  B, read in C (52 scalars of traffic, 72 before this compaction; docs/elastic.md "Cost" has its
-  effect on the H200).
-
-Counted per free particle per step (prior form, curved strand; unique words per sweep): storage
-38 scalars (A: x 3, frames 4 + 4; B: x 3, v 3, T 1, c 3, frames 4; C: x 3, then x v c 9 + T 1
-written), computation 73 scalars (A: 10 model; B: 9 model + 26 scratch written; C: 26 scratch +
-2 model read). Bytes: float32 State with float64 arithmetic (the default) 38 x 4 + 73 x 8 = 736 B;
-float64 888 B; float32 arithmetic 444 B; bare DFTL prior float32: 76 B. Straight strands skip A
-(-21 scalars); the posterior form carries no c (-6 storage scalars). The scratch dominates; on the
-CPU a strand's 26 x 33 scratch words stay in cache.
+Counted per free particle per step (prior form, curved strand): storage 38 scalars, computation 73
+(26 of them the scratch written, 26 read): 444 B in float32, against bare DFTL's 76 B
+(docs/elastic.md "Cost"). Straight strands skip A; the posterior form carries no c.
 """
 
 import functools
@@ -63,11 +52,22 @@ POLAR_ITERATIONS = 4
 #: the feature flags the elastic step supports besides the registered collider shapes'
 ELASTIC_OTHER_FLAGS = frozenset({"drag", "wind", "wind_noise", "hair_hair"})
 
-#: CUDA register cap of the float32-arithmetic kernel (H200, 1M curly strands x 33, 8 substeps,
-#: ``scripts/profile_elastic.py``: uncapped 98.4 ms per frame, 128: 81.6 ms, 96: 110.3 ms;
-#: uncapped it takes 251 registers, 12.5% occupancy; docs/elastic.md "Cost"). The float64 kernel
-#: is left uncapped (not measured).
-CUDA_MAX_REGISTERS_F32 = 128
+#: CUDA register caps of the float32-arithmetic kernels, by the sweeps they run (the float64 ones are
+#: uncapped). H200, 1M curly strands x 33, 8 substeps: the single kernel uncapped took 251 registers
+#: (98.4 ms a frame), capped at 128 81.6 ms, at 96 110.3 ms (scripts/profile_elastic.py); the three
+#: sweeps as separate kernels 6.4 ms a step against its 7.1 (scripts/probe_elastic_phases.py; B, the
+#: elimination, takes the 128, A and C 64-72 uncapped; C with colliders spills at 64; docs/elastic.md)
+CUDA_MAX_REGISTERS_F32 = {"ABC": 128, "A": 128, "B": 128, "C": 128}
+
+#: the sweeps of one step, launched as one kernel each on CUDA devices (each holds only the registers
+#: it needs, so more threads are in flight); one kernel on the CPU, where a strand's data stays in cache
+CUDA_PHASES = ("A", "B", "C")
+
+
+def elastic_step_kernels(scalar, real, correction: str, flags: frozenset, accelerations: bool, cuda: bool):
+    """The kernels of one step, launched in order with the same arguments (:data:`CUDA_PHASES`)."""
+    return tuple(elastic_kernel(scalar, real, correction, flags, accelerations, phases)
+                 for phases in (CUDA_PHASES if cuda else ("ABC",)))
 
 
 @wp.struct
@@ -91,7 +91,8 @@ def elastic_features_struct(scalar, flags: frozenset):
 
 
 @functools.cache
-def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset(), accelerations: bool = False):
+def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset(), accelerations: bool = False,
+                   phases: str = "ABC"):
     """The scheme-K step kernel for States stored in ``scalar``, computing in ``real``, with the
     velocity correction in ``correction`` form (``"prior"`` or ``"posterior"``) and the features
     ``flags`` (:func:`elastic_flags`: colliders after the follow-the-leader projection; drag, wind
@@ -99,7 +100,10 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
 
     ``accelerations``: drag, wind and hair-hair come from the velocity pass before the step
     (``kernels/features/air_grid.py``, its ``"acceleration"`` form) through the ``accelerations``
-    argument, ``(a, c)`` per particle, and ``flags`` holds the colliders only."""
+    argument, ``(a, c)`` per particle, and ``flags`` holds the colliders only.
+
+    ``phases``: the sweeps the kernel runs ("ABC", or one of "A", "B", "C": launched in that order with
+    the same arguments they compute the same values, :func:`elastic_step_kernels`)."""
     flags = check_flags(flags)
     extra = flags - elastic_flags()
     if extra:
@@ -107,6 +111,7 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     if accelerations and flags & ELASTIC_OTHER_FLAGS:
         raise ValueError("with the velocity pass's accelerations the step takes the collider flags only")
     PASSED = bool(accelerations)
+    PHASE_A, PHASE_B, PHASE_C = ("A" in phases), ("B" in phases), ("C" in phases)
     Features = elastic_features_struct(scalar, flags)
     COLLIDE = bool(flags & set(collider_flags()))
     collide_all = collide_all_func(scalar, Features, flags) if COLLIDE else None
@@ -260,7 +265,7 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                      z - a2 * BD[0, 2], z - a2 * BD[1, 2], a1 - a2 * BD[2, 2], -e[2])
 
     @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS,
-               cuda_max_registers=CUDA_MAX_REGISTERS_F32 if real == wp.float32 else None)
+               cuda_max_registers=CUDA_MAX_REGISTERS_F32[phases] if real == wp.float32 else None)
     def elastic_step(
         # Model:
         strand_base: wp.array(dtype=wp.int32),
@@ -337,12 +342,13 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
             ghost_new = root_on_path(ca, ld(clamp_end[s]) - ca, ld(clamp_deviation_start[s]),
                                      ld(clamp_deviation_end[s]), root_alpha)
         v0 = (root_new - root_old) / h
-        positions_out[k0s] = st(root_new)
-        velocities_out[k0s] = st(v0)
-        tensions_out[k0s] = scalar(0.0)
-        clamps_out[s] = st(ghost_new)
-        if wp.static(prior):
-            corrections_out[k0s] = vec3s()
+        if wp.static(PHASE_C):
+            positions_out[k0s] = st(root_new)
+            velocities_out[k0s] = st(v0)
+            tensions_out[k0s] = scalar(0.0)
+            clamps_out[s] = st(ghost_new)
+            if wp.static(prior):
+                corrections_out[k0s] = vec3s()
         if n < 2:
             return
         N = n - 1
@@ -368,224 +374,227 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
             hh_push = real(features.grid_repulsion * features.grid_h)
 
         # ---- A: frames, Gauss-Seidel root -> tip, at x^n (ghost at its old place) ----------------
-        if is_curved:
-            # the root frame: the clamp's rotation (its twist about the first segment included), then
-            # the minimal rotation onto the ghost's actual direction (on the path, mid-frame)
-            R = clamp_turn(clamp_rotation_start[s], clamp_rotation_end[s], root_alpha)
-            Fprev = between(R * clamp_direction[s], root_new - ghost_new) * R
-            xm = ghost_old
-            xj = root_old
-            for j in range(N):
-                kj = particle(base, stride, j)
-                kp = particle(base, stride, j + 1)
-                xp = ld(positions_in[kp])
-                dx = curv(xm, xj, xp, length[kj], length[kp])
-                M = bend[kj] * wp.outer(dx, curvature[kj]) + twist[kj] * (Fprev * wp.quat_to_matrix(rest_rotation[kj]))
-                if j + 1 < N:
-                    Fn = wp.quat_to_matrix(ldq(frames_in[kp]))
-                    M = M + twist[kp] * (Fn * wp.transpose(wp.quat_to_matrix(rest_rotation[kp])))
-                qF = polar_rotation(M, ldq(frames_in[kj]))
-                frames_out[kj] = stq(qF)
-                Fprev = wp.quat_to_matrix(qF)
-                xm = xj
-                xj = xp
-        else:
-            for j in range(N):
-                kj = particle(base, stride, j)
-                frames_out[kj] = frames_in[kj]
+        if wp.static(PHASE_A):
+            if is_curved:
+                # the root frame: the clamp's rotation (its twist about the first segment included), then
+                # the minimal rotation onto the ghost's actual direction (on the path, mid-frame)
+                R = clamp_turn(clamp_rotation_start[s], clamp_rotation_end[s], root_alpha)
+                Fprev = between(R * clamp_direction[s], root_new - ghost_new) * R
+                xm = ghost_old
+                xj = root_old
+                for j in range(N):
+                    kj = particle(base, stride, j)
+                    kp = particle(base, stride, j + 1)
+                    xp = ld(positions_in[kp])
+                    dx = curv(xm, xj, xp, length[kj], length[kp])
+                    M = bend[kj] * wp.outer(dx, curvature[kj]) + twist[kj] * (Fprev * wp.quat_to_matrix(rest_rotation[kj]))
+                    if j + 1 < N:
+                        Fn = wp.quat_to_matrix(ldq(frames_in[kp]))
+                        M = M + twist[kp] * (Fn * wp.transpose(wp.quat_to_matrix(rest_rotation[kp])))
+                    qF = polar_rotation(M, ldq(frames_in[kj]))
+                    frames_out[kj] = stq(qF)
+                    Fprev = wp.quat_to_matrix(qF)
+                    xm = xj
+                    xj = xp
+            else:
+                for j in range(N):
+                    kj = particle(base, stride, j)
+                    frames_out[kj] = frames_in[kj]
 
         # ---- B: forces and elimination, tip -> root -----------------------------------------------
-        # carried from the two particles eliminated last (35 words): D_{k+1}^-1 packed symmetric (10),
-        # the velocity part of D_{k+2}^-1 (symmetric: 6), the coupling B_{k,k+1} (fill included; its
-        # last row is zero: 12, as stored), u_{k+1} (4) and the velocity part of u_{k+2} (3), where
-        # u = D^-1 w (so B D^-1 w = B u); 56 words before (D^-1 k+1, k+2 and B_{k,k+1} 4x4, w k+1, k+2)
-        Di1p = vec10()
-        Di2u = vec6()
-        Bk1 = mat34()
-        u1 = vec4()
-        u2 = zero3
-        rho_hi = zero3
-        rho_mid = zero3
-        kt_hi = real(0.0)
-        c_hi = vec3s()
-        kk = particle(base, stride, N)
-        xk = ld(positions_in[kk])
-        xk1 = ld(positions_in[particle(base, stride, N - 1)])
-        if N == 1:
-            xk1 = root_new
-        for step in range(N):
-            k = N - step
-            kk = particle(base, stride, k)
-            km = particle(base, stride, k - 1)
-            lk = length[kk]
-            # x_{k-1} for the curvature (root at its target) and x_{k-2} (root / ghost at targets)
-            xk2 = ghost_new
-            if k - 2 == 0:
-                xk2 = root_new
-            elif k - 2 > 0:
-                xk2 = ld(positions_in[particle(base, stride, k - 2)])
-            x_lead = xk1
-            if k - 1 == 0:
-                x_lead = root_old
-            e = (xk - x_lead) / lk
-            # rho_{k-1} = W (Dx - F b)
-            fb_ = curvature[km]
-            if is_curved:
-                fb_ = wp.quat_to_matrix(ldq(frames_out[km])) * curvature[km]
-            rho_lo = bend[km] * (curv(xk2, xk1, xk, length[km], lk) - fb_)
-            ga_lo = real(1.0) / lk
-            al_k = real(0.0)
-            ga_k = real(0.0)
-            al_hi = real(0.0)
-            if k < N:
-                kn = particle(base, stride, k + 1)
-                al_k = real(1.0) / lk
-                ga_k = real(1.0) / length[kn]
-                if k + 1 < N:
-                    al_hi = real(1.0) / length[kn]
-            fb = -(ga_lo * rho_lo - (al_k + ga_k) * rho_mid + al_hi * rho_hi)
-            kt_k = wp.max(real(tensions_in[kk]), real(0.0)) / lk
-            mk = mass[kk]
-            f = mk * gravity + fb
-            if k == 1:
-                f = f + (kt_k * v0) * h
-            vk = ld(velocities_in[kk])
-            rv = mk * vk + h * f
-            if wp.static(prior):
-                xp_ = xk - damping * ld(c_hi)
-                rv = mk * (vk + (xp_ - xk) / h) + h * f
-            if wp.static(DRAG):
-                w_air = air
-                if wp.static(WIND_NOISE):
-                    # curl noise sampled every NOISE_STRIDE particles, held in between (as DFTL)
-                    si = 1 + ((k - 1) // NOISE_STRIDE) * NOISE_STRIDE
-                    if si != noise_at:
-                        xs_ = positions_in[particle(base, stride, si)]
-                        xyzt = wp.vec4f(wp.float32(xs_[0] * features.noise_inv_scale),
-                                        wp.float32(xs_[1] * features.noise_inv_scale),
-                                        wp.float32(xs_[2] * features.noise_inv_scale),
-                                        wp.float32(time * features.noise_frequency))
-                        gust = real(features.noise_amplitude) * vec3(wp.curlnoise(noise_state, xyzt))
-                        noise_at = si
-                    w_air = air + gust
-                rv = rv + (h * mk * drag_s) * w_air
-            a_drag = drag_s
-            if wp.static(PASSED):
-                ac = accelerations[kk]
-                rv = rv + (h * mk) * vec3(ac[0], ac[1], ac[2])
-                a_drag = ac[3]
-            if wp.static(HAIR_HAIR):
-                v_grid, grad = grid_sample(positions_in[kk], features.grid_weights[kk], features.grid_threshold,
-                                           features.grid_lower,
-                                           features.grid_inv_h, features.grid_nx, features.grid_ny, features.grid_nz,
-                                           features.grid_density, features.grid_mass,
-                                           features.grid_momentum)
-                rv = rv + (h * mk) * (hh_friction * ld(v_grid) - hh_push * ld(grad))
-                a_drag = a_drag + hh_friction
-            rk = vec4(rv[0], rv[1], rv[2], real(0.0))
-            if k == 1:
-                rk[3] = wp.dot(e, v0)
-            a0 = mk * (real(1.0) + h * a_drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
-            # Schur complements from the couplings themselves, B D^-1 B^T (B_{k,k+2} = a2 P): never
-            # through the multipliers U = B D^-1 as U D U^T, whose round trip through D amplified
-            # round-off by about D's condition at every particle (a 47-point curl's solve was wrong
-            # by 200% at 8 substeps per frame, and the strand rang; docs/elastic.md "Stability")
-            # B_{k,k+1} has a zero last row and B_{k,k+2} = a2 P: both updates touch only D_k's velocity
-            # part G (3x3); w_k = r_k - B_{k,k+1} u_{k+1} - a2 P u_{k+2}, u = D^-1 w (carried)
-            a2k = h2 * k2[kk]
-            BD = Bk1 * unpack_symmetric(Di1p)
-            Bu = Bk1 * u1
-            wk = rk - vec4(Bu[0], Bu[1], Bu[2], real(0.0)) - a2k * vec4(u2[0], u2[1], u2[2], real(0.0))
-            B1 = mat34()
-            if k >= 2:
-                # B_{k-1,k} = A_{k-1,k} - B_{k-1,k+1} D_{k+1}^-1 B_{k,k+1}^T, B_{k-1,k+1} = a2 P
-                B1 = block1(h2 * k1[km] - h2 * kt_k, e, h2 * k2[km], BD)
-            z = real(0.0)
-            G = (mat33(a0, z, z, z, a0, z, z, z, a0) - BD * wp.transpose(Bk1)
-                 - (a2k * a2k) * unpack_symmetric3(Di2u))
-            # D_k is symmetric but for the products' rounding: inverted symmetrised (without that a
-            # styled groom at rest drifts 3e-9 L instead of < 1e-10 in float64), used as stored in
-            # both sweeps
-            Di_packed = pack_symmetric(wp.inverse(block0(real(0.5) * (G + wp.transpose(G)), e)))
-            # stored compactly: D_k^-1 is symmetric (10 words), B1 = B_{k-1,k} has a zero last row (12)
-            factor_inv[kk] = Di_packed
-            factor_up[kk] = B1
-            factor_rhs[kk] = wk
-            # slide the windows down one particle
-            Di2u = upper3_packed(Di1p)
-            Di1p = Di_packed
-            Bk1 = B1
-            u2 = vec3(u1[0], u1[1], u1[2])
-            u1 = unpack_symmetric(Di_packed) * wk
-            rho_hi = rho_mid
-            rho_mid = rho_lo
-            kt_hi = kt_k
-            if wp.static(prior):
-                c_hi = corrections_in[kk]
-            xk = xk1
-            xk1 = xk2
+        if wp.static(PHASE_B):
+            # carried from the two particles eliminated last (35 words): D_{k+1}^-1 packed symmetric (10),
+            # the velocity part of D_{k+2}^-1 (symmetric: 6), the coupling B_{k,k+1} (fill included; its
+            # last row is zero: 12, as stored), u_{k+1} (4) and the velocity part of u_{k+2} (3), where
+            # u = D^-1 w (so B D^-1 w = B u); 56 words before (D^-1 k+1, k+2 and B_{k,k+1} 4x4, w k+1, k+2)
+            Di1p = vec10()
+            Di2u = vec6()
+            Bk1 = mat34()
+            u1 = vec4()
+            u2 = zero3
+            rho_hi = zero3
+            rho_mid = zero3
+            kt_hi = real(0.0)
+            c_hi = vec3s()
+            kk = particle(base, stride, N)
+            xk = ld(positions_in[kk])
+            xk1 = ld(positions_in[particle(base, stride, N - 1)])
+            if N == 1:
+                xk1 = root_new
+            for step in range(N):
+                k = N - step
+                kk = particle(base, stride, k)
+                km = particle(base, stride, k - 1)
+                lk = length[kk]
+                # x_{k-1} for the curvature (root at its target) and x_{k-2} (root / ghost at targets)
+                xk2 = ghost_new
+                if k - 2 == 0:
+                    xk2 = root_new
+                elif k - 2 > 0:
+                    xk2 = ld(positions_in[particle(base, stride, k - 2)])
+                x_lead = xk1
+                if k - 1 == 0:
+                    x_lead = root_old
+                e = (xk - x_lead) / lk
+                # rho_{k-1} = W (Dx - F b)
+                fb_ = curvature[km]
+                if is_curved:
+                    fb_ = wp.quat_to_matrix(ldq(frames_out[km])) * curvature[km]
+                rho_lo = bend[km] * (curv(xk2, xk1, xk, length[km], lk) - fb_)
+                ga_lo = real(1.0) / lk
+                al_k = real(0.0)
+                ga_k = real(0.0)
+                al_hi = real(0.0)
+                if k < N:
+                    kn = particle(base, stride, k + 1)
+                    al_k = real(1.0) / lk
+                    ga_k = real(1.0) / length[kn]
+                    if k + 1 < N:
+                        al_hi = real(1.0) / length[kn]
+                fb = -(ga_lo * rho_lo - (al_k + ga_k) * rho_mid + al_hi * rho_hi)
+                kt_k = wp.max(real(tensions_in[kk]), real(0.0)) / lk
+                mk = mass[kk]
+                f = mk * gravity + fb
+                if k == 1:
+                    f = f + (kt_k * v0) * h
+                vk = ld(velocities_in[kk])
+                rv = mk * vk + h * f
+                if wp.static(prior):
+                    xp_ = xk - damping * ld(c_hi)
+                    rv = mk * (vk + (xp_ - xk) / h) + h * f
+                if wp.static(DRAG):
+                    w_air = air
+                    if wp.static(WIND_NOISE):
+                        # curl noise sampled every NOISE_STRIDE particles, held in between (as DFTL)
+                        si = 1 + ((k - 1) // NOISE_STRIDE) * NOISE_STRIDE
+                        if si != noise_at:
+                            xs_ = positions_in[particle(base, stride, si)]
+                            xyzt = wp.vec4f(wp.float32(xs_[0] * features.noise_inv_scale),
+                                            wp.float32(xs_[1] * features.noise_inv_scale),
+                                            wp.float32(xs_[2] * features.noise_inv_scale),
+                                            wp.float32(time * features.noise_frequency))
+                            gust = real(features.noise_amplitude) * vec3(wp.curlnoise(noise_state, xyzt))
+                            noise_at = si
+                        w_air = air + gust
+                    rv = rv + (h * mk * drag_s) * w_air
+                a_drag = drag_s
+                if wp.static(PASSED):
+                    ac = accelerations[kk]
+                    rv = rv + (h * mk) * vec3(ac[0], ac[1], ac[2])
+                    a_drag = ac[3]
+                if wp.static(HAIR_HAIR):
+                    v_grid, grad = grid_sample(positions_in[kk], features.grid_weights[kk], features.grid_threshold,
+                                               features.grid_lower,
+                                               features.grid_inv_h, features.grid_nx, features.grid_ny, features.grid_nz,
+                                               features.grid_density, features.grid_mass,
+                                               features.grid_momentum)
+                    rv = rv + (h * mk) * (hh_friction * ld(v_grid) - hh_push * ld(grad))
+                    a_drag = a_drag + hh_friction
+                rk = vec4(rv[0], rv[1], rv[2], real(0.0))
+                if k == 1:
+                    rk[3] = wp.dot(e, v0)
+                a0 = mk * (real(1.0) + h * a_drag) + h2 * k0[kk] + h2 * (kt_k + kt_hi)
+                # Schur complements from the couplings themselves, B D^-1 B^T (B_{k,k+2} = a2 P): never
+                # through the multipliers U = B D^-1 as U D U^T, whose round trip through D amplified
+                # round-off by about D's condition at every particle (a 47-point curl's solve was wrong
+                # by 200% at 8 substeps per frame, and the strand rang; docs/elastic.md "Stability")
+                # B_{k,k+1} has a zero last row and B_{k,k+2} = a2 P: both updates touch only D_k's velocity
+                # part G (3x3); w_k = r_k - B_{k,k+1} u_{k+1} - a2 P u_{k+2}, u = D^-1 w (carried)
+                a2k = h2 * k2[kk]
+                BD = Bk1 * unpack_symmetric(Di1p)
+                Bu = Bk1 * u1
+                wk = rk - vec4(Bu[0], Bu[1], Bu[2], real(0.0)) - a2k * vec4(u2[0], u2[1], u2[2], real(0.0))
+                B1 = mat34()
+                if k >= 2:
+                    # B_{k-1,k} = A_{k-1,k} - B_{k-1,k+1} D_{k+1}^-1 B_{k,k+1}^T, B_{k-1,k+1} = a2 P
+                    B1 = block1(h2 * k1[km] - h2 * kt_k, e, h2 * k2[km], BD)
+                z = real(0.0)
+                G = (mat33(a0, z, z, z, a0, z, z, z, a0) - BD * wp.transpose(Bk1)
+                     - (a2k * a2k) * unpack_symmetric3(Di2u))
+                # D_k is symmetric but for the products' rounding: inverted symmetrised (without that a
+                # styled groom at rest drifts 3e-9 L instead of < 1e-10 in float64), used as stored in
+                # both sweeps
+                Di_packed = pack_symmetric(wp.inverse(block0(real(0.5) * (G + wp.transpose(G)), e)))
+                # stored compactly: D_k^-1 is symmetric (10 words), B1 = B_{k-1,k} has a zero last row (12)
+                factor_inv[kk] = Di_packed
+                factor_up[kk] = B1
+                factor_rhs[kk] = wk
+                # slide the windows down one particle
+                Di2u = upper3_packed(Di1p)
+                Di1p = Di_packed
+                Bk1 = B1
+                u2 = vec3(u1[0], u1[1], u1[2])
+                u1 = unpack_symmetric(Di_packed) * wk
+                rho_hi = rho_mid
+                rho_mid = rho_lo
+                kt_hi = kt_k
+                if wp.static(prior):
+                    c_hi = corrections_in[kk]
+                xk = xk1
+                xk1 = xk2
 
         # ---- C: back substitution root -> tip, follow-the-leader, velocities, tensions ------------
-        z1 = vec4()
-        z2 = vec4()
-        leader = root_new
-        leader_old = root_old
-        kprev = k0s
-        vprev = zero3
-        for k in range(1, n):
-            kk = particle(base, stride, k)
-            # z_k = D_k^-1 (w_k - B1^T z_{k-1} - B2^T z_{k-2}), D_k^-1 symmetric
-            yk = factor_rhs[kk]
-            if k >= 2:
-                yk = yk - wp.transpose(factor_up[kk]) * vec3(z1[0], z1[1], z1[2])
-            if k >= 3:
-                a2 = h2 * k2[particle(base, stride, k - 2)]
-                yk = yk - vec4(a2 * z2[0], a2 * z2[1], a2 * z2[2], real(0.0))
-            zk = unpack_symmetric(factor_inv[kk]) * yk
-            z2 = z1
-            z1 = zk
-            x_old = ld(positions_in[kk])
-            p = x_old + h * vec3(zk[0], zk[1], zk[2])
-            d = p - leader
-            dn = wp.length(d)
-            x = leader + length[kk] * wp.normalize(x_old - leader_old)
-            if dn > real(1.0e-30):
-                x = leader + (length[kk] / dn) * d
-            c = x - p
-            if wp.static(COLLIDE):
-                # the featured DFTL sweep's response: rounds of collide-then-restore-rest-length, the
-                # first continuous; contact changes the position (so the velocity) only, not c or T
-                xs = st(x)
-                xo = positions_in[kk]
-                lead_s = st(leader)
-                rest_s = scalar(length[kk])
-                radius = features.particle_radius[kk]
-                for it in range(features.collider_iterations):
-                    xs, touched = collide_all(features, xs, xo, lead_s, rest_s, it == 0, radius)
-                    if not touched:
-                        break
-                    dc = ld(xs) - leader
-                    dcn = wp.length(dc)
-                    if dcn > real(1.0e-30):
-                        x = leader + (length[kk] / dcn) * dc
-                    xs = st(x)
-            v = (x - x_old) / h
-            positions_out[kk] = st(x)
-            # the multiplier of segment k is h T_k: A v + h J^T T = r, the tension pulling particle k
-            # back toward its leader (T > 0 under tension, as the rest tensions; the string stiffness
-            # max(T, 0) / l of the next step is that of a taut segment)
-            tensions_out[kk] = scalar(zk[3] / h)
-            if wp.static(prior):
-                corrections_out[kk] = st(c)
-                velocities_out[kk] = st(v)
-            else:
+        if wp.static(PHASE_C):
+            z1 = vec4()
+            z2 = vec4()
+            leader = root_new
+            leader_old = root_old
+            kprev = k0s
+            vprev = zero3
+            for k in range(1, n):
+                kk = particle(base, stride, k)
+                # z_k = D_k^-1 (w_k - B1^T z_{k-1} - B2^T z_{k-2}), D_k^-1 symmetric
+                yk = factor_rhs[kk]
                 if k >= 2:
-                    velocities_out[kprev] = st(vprev - damping * c / h)
-                vprev = v
-                kprev = kk
-            leader = x
-            leader_old = x_old
-        if wp.static(not prior):
-            velocities_out[kprev] = st(vprev)
+                    yk = yk - wp.transpose(factor_up[kk]) * vec3(z1[0], z1[1], z1[2])
+                if k >= 3:
+                    a2 = h2 * k2[particle(base, stride, k - 2)]
+                    yk = yk - vec4(a2 * z2[0], a2 * z2[1], a2 * z2[2], real(0.0))
+                zk = unpack_symmetric(factor_inv[kk]) * yk
+                z2 = z1
+                z1 = zk
+                x_old = ld(positions_in[kk])
+                p = x_old + h * vec3(zk[0], zk[1], zk[2])
+                d = p - leader
+                dn = wp.length(d)
+                x = leader + length[kk] * wp.normalize(x_old - leader_old)
+                if dn > real(1.0e-30):
+                    x = leader + (length[kk] / dn) * d
+                c = x - p
+                if wp.static(COLLIDE):
+                    # the featured DFTL sweep's response: rounds of collide-then-restore-rest-length, the
+                    # first continuous; contact changes the position (so the velocity) only, not c or T
+                    xs = st(x)
+                    xo = positions_in[kk]
+                    lead_s = st(leader)
+                    rest_s = scalar(length[kk])
+                    radius = features.particle_radius[kk]
+                    for it in range(features.collider_iterations):
+                        xs, touched = collide_all(features, xs, xo, lead_s, rest_s, it == 0, radius)
+                        if not touched:
+                            break
+                        dc = ld(xs) - leader
+                        dcn = wp.length(dc)
+                        if dcn > real(1.0e-30):
+                            x = leader + (length[kk] / dcn) * dc
+                        xs = st(x)
+                v = (x - x_old) / h
+                positions_out[kk] = st(x)
+                # the multiplier of segment k is h T_k: A v + h J^T T = r, the tension pulling particle k
+                # back toward its leader (T > 0 under tension, as the rest tensions; the string stiffness
+                # max(T, 0) / l of the next step is that of a taut segment)
+                tensions_out[kk] = scalar(zk[3] / h)
+                if wp.static(prior):
+                    corrections_out[kk] = st(c)
+                    velocities_out[kk] = st(v)
+                else:
+                    if k >= 2:
+                        velocities_out[kprev] = st(vprev - damping * c / h)
+                    vprev = v
+                    kprev = kk
+                leader = x
+                leader_old = x_old
+            if wp.static(not prior):
+                velocities_out[kprev] = st(vprev)
 
     return elastic_step
