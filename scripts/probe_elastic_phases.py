@@ -10,6 +10,7 @@ one frame, and the registers of the compiled kernels (``cuobjdump --dump-resourc
 Warp's kernel cache, where the CUDA toolkit has it).
 
     python scripts/probe_elastic_phases.py --device cuda:0 --strands 1000000 --out DIR
+    python scripts/probe_elastic_phases.py --device cuda:0 --strands 1000000 --product --arithmetic float64
 """
 
 from __future__ import annotations
@@ -43,21 +44,23 @@ VARIANTS = [
 ]
 
 
-def phase_kernels(parts, scalar, correction):
+def phase_kernels(parts, scalar, real, correction):
     out = []
     for phases, cap in parts:
         caps = dict(K.CUDA_MAX_REGISTERS_F32)
         K.CUDA_MAX_REGISTERS_F32[phases] = cap or None
-        out.append(K.elastic_kernel.__wrapped__(scalar, wp.float32, correction, phases=phases))
+        out.append(K.elastic_kernel.__wrapped__(scalar, real, correction, phases=phases))
         K.CUDA_MAX_REGISTERS_F32.update(caps)
     return out
 
 
-def run(pts, counts, parts, frames, substeps, device):
+def run(pts, counts, parts, frames, substeps, device, arithmetic="float32", each=False):
+    """ms a step, the positions after one frame, and with ``each`` ms a launch of each kernel alone."""
     model = dw.Model.from_strands(pts, counts, device=device, widths=80e-6)
-    solver = dw.make_solver(model, "elastic", compute_precision="float32")
+    solver = dw.make_solver(model, "elastic", compute_precision=arithmetic)
     correction = "prior" if solver.carries_corrections else "posterior"
-    solver._kernels = tuple(phase_kernels(parts, model.scalar, correction))
+    real = wp.float32 if arithmetic == "float32" else wp.float64
+    solver._kernels = tuple(phase_kernels(parts, model.scalar, real, correction))
     state, control = solver.state(), model.control()
     dt = 1.0 / (24 * substeps)
     solver.advance(state, control, dt, substeps)
@@ -70,9 +73,20 @@ def run(pts, counts, parts, frames, substeps, device):
         solver.advance(state, control, dt, substeps)
         wp.synchronize_device(device)
         times.append(time.perf_counter() - t)
+    per_kernel = []
+    if each:
+        kernels = solver._kernels
+        for kernel in kernels:
+            solver._kernels = (kernel,)
+            t = time.perf_counter()
+            for _ in range(16):
+                solver.step(state, state, control, dt)
+            wp.synchronize_device(device)
+            per_kernel.append((time.perf_counter() - t) / 16 * 1e3)
+        solver._kernels = kernels
     del solver, state
     gc.collect()
-    return float(np.median(times)) / substeps * 1e3, x1
+    return float(np.median(times)) / substeps * 1e3, x1, per_kernel
 
 
 def registers() -> list[str]:
@@ -98,23 +112,35 @@ def main() -> int:
     ap.add_argument("--strands", type=int, default=1000000)
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--arithmetic", default="float32", choices=("float32", "float64"))
+    ap.add_argument("--product", action="store_true",
+                    help="only the product's split (kernels/solvers/elastic.py's caps), with each kernel timed")
     args = ap.parse_args()
     wp.init()
     pts, counts = curly_groom(args.strands)
-    base_ms, base_x = run(pts, counts, [("ABC", 128)], args.frames + 2, 8, args.device)
-    rows = [("ABC (the kernel as it is), cap 128", base_ms, 0.0)]
-    print(f"{rows[0][0]}: {base_ms:.3f} ms/step", flush=True)
-    for label, parts in VARIANTS:
-        ms, x = run(pts, counts, parts, args.frames, 8, args.device)
+    caps = K.CUDA_MAX_REGISTERS_F32 if args.arithmetic == "float32" else dict.fromkeys(K.CUDA_MAX_REGISTERS_F32, 0)
+    variants = VARIANTS
+    if args.product:
+        variants = [(" | ".join(K.CUDA_PHASES) + ", caps " + " / ".join(str(caps[p] or "none") for p in K.CUDA_PHASES),
+                     [(p, caps[p]) for p in K.CUDA_PHASES])]
+    base_ms, base_x, _ = run(pts, counts, [("ABC", caps["ABC"])], args.frames + 2, 8, args.device, args.arithmetic)
+    rows = [(f"ABC (one kernel), cap {caps['ABC'] or 'none'}", base_ms, 0.0)]
+    print(f"{args.arithmetic} arithmetic. {rows[0][0]}: {base_ms:.3f} ms/step", flush=True)
+    for label, parts in variants:
+        ms, x, each = run(pts, counts, parts, args.frames, 8, args.device, args.arithmetic, each=args.product)
         diff = float(np.abs(x - base_x).max())
-        rows.append((label, ms, diff))
+        rows.append((label, ms, diff, each))
         print(f"{label}: {ms:.3f} ms/step, max |x - x_kernel| after 1 frame {diff:.3g} m", flush=True)
+        if each:
+            print("  each kernel alone, ms a launch: " + ", ".join(f"{p}: {t:.3f}" for (p, _), t in zip(parts, each)))
     regs = registers()
     print("\n".join(regs))
     if args.out:
         args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "elastic-phases.json").write_text(json.dumps(
-            {"device": args.device, "strands": args.strands, "rows": rows, "registers": regs}, indent=1))
+        name = f"elastic-phases-{args.arithmetic}{'-product' if args.product else ''}.json"
+        (args.out / name).write_text(json.dumps({"device": args.device, "strands": args.strands,
+                                                  "arithmetic": args.arithmetic, "rows": rows,
+                                                  "registers": regs}, indent=1))
     return 0
 
 
