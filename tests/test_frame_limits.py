@@ -3,7 +3,8 @@
 Before, ``--end`` had no upper bound: ``simulate --end 1000000000`` on a 10-frame stage set up and
 then simulated a billion frames (weeks, even for 3 strands), and frame numbers past 2**53, which a
 USD time code (a double) cannot tell apart, wrote 4 frames as 3 time samples at the wrong times
-with exit status 0.
+with exit status 0. And the warning that the frames reach past an animated stage's time range was
+printed only after the whole run.
 """
 
 from __future__ import annotations
@@ -89,3 +90,13 @@ def test_the_longest_range_is_taken(tmp_path):
     with pytest.raises(UserError, match=f"{MAX_FRAMES + 1} frames"):
         resolve_frames(scene, 5, 5 + MAX_FRAMES)
 
+
+def test_the_range_warning_comes_before_the_run(tmp_path, capsys):
+    """A range past the animation is said before the frames run (a long run can be stopped at
+    once), once."""
+    stage = _stage(tmp_path / "in.usda")
+    assert cli.main(["simulate", str(stage), "-o", str(tmp_path / "o.usdc"), "--end", "14"]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    warned = [k for k, line in enumerate(lines) if "lie partly outside the stage's time range 1..10" in line]
+    ran = [k for k, line in enumerate(lines) if line.startswith("dftl-warp: simulating: ")]
+    assert len(warned) == 1 and ran and warned[0] < ran[0], lines

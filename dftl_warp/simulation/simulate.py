@@ -462,7 +462,10 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     check_output(check_output_path(output, input), input)   # and: not a layer the input uses
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
-    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
+    known = len(scene.warnings)
+    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning,
+    ahead = scene.warnings[known:]         # printed before the run (a long one can be stopped at once)
+    del scene.warnings[known:]
     step = out_opts["frame_step"] or 1
     last_written = last_written_frame(scene, first, last, step, "--frame-step" if command else "frame_step")
     check_guides_output(scene, guides, cli=command is not None)   # --guides-output with no guides
@@ -470,6 +473,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
                      device_option="--device" if command else "device")
+    sim.start_notes[:0] = ahead
     elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
     # options no prim uses: said, not silently ignored
     flag = (lambda name: f"--{name}") if command else (lambda name: name)
