@@ -226,12 +226,18 @@ MAX_ITERATIONS = 1024
 #: the longest preroll, in seconds: a groom settles in seconds (docs/features.md: 3.8 s on a
 #: lumpy head), and the preroll may go on up to 8x as long
 MAX_PREROLL = 60.0
+#: the largest frame number (either sign): past 2**53 (9.007e15) consecutive frames are one USD
+#: time code (a double), so 4 frames were written as 3 samples at the wrong times
+MAX_FRAME = 10 ** 15
+#: the most frames in one run (11.6 hours at 24 fps): a longer range is a typo that would run for
+#: days or weeks (``--end 1000000000`` on a 10-frame stage: weeks, even for 3 strands on the CPU)
+MAX_FRAMES = 1_000_000
 
 _RUN = [
-    Option("start", int, None, "first frame (default: the stage's startTimeCode)",
+    Option("start", int, None, "first frame (default: the stage's startTimeCode)", low=-MAX_FRAME, high=MAX_FRAME,
            cli="--start", metavar="F", toml="start", api="start"),
-    Option("end", int, None, "last frame, inclusive (default: the stage's endTimeCode)",
-           cli="--end", metavar="F", toml="end", api="end"),
+    Option("end", int, None, f"last frame, inclusive (default: the stage's endTimeCode; at most {MAX_FRAMES} "
+           "frames in a run)", low=-MAX_FRAME, high=MAX_FRAME, cli="--end", metavar="F", toml="end", api="end"),
     Option("substeps", int, 8, "solver steps per frame", low=1, limit=MAX_SUBSTEPS,
            cli="--substeps", metavar="N", usd="dftl:substeps", scope="curves", toml="substeps", api="substeps"),
     Option("damping", float, 1.0,

@@ -6,7 +6,9 @@ Files next to ``OUTPUT`` (``out/sh010.usdc``), all hidden and all gone once the 
   :class:`~dftl_warp.output.base.FrameWriter`, :meth:`~dftl_warp.output.base.FrameWriter.partial_path`);
 - ``.sh010.usdc.dftl-checkpoint.usdc``: a copy of the partial file at the last checkpoint (same suffix);
 - ``.sh010.usdc.dftl-checkpoint.npz``: the solver state at that frame
-  (:meth:`~dftl_warp.simulation.simulate.Simulation.save_state`), the job's settings hash and state layout;
+  (:meth:`~dftl_warp.simulation.simulate.Simulation.save_state`), the job's settings hash and state layout,
+  and the clean start's lines (a resumed job repeats them: it moves hair out of colliders again, which
+  sets elastic strands' rest shapes, but does not step the preroll, whose result the state replaces);
 - ``.sh010.usdc.dftl-lock``: held (``flock``) while a process works on the job.
 
 A checkpoint is taken every ``every_frames`` frames and/or ``every_seconds`` seconds: the partial
@@ -354,21 +356,31 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         remove_job_files(files)  # left over when a run was killed right after its commit
         result.status = "skipped"
         return
-    shown = len(scene.warnings)
-    sim = Simulation(scene, opts, first, device_option="device")
-    for text in scene.warnings[shown:]:   # found while setting up (e.g. an elastic style that cannot stand)
-        warn(text)
-    for text in sim.start_notes:   # the clean start: a settled preroll is a note, the rest warnings
-        (note if is_plain_note(text) else warn)(text)
-    sim.on_warning = warn   # energy growth, as it happens
-    signature = state_signature(sim)
-
     clip_frames = None
     if out_opts["clips"] is not None:  # value clips: resumable per finished chunk (docs/caches.md)
         from ..output.clips import auto_clip_frames
 
         clip_frames = out_opts["clips"] or auto_clip_frames(scene, not out_opts["no_velocities"])
-    writer, resumed = _resume(files, key, signature, sim, scene, first, last, note, step, clip_frames)
+    shown = len(scene.warnings)
+    saved = _saved_state(files, key, first, last, note, clip_frames)
+    # resuming: the checkpoint's state replaces the preroll's, which is not stepped (the hair is
+    # still moved out of colliders: elastic strands rest where it puts them, as before the checkpoint)
+    sim = Simulation(scene, opts, first, device_option="device", resuming=saved is not None)
+    signature = state_signature(sim)
+    writer, resumed = None, None
+    if saved is not None:
+        writer, resumed = _resume(files, key, saved, signature, sim, scene, first, last, note, step, clip_frames)
+        if writer is None:   # unusable after all: a clean start, with its preroll
+            del scene.warnings[shown:]
+            sim = Simulation(scene, opts, first, device_option="device")
+    for text in scene.warnings[shown:]:   # found while setting up (e.g. an elastic style that cannot stand)
+        warn(text)
+    # the clean start's lines (a resumed run: those of the run it continues): a settled preroll is a note
+    for text in sim.start_notes:
+        (note if is_plain_note(text) else warn)(text)
+    for text in sim.warnings:   # an energy warning given before the checkpoint, given again
+        warn(text)
+    sim.on_warning = warn   # energy growth, as it happens
     if writer is None:
         remove_job_files(files)
         extra = {"velocities": False} if out_opts["no_velocities"] else {}
@@ -436,37 +448,55 @@ def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
     state["settings_hash"] = np.array(key)
     state["signature"] = np.array(signature)
     state["format"] = np.array(FORMAT)
+    state["start_notes"] = np.array(sim.start_notes, dtype=str)   # a resumed run repeats them
     atomic_savez(files.checkpoint_state, files.temporary(files.checkpoint_state), state)
 
 
-def _resume(files: JobFiles, key, signature, sim, scene, first, last, note, step: int = 1, clip_frames=None):
-    """(writer, last frame kept) continuing from the job's checkpoint, or (None, None) to start
-    over. The simulation is left at the checkpoint's frame, which is written (again) next.
-    ``clip_frames``: a value-clips job (its finished chunks are kept, the others dropped)."""
+#: what a checkpoint's .npz holds besides the simulation's state
+RECORDS = ("settings_hash", "signature", "format", "start_notes")
+
+
+def _saved_state(files: JobFiles, key, first, last, note, clip_frames=None) -> dict | None:
+    """The checkpoint's saved state when it is one of these settings (its hash and format) within
+    ``first..last``, else None (with a note when there was one): what is known before the
+    simulation is set up, so that a resumed one skips the preroll."""
     from ..output import writer_for
     from ..output.clips import ClipsWriter
 
     cls = writer_for(files.output) if clip_frames is None else ClipsWriter
     if not cls.resumable:
-        return None, None
+        return None
     if not (files.checkpoint_state.exists() and files.checkpoint_usd.exists()):
-        return None, None
+        return None
     try:
         with np.load(files.checkpoint_state, allow_pickle=False) as data:
             state = {k: data[k] for k in data.files}
     except Exception as exc:  # noqa: BLE001 - any unreadable checkpoint is just discarded
         note(f"checkpoint unreadable ({type(exc).__name__}); starting over")
-        return None, None
+        return None
     if int(state.get("format", -1)) != FORMAT or str(state.get("settings_hash")) != key:
         note("checkpoint is from other settings or input; starting over")
-        return None, None
-    if str(state.get("signature")) != signature:
-        note("checkpoint was taken on another kind of device; starting over")
-        return None, None
+        return None
     frame = int(state["frame"])  # the state's frame; the USD copy holds every frame before it
     if not first < frame <= last:
         note(f"checkpoint frame {frame} is outside {first}..{last}; starting over")
+        return None
+    return state
+
+
+def _resume(files: JobFiles, key, state, signature, sim, scene, first, last, note, step: int = 1, clip_frames=None):
+    """(writer, last frame kept) continuing from the checkpoint's ``state`` (:func:`_saved_state`),
+    or (None, None) to start over. The simulation is left at the checkpoint's frame, which is
+    written (again) next, with the clean start's lines of the run it continues.
+    ``clip_frames``: a value-clips job (its finished chunks are kept, the others dropped)."""
+    from ..output import writer_for
+    from ..output.clips import ClipsWriter
+
+    cls = writer_for(files.output) if clip_frames is None else ClipsWriter
+    if str(state.get("signature")) != signature:
+        note("checkpoint was taken on another kind of device; starting over")
         return None, None
+    frame = int(state["frame"])
     atomic_copy(files.checkpoint_usd, files.partial, files.temporary(files.partial))
     try:
         if clip_frames is None:
@@ -483,5 +513,7 @@ def _resume(files: JobFiles, key, signature, sim, scene, first, last, note, step
         writer.abort()
         note("checkpoint output does not match its state; starting over")
         return None, None
-    sim.load_state({k: v for k, v in state.items() if k not in ("settings_hash", "signature", "format")})
+    sim.load_state({k: v for k, v in state.items() if k not in RECORDS})
+    if "start_notes" in state:   # (a checkpoint without them: the push-out's, found again)
+        sim.start_notes = [str(text) for text in state["start_notes"]]
     return writer, frame - 1

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core.bounds import box
 from ..errors import UserError
-from ..options import check_api, default
+from ..options import MAX_FRAMES, check_api, default
 from ..usd.scene import Scene
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise (the
@@ -91,6 +91,9 @@ def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
     last = int(end) if end is not None else math.floor(info.end_time_code + 1e-9)
     if last < first:
         raise UserError(f"{scene.source}: frame range {first}..{last} is empty (end before start)")
+    if last - first + 1 > MAX_FRAMES:   # a typo that would run for days
+        raise UserError(f"{scene.source}: frames {first}..{last} are {last - first + 1} frames; a run takes at most "
+                        f"{MAX_FRAMES} (check --start and --end)")
     return first, last
 
 

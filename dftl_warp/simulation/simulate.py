@@ -66,7 +66,7 @@ class Simulation:
     """
 
     def __init__(self, scene: Scene, options: SimulationOptions, frame: int, tolerance: float | None = None,
-                 guides: dict | None = None, device_option: str = "--device"):
+                 guides: dict | None = None, device_option: str = "--device", resuming: bool = False):
         import warp as wp
 
         #: what is written (:meth:`samples` gives one pair per prim of it); ``scene`` is what is simulated
@@ -85,8 +85,8 @@ class Simulation:
         self.scene = scene
         self.options = options
         self.frame = int(frame)
-        #: the shot: its first frame (this one; a resumed run is made at it too, then loads its
-        #: state) and its last (set by :func:`run_frames`; None: unknown). The roots' velocities
+        #: the shot: its first frame (this one; a resumed run is made at it too, with ``resuming``,
+        #: then loads its state: :meth:`load_state`) and its last (set by :func:`run_frames`; None: unknown). The roots' velocities
         #: are one-sided there (:meth:`advance`)
         self.first_frame = int(frame)
         self.last_frame: int | None = None
@@ -132,7 +132,7 @@ class Simulation:
         self.fast_turns: set[str] = set()
         #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
         #: with the device line and kept in Summary.warnings
-        self.start_notes: list[str] = self._clean_start()
+        self.start_notes: list[str] = self._clean_start(preroll=not resuming)
         for g in self.groups:   # energy budgets, and styles that cannot stand, from what the clean start left
             g.restart_monitor()
             if g.settings.solver == "elastic":
@@ -147,19 +147,23 @@ class Simulation:
 
             self.tolerance = setup(self, tolerance)
 
-    def _clean_start(self) -> list[str]:
+    def _clean_start(self, preroll: bool = True) -> list[str]:
         """Hair that starts inside a collider is moved out, and ``options.preroll`` seconds settle
         the groom, with roots and colliders held at the first frame's pose
         (:mod:`dftl_warp.features.clean_start`). A group split across devices
-        is moved out and settled as one."""
+        is moved out and settled as one. ``preroll=False`` (a run that resumes from a saved state,
+        which replaces the settled one): the hair is moved out, so that elastic strands rest where
+        they were moved as in the run that saved it (the saved state does not hold the rest
+        shape), but the preroll is not stepped."""
         import warp as wp
 
         from ..features import update_frame
-        from ..features.clean_start import inside_note, preroll, resolve_parts
+        from ..features.clean_start import inside_note, resolve_parts
+        from ..features.clean_start import preroll as settle
         from .elastic_setup import rest_where_moved
 
         notes = []
-        seconds = float(self.options.preroll or 0.0)
+        seconds = float(self.options.preroll or 0.0) if preroll else 0.0
         mpu = self.scene.stage.meters_per_unit
         units = {1.0: "m", 0.01: "cm", 0.001: "mm"}.get(mpu, "stage units")
         for k, g in enumerate(self.groups):
@@ -183,8 +187,8 @@ class Simulation:
                             mine += rest_where_moved(g, self.frame)
                 if seconds > 0:
                     tcps = self.scene.stage.time_codes_per_second
-                    mine.append(preroll(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
-                                        resolve=has_colliders).line(units))
+                    mine.append(settle(g.solver, g.state, g.control, seconds, 1.0 / tcps, g.settings.substeps,
+                                       resolve=has_colliders).line(units))
                 # several groups: each line names its prims after its tag ('preroll: /A, /B: ...')
                 whose = ", ".join(c.path for c in g.curves) if len(self.groups) > 1 else None
                 notes += [line if whose is None else line.replace(": ", f": {whose}: ", 1) for line in mine]
@@ -325,7 +329,8 @@ class Simulation:
         return saved_state.save_state(self)
 
     def load_state(self, state: dict) -> None:
-        """Continue from a :meth:`save_state` of the same scene and options."""
+        """Continue from a :meth:`save_state` of the same scene and options (made with
+        ``resuming=True`` it skips the preroll, whose result the saved state replaces)."""
         saved_state.load_state(self, state)
 
 
@@ -457,7 +462,10 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     check_output(check_output_path(output, input), input)   # and: not a layer the input uses
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
-    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
+    known = len(scene.warnings)
+    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning,
+    ahead = scene.warnings[known:]         # printed before the run (a long one can be stopped at once)
+    del scene.warnings[known:]
     step = out_opts["frame_step"] or 1
     last_written = last_written_frame(scene, first, last, step, "--frame-step" if command else "frame_step")
     check_guides_output(scene, guides, cli=command is not None)   # --guides-output with no guides
@@ -465,6 +473,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
                      device_option="--device" if command else "device")
+    sim.start_notes[:0] = ahead
     elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
     # options no prim uses: said, not silently ignored
     flag = (lambda name: f"--{name}") if command else (lambda name: name)
