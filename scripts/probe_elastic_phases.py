@@ -31,6 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
 import dftl_warp as dw  # noqa: E402
 import dftl_warp.kernels.solvers.elastic as K  # noqa: E402
+import dftl_warp.kernels.solvers.elastic_blocks as blocks  # noqa: E402
 from bench_elastic import curly_groom  # noqa: E402
 
 #: (label, [(phases, register cap), ...]); a cap of 0 leaves the kernel uncapped
@@ -115,6 +116,8 @@ def main() -> int:
     ap.add_argument("--arithmetic", default="float32", choices=("float32", "float64"))
     ap.add_argument("--product", action="store_true",
                     help="only the product's split (kernels/solvers/elastic.py's caps), with each kernel timed")
+    ap.add_argument("--kkt", nargs="*", default=[],
+                    help="also time the product's split with these KKT_INVERSE forms (elastic_blocks.py)")
     args = ap.parse_args()
     wp.init()
     pts, counts = curly_groom(args.strands)
@@ -126,8 +129,13 @@ def main() -> int:
     base_ms, base_x, _ = run(pts, counts, [("ABC", caps["ABC"])], args.frames + 2, 8, args.device, args.arithmetic)
     rows = [(f"ABC (one kernel), cap {caps['ABC'] or 'none'}", base_ms, 0.0)]
     print(f"{args.arithmetic} arithmetic. {rows[0][0]}: {base_ms:.3f} ms/step", flush=True)
-    for label, parts in variants:
+    default_kkt = blocks.KKT_INVERSE
+    variants = [(label, parts, default_kkt) for label, parts in variants]
+    variants += [(f"{variants[-1][0]}, KKT inverse {kkt}", variants[-1][1], kkt) for kkt in args.kkt]
+    for label, parts, kkt in variants:
+        blocks.KKT_INVERSE = kkt
         ms, x, each = run(pts, counts, parts, args.frames, 8, args.device, args.arithmetic, each=args.product)
+        blocks.KKT_INVERSE = default_kkt
         diff = float(np.abs(x - base_x).max())
         rows.append((label, ms, diff, each))
         print(f"{label}: {ms:.3f} ms/step, max |x - x_kernel| after 1 frame {diff:.3g} m", flush=True)

@@ -42,6 +42,8 @@ from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
 from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct
+from . import elastic_blocks
+from .elastic_blocks import block_funcs
 
 #: as the DFTL step kernels: no floating-point contraction
 ELASTIC_MODULE_OPTIONS = {"fuse_fp": False}
@@ -216,53 +218,12 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         wp.svd3(M, U, sig, V)
         return wp.quat_from_matrix(U * wp.transpose(V))
 
-    @wp.func
-    def curv(xm: vec3, x: vec3, xp: vec3, lj: real, lj1: real):
-        """(Dx)_j from x_{j-1}, x_j, x_{j+1} and the segment lengths l_j, l_{j+1}."""
-        al = real(1.0) / lj
-        ga = real(1.0) / lj1
-        return -(al * (x - xm)) + ga * (xp - x)
-
-    @wp.func
-    def pack_symmetric(D: mat44):
-        """The 10 entries of a symmetric 4x4 matrix on and above its diagonal."""
-        return vec10(D[0, 0], D[0, 1], D[0, 2], D[0, 3], D[1, 1], D[1, 2], D[1, 3], D[2, 2], D[2, 3], D[3, 3])
-
-    @wp.func
-    def unpack_symmetric(p: vec10):
-        return mat44(p[0], p[1], p[2], p[3],
-                     p[1], p[4], p[5], p[6],
-                     p[2], p[5], p[7], p[8],
-                     p[3], p[6], p[8], p[9])
-
-    @wp.func
-    def upper3_packed(p: vec10):
-        """The 6 entries on and above the diagonal of the upper 3x3 (velocity part) of a packed
-        symmetric 4x4 matrix."""
-        return vec6(p[0], p[1], p[2], p[4], p[5], p[7])
-
-    @wp.func
-    def unpack_symmetric3(q: vec6):
-        return mat33(q[0], q[1], q[2],
-                     q[1], q[3], q[4],
-                     q[2], q[4], q[5])
-
-    @wp.func
-    def block0(G: mat33, e: vec3):
-        """The diagonal block with velocity part G and constraint row e."""
-        return mat44(G[0, 0], G[0, 1], G[0, 2], e[0],
-                     G[1, 0], G[1, 1], G[1, 2], e[1],
-                     G[2, 0], G[2, 1], G[2, 2], e[2],
-                     e[0], e[1], e[2], real(0.0))
-
-    @wp.func
-    def block1(a1: real, e: vec3, a2: real, BD: mat34):
-        """B_{k-1,k} = A_{k-1,k} - a2 P D_{k+1}^-1 B_{k,k+1}^T, rows 0-2 (its last row is zero), from
-        BD = B_{k,k+1} D_{k+1}^-1: P D^-1 B^T P is the transpose of BD's left 3x3 (D^-1 symmetric)."""
-        z = real(0.0)
-        return mat34(a1 - a2 * BD[0, 0], z - a2 * BD[1, 0], z - a2 * BD[2, 0], -e[0],
-                     z - a2 * BD[0, 1], a1 - a2 * BD[1, 1], z - a2 * BD[2, 1], -e[1],
-                     z - a2 * BD[0, 2], z - a2 * BD[1, 2], a1 - a2 * BD[2, 2], -e[2])
+    blocks = block_funcs(real)
+    curv = blocks.curv
+    upper3_packed = blocks.upper3_packed
+    unpack_symmetric = blocks.unpack_symmetric
+    block1 = blocks.block1
+    kkt_inverse = blocks.kkt_plane if elastic_blocks.KKT_INVERSE == "plane" else blocks.kkt_generic
 
     @wp.kernel(enable_backward=False, module="unique", module_options=ELASTIC_MODULE_OPTIONS,
                cuda_max_registers=CUDA_MAX_REGISTERS_F32[phases] if real == wp.float32 else None)
@@ -508,13 +469,9 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
                 if k >= 2:
                     # B_{k-1,k} = A_{k-1,k} - B_{k-1,k+1} D_{k+1}^-1 B_{k,k+1}^T, B_{k-1,k+1} = a2 P
                     B1 = block1(h2 * k1[km] - h2 * kt_k, e, h2 * k2[km], BD)
-                z = real(0.0)
-                G = (mat33(a0, z, z, z, a0, z, z, z, a0) - BD * wp.transpose(Bk1)
-                     - (a2k * a2k) * unpack_symmetric3(Di2u))
-                # D_k is symmetric but for the products' rounding: inverted symmetrised (without that a
-                # styled groom at rest drifts 3e-9 L instead of < 1e-10 in float64), used as stored in
-                # both sweeps
-                Di_packed = pack_symmetric(wp.inverse(block0(real(0.5) * (G + wp.transpose(G)), e)))
+                # D_k^-1, packed symmetric, from its velocity block a0 I - B D^-1 B^T - a2^2 (D_{k+2}^-1)_vv
+                # and its constraint row e (kernels/solvers/elastic_blocks.py, KKT_INVERSE)
+                Di_packed = kkt_inverse(a0, BD, Bk1, a2k * a2k, Di2u, e)
                 # stored compactly: D_k^-1 is symmetric (10 words), B1 = B_{k-1,k} has a zero last row (12)
                 factor_inv[kk] = Di_packed
                 factor_up[kk] = B1
