@@ -26,7 +26,13 @@ def _stage(path):
 
 
 def _run(path, device, frames, saved=None):
-    sim = Simulation(read_scene(path), SimulationOptions(device=device, solver="dftl", damping=0.0, substeps=40), 1)
+    return simulate_frames(path, device, frames, saved, solver="dftl", damping=0.0, substeps=40)
+
+
+def simulate_frames(path, device, frames, saved=None, **options):
+    """(simulation, its warnings) of ``path`` run to ``frames`` with ``options`` (SimulationOptions),
+    continued from the saved state ``saved`` if given."""
+    sim = Simulation(read_scene(str(path)), SimulationOptions(device=device, **options), 1)
     warned = []
     sim.on_warning = warned.append
     if saved is not None:

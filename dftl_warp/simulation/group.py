@@ -141,8 +141,10 @@ class Group:
             advice = None   # the default: DFTL with s < 1
             if not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
                 advice = "more substeps per frame (--substeps, or --quality production) may hold it"
+            seconds = 1.0 / scene.stage.time_codes_per_second   # the time the controls' collider poses span
             monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice,
-                                      prims=self.prims) for s, st in zip(solvers, states)]
+                                      prims=self.prims, control=c, frame_duration=seconds)
+                        for s, st, c in zip(solvers, states, controls)]
             self.monitor = SplitMonitor(monitors) if split else monitors[0]
         self._parts = list(zip(models, states))
         #: the elastic solver's clamp ghosts in each prim's local space (moved with the roots)

@@ -3,6 +3,7 @@
 Usage (one monitor per run, checked once per frame or as often as you like)::
 
     monitor = EnergyMonitor(solver, "dftl s=0.5 dt=1e-05 s", state)
+    # with moving colliders: EnergyMonitor(solver, setting, state, control=control, frame_duration=T)
     for frame in range(frames):
         solver.advance(state, control, dt, substeps)
         monitor.check(state, frame)
@@ -17,19 +18,33 @@ lengths are in stage units; the warning converts to J/kg with ``meters_per_unit`
 Each strand is judged on its own (one unstable strand is not hidden in a large groom), against
 the smaller of two budgets, each with a safety ``factor`` (default 2)::
 
-    gross:  factor * ( E_start  +  floor  +  2 n u_max^2 )
+    gross:  factor * ( E_start  +  floor  +  2 n (u_max + U_max)^2  [ +  P_lift ] )
     held:   factor * ( E_moved  +  floor )
 
 with ``n`` the strand's free particles, ``E_start`` its available energy in the initial state,
 ``u_max`` the fastest root speed seen so far (a root moving at ``u`` can at most throw its strand
-at ``2 u``), ``E_moved`` its energy at the last check where its root had moved since the previous
-check (``E_start`` if it never moved), and ``floor = floor_fraction * n * max(|g| L, (L/1 s)^2/2)``
-(the energy scale of the strand, of length ``L``, falling its own length; 1e-4 of it by default).
+at ``2 u``), ``U_max`` the fastest surface speed seen so far of a moving collider that could reach
+the strand (a surface moving at ``U`` throws hair at up to about ``2 U``), ``P_lift = 2 |g| sum_i L_i``
+the potential energy of the strand standing straight up from its root (``L_i``: particle ``i``'s rest
+length from the root), counted once a moving collider has reached the strand (a collider, however
+slow, can carry hair up: it does work by pushing, not only by striking), ``E_moved`` its energy at
+the last check where its root had moved since the previous check, or a collider within its reach had
+moved during the frame (``E_start`` if neither ever moved), and
+``floor = floor_fraction * n * max(|g| L, (L/1 s)^2/2)`` (the energy scale of the strand, of length
+``L``, falling its own length; 1e-4 of it by default).
 
-A physical strand never gains energy while its root is held, and DFTL with ``s = 1`` dissipates
-(the stability map in docs/accuracy.md records its largest energy / budget ratio); a strand above
-its budget has *created* energy -- at least doubled it since its root last moved, or grown from
-rest to more than ``floor``. That is the signature of ``s < 1`` at small steps: the unbalanced
+Colliders are counted per strand (:mod:`~dftl_warp.simulation.monitor_colliders`): a collider is in a
+strand's reach when a sphere holding it wherever it was during the frame comes within ``1.1 L`` (plus
+the root's way since the last check) of the strand's root; a strand out of reach of every moving
+collider keeps the budget of its root alone, and static colliders change no budget. The monitor
+sees the colliders when it is given the run's Control and the frame's duration (``control``,
+``frame_duration``) and is checked once a frame, after the frame (the Control then holds the poses
+the colliders followed in it); without them a moving collider's work looks created.
+
+A physical strand never gains energy while its root and the colliders it touches are held, and DFTL
+with ``s = 1`` dissipates (the stability map in docs/accuracy.md records its largest energy / budget
+ratio); a strand above its budget has *created* energy -- at least doubled it since its root (or a
+collider in reach) last moved, or grown from rest to more than ``floor``. That is the signature of ``s < 1`` at small steps: the unbalanced
 velocity corrections pump energy into the strand faster than follow-the-leader dissipates it,
 and a strand hanging at rest starts to move by itself.
 
@@ -40,7 +55,8 @@ After a run, ``monitor.unstable`` (per device strand) and ``monitor.worst_ratio`
 energy / budget seen) tell which strands blew up and by how much.
 
 Cost: one small kernel launch per check, and four totals copied to the host (a per-strand copy only
-when a strand first goes over its budget, to name it).
+when a strand first goes over its budget, to name it); with colliders, also the frame's poses (7
+numbers per collider per pose) copied to the host and one launch per mesh collider over its points.
 """
 
 from __future__ import annotations
@@ -55,7 +71,8 @@ from ..kernels.simulation.energy import energy_budget_kernel
 
 
 class EnergyGrowthWarning(RuntimeWarning):
-    """A run created energy beyond what it started with and its roots can supply: the setting is unstable."""
+    """A run created energy beyond what it started with and its roots (and moving colliders) can supply:
+    the setting is unstable."""
 
 
 class EnergyMonitor:
@@ -68,10 +85,13 @@ class EnergyMonitor:
         factor: safety factor on the physical budget (default 2).
         floor_fraction: share of the strands' weight scale below which energy is never
             flagged (default 1e-4).
+        control: the run's Control: its moving colliders' work is counted (module docstring);
+            with ``frame_duration``, the seconds of one frame (the time the Control's poses span).
     """
 
     def __init__(self, solver, setting: str, state=None, *, factor: float = 2.0, floor_fraction: float = 1.0e-4,
-                 meters_per_unit: float = 1.0, advice: str | None = None, prims=None):
+                 meters_per_unit: float = 1.0, advice: str | None = None, prims=None, control=None,
+                 frame_duration: float | None = None):
         self.solver = solver
         self.model = model = solver.model
         self.setting = setting
@@ -96,17 +116,37 @@ class EnergyMonitor:
         strand = np.repeat(np.arange(model.num_strands), count)
         first = strand_offsets(count)
         local = np.arange(strand.shape[0]) - np.repeat(first, count)
-        lengths = np.bincount(strand, weights=rest[base[strand] + stride[strand] * local], minlength=model.num_strands)
+        along = rest[base[strand] + stride[strand] * local]
+        lengths = np.bincount(strand, weights=along, minlength=model.num_strands)
+        # each particle's rest length from its root (the roots' own is 0)
+        from_root = np.cumsum(along)
+        from_root -= np.repeat(from_root[first] - along[first], count)
         scale = np.maximum(np.linalg.norm(gravity) * lengths, 0.5 * lengths**2)
         self._floor = float(floor_fraction) * self._free * scale  # per device strand, J/kg
         n, dev = model.num_strands, model.device
         self._free_d = wp.array(self._free, dtype=wp.float64, device=dev)
         self._floor_d = wp.array(self._floor, dtype=wp.float64, device=dev)
+        #: per device strand: how far from its root a collider can touch it (its length and 10 %)
+        self._reach_d = wp.array(1.1 * lengths, dtype=wp.float64, device=dev)
+        #: per device strand: the potential energy a collider can lift it to (J/kg, straight up from its root)
+        lift = 2.0 * np.linalg.norm(gravity) * np.bincount(strand, weights=from_root, minlength=model.num_strands)
+        self._lift_d = wp.array(lift, dtype=wp.float64, device=dev)
+        #: the moving colliders (monitor_colliders.ColliderMotion), or None
+        self.colliders = None
+        if control is not None and getattr(control.features, "colliders", None) is not None:
+            from .monitor_colliders import ColliderMotion
+
+            if frame_duration is None:
+                raise ValueError("EnergyMonitor: a control with colliders needs frame_duration (s)")
+            self.colliders = ColliderMotion(control, frame_duration)
+        self._no_colliders = wp.zeros(1, dtype=wp.float64, device=dev), wp.zeros(1, dtype=wp.vec3d, device=dev)
         # the records, per device strand, on the device (energy_budget_kernel): start energy, energy
-        # when the root last moved, root position, fastest root speed, largest ratio, over budget once
+        # when the root (or a collider in reach) last moved, root position, fastest root speed, largest
+        # ratio, over budget once, fastest collider in reach
         self._records = [wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
                          wp.zeros(n, dtype=wp.vec3d, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
-                         wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.int32, device=dev)]
+                         wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.int32, device=dev),
+                         wp.zeros(n, dtype=wp.float64, device=dev)]
         self._out = [wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
                      wp.zeros(n, dtype=wp.int32, device=dev)]
         self._totals = wp.zeros(4, dtype=wp.float64, device=dev)
@@ -124,6 +164,12 @@ class EnergyMonitor:
         """Per device strand: largest ratio of available energy to budget seen so far."""
         return self._records[4].numpy()
 
+    @property
+    def collider_speed(self) -> np.ndarray:
+        """Per device strand: the fastest surface speed (model units/s) of a moving collider seen within
+        its reach so far (0 without one)."""
+        return self._records[6].numpy()
+
     def restart(self, state) -> None:
         """Take ``state`` as the start of the run (e.g. after a clean start moved hair out of a
         collider, or a preroll: energy they add or remove is not the run's)."""
@@ -134,8 +180,11 @@ class EnergyMonitor:
 
     def save(self) -> dict:
         """The records a resumed run continues from (numpy arrays; :meth:`load`): each strand's
-        budget records, whether the next check is the first, and the warning given (empty: none)."""
+        budget records, whether the next check is the first, the warning given (empty: none), and the
+        mesh colliders' points at the last check."""
         out = {f"record{i}": r.numpy() for i, r in enumerate(self._records)}
+        if self.colliders is not None:
+            out.update(self.colliders.save())
         out["first"] = np.array(self._first)
         out["message"] = np.array(self.message or "")
         return out
@@ -147,6 +196,8 @@ class EnergyMonitor:
             if values.shape[0] != r.shape[0]:
                 raise ValueError(f"saved energy records have {values.shape[0]} strands, not {r.shape[0]}")
             r.assign(wp.array(values, dtype=r.dtype, device=r.device))
+        if self.colliders is not None:
+            self.colliders.load(saved)
         self._first = bool(saved["first"])
         self.message = str(saved["message"]) or None
         self.warned = self.message is not None
@@ -159,11 +210,19 @@ class EnergyMonitor:
         if m.num_strands == 0:
             return np.zeros(4)
         self._totals.zero_()
+        if self.colliders is not None:
+            self.colliders.update(bool(self._first))
+            c = self.colliders
+            colliders = [c.center, c.reach, c.speed, c.count]
+        else:
+            none, center = self._no_colliders
+            colliders = [center, none, none, 0]
         wp.launch(
             energy_budget_kernel(m.scalar),
             dim=m.num_strands,
             inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self._gravity, self.factor,
-                    self._free_d, self._floor_d, state.positions, state.velocities, int(self._first), *self._records],
+                    self._free_d, self._floor_d, state.positions, state.velocities, int(self._first),
+                    self._reach_d, self._lift_d, *colliders, *self._records],
             outputs=[*self._out, self._totals],
             device=m.device,
         )
@@ -209,8 +268,9 @@ class EnergyMonitor:
         if bad.any():
             return f"{self.setting}: {which}: non-finite positions or velocities{at}; this setting is unstable"
         joules = self.meters_per_unit**2  # (stage units / s)^2 -> J/kg
+        supply = "its root and moving colliders" if self.colliders is not None else "its root"
         return (f"{self.setting}: {which}: energy grew to {energy[k] * joules:.3g} J/kg{at}, more than "
-                f"{budget[k] * joules:.3g} J/kg ({self.factor:g}x what it started with and its root can supply); "
+                f"{budget[k] * joules:.3g} J/kg ({self.factor:g}x what it started with and {supply} can supply); "
                 f"this setting is unstable ({self.advice})")
 
     def _name(self, strand: int) -> str:

@@ -14,7 +14,9 @@ from .multi_device import EXTRA_FIELDS
 
 
 def save_state(sim) -> dict:
-    """Everything needed to continue from the current frame, as numpy arrays (device layout)."""
+    """Everything needed to continue from the current frame, as numpy arrays (device layout). The
+    energy check has checked the frame first (its records are those after the frame's check)."""
+    sim.check_energy()
     state = {"frame": np.array(sim.frame)}
     for k, g in enumerate(sim.groups):
         for name in EXTRA_FIELDS:   # the elastic solver's State: tensions, frames, clamp ghosts
@@ -63,6 +65,9 @@ def load_state(sim, state: dict) -> None:
     sim.frame = int(state["frame"])
     sim._matrices = {}
     sim._at_rest = False
+    # the saved frame was checked before the save: checked again now, it would read the colliders'
+    # poses and mesh points of the Control's start, not of the frame, as the colliders' motion
+    sim._checked = sim.frame
     _load_monitors(sim, state)
     if sim.guides is not None:
         sim.guides.reset()
@@ -73,13 +78,14 @@ def load_state(sim, state: dict) -> None:
 
 def _load_monitors(sim, state: dict) -> None:
     """The energy check continues from the saved records, its warning (given before the save)
-    given again (the simulation's ``warnings``); a state saved without them restarts the check."""
+    given again (the simulation's ``warnings``); a state saved without them (or without some: one
+    saved before the check counted the colliders' motion) restarts the check."""
     for k, g in enumerate(sim.groups):
         if g.monitor is None:
             continue
         prefix = f"group{k}.monitor."
         saved = {name[len(prefix):]: v for name, v in state.items() if name.startswith(prefix)}
-        if not saved:
+        if not saved or not set(g.monitor.save()) <= set(saved):
             g.monitor.restart(g.state)
             continue
         g.monitor.load(saved)

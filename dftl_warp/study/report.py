@@ -415,9 +415,14 @@ The errors above are this groom's, on this device; the front's are on 100k stran
 
 Per strand, the *available energy* (kinetic plus potential above the strand hanging straight
 down from its root, J/kg) is compared with the smaller of a gross budget, twice the start energy
-plus what the root can supply (`2 n u_max^2`), and a held-root budget, twice the energy at the
-last check where the root moved; both plus a floor of 1e-4 of the strand's weight scale. A
-strand above its budget has created energy. It fired on every unstable setting of the map and
+plus what the root and the moving colliders within the strand's reach can supply
+(`2 n (u_max + U_max)^2`, the fastest root and collider surface speeds seen; once such a collider
+has reached the strand, also the potential energy of the strand standing straight up, since a
+collider carries hair up however slowly it moves), and a held budget, twice the energy at the last
+check where the root or such a collider moved; both plus a floor of 1e-4 of the strand's weight
+scale. A strand above its budget has created energy. Static colliders, and moving ones out of a
+strand's reach, change no budget (`tests/test_energy_warning_colliders.py`).
+It fired on every unstable setting of the map and
 the tests, and never on an s = 1 run (largest ratio {s1_ratio:.2f}, at most half the threshold).
 
 `simulate` runs it on every group of prims whose features add no energy of their own. Wind blows

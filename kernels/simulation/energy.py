@@ -7,6 +7,10 @@ Per unit particle mass (J/kg), summed over a strand's free particles (float64)::
 where ``x_0`` is the root and ``L_i`` the rest length along the strand from the root to particle
 ``i``. It is zero for a strand hanging straight down at rest and positive otherwise (for
 an inextensible strand), whatever the world origin: the quantity is measured from the root.
+
+The budget it is judged against counts the work of the strand's root and of the moving colliders that
+can reach it (``dftl_warp/simulation/monitor.py``; the colliders' motion:
+``dftl_warp/simulation/monitor_colliders.py``, with :func:`mesh_motion_kernel` for deforming meshes).
 """
 
 
@@ -78,14 +82,25 @@ def energy_budget_kernel(scalar):
         positions: wp.array(dtype=vec3),
         velocities: wp.array(dtype=vec3),
         first: wp.int32,
-        # Records in and out (per strand): start energy, energy when the root last moved, root position,
-        # fastest root speed, largest energy / budget, 1 once over budget
+        # per strand: how far from its root it reaches, and the potential energy of it standing straight up
+        # (J/kg) that a moving collider can lift it to; per collider (the frame just simulated): a
+        # sphere that held it (centre, radius) and its surface's speed (0: it did not move)
+        strand_reach: wp.array(dtype=wp.float64),
+        lift: wp.array(dtype=wp.float64),
+        collider_center: wp.array(dtype=wp.vec3d),
+        collider_reach: wp.array(dtype=wp.float64),
+        collider_speed_now: wp.array(dtype=wp.float64),
+        num_colliders: wp.int32,
+        # Records in and out (per strand): start energy, energy when the root or a collider in reach
+        # last moved, root position, fastest root speed, largest energy / budget, 1 once over budget,
+        # fastest collider in reach
         start: wp.array(dtype=wp.float64),
         moved_energy: wp.array(dtype=wp.float64),
         root_position: wp.array(dtype=wp.vec3d),
         root_speed: wp.array(dtype=wp.float64),
         worst_ratio: wp.array(dtype=wp.float64),
         unstable: wp.array(dtype=wp.int32),
+        collider_speed: wp.array(dtype=wp.float64),
         # Data out: this check's energy, budget and non-finite flag per strand, and the totals
         energy: wp.array(dtype=wp.float64),
         budget: wp.array(dtype=wp.float64),
@@ -108,11 +123,24 @@ def energy_budget_kernel(scalar):
             root_position[s] = root
         moved = speed > wp.float64(0.0) or root[0] != root_position[s][0] or root[1] != root_position[s][1] \
             or root[2] != root_position[s][2]
+        # the fastest moving collider whose sphere came within the strand's reach of its root (the
+        # root's way since the last check added)
+        pushed = wp.float64(0.0)
+        travel = wp.length(root - root_position[s])
+        for c in range(num_colliders):
+            if collider_speed_now[c] > pushed and wp.length(root - collider_center[c]) <= (
+                    collider_reach[c] + strand_reach[s] + travel):
+                pushed = collider_speed_now[c]
+        if pushed > wp.float64(0.0):
+            moved = True
         if moved and bad == 0:
             moved_energy[s] = e
+            collider_speed[s] = wp.max(collider_speed[s], pushed)
         root_position[s] = root
-        u = root_speed[s]
+        u = root_speed[s] + collider_speed[s]
         gross = start[s] + floor[s] + wp.float64(2.0) * free[s] * u * u
+        if collider_speed[s] > wp.float64(0.0):
+            gross += lift[s]
         b = factor * wp.min(gross, moved_energy[s] + floor[s])
         over = bad != 0 or e > b
         ratio = e / wp.max(b, wp.float64(1.0e-300))
@@ -132,3 +160,22 @@ def energy_budget_kernel(scalar):
         wp.atomic_add(totals, 1, b)
 
     return energy_budget
+
+
+@functools.cache
+def mesh_motion_kernel():
+    """Kernel over a mesh collider's points (local, float32): ``out[k]`` becomes the largest
+    displacement of a point since ``before`` (its points at the last check, then set to the current
+    ones), ``out[k + 1]`` the largest distance of a point from the mesh's origin (atomic maxima: the
+    caller zeroes ``out``)."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def mesh_motion(points: wp.array(dtype=wp.vec3), k: wp.int32, before: wp.array(dtype=wp.vec3),
+                    out: wp.array(dtype=wp.float64)):
+        i = wp.tid()
+        p = points[i]
+        wp.atomic_max(out, k, wp.float64(wp.length(p - before[i])))
+        wp.atomic_max(out, k + 1, wp.float64(wp.length(p)))
+        before[i] = p
+
+    return mesh_motion
