@@ -242,7 +242,12 @@ class Solver:
         if m.num_strands == 0:
             return
         self.launch_frame(state, control, dt, substeps, lambda: self.substeps(state, control, dt, substeps),
-                          self.kernels)
+                          self.kernels, self.graph_variant())
+
+    def graph_variant(self) -> tuple:
+        """What else a frame's CUDA graph depends on: the host scalars its launches pass that can change
+        between frames (a graph replays the values it was captured with)."""
+        return ()
 
     def launch_frame(self, state, control, dt: float, substeps: int, run, kernels, variant=()) -> None:
         """``run()`` directly on the CPU; on CUDA through a graph cached per (state, control, dt,

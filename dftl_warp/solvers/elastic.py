@@ -500,6 +500,12 @@ class ElasticSolver(Solver):
 
     # -- stepping --------------------------------------------------------------------------------
 
+    def graph_variant(self) -> tuple:
+        """The clamps' mode (ghosts relative to the roots, or targets of their own) is a scalar of the
+        step's launch: a graph captured in one mode must not be replayed in the other (a preroll with
+        the clamps relative, then a shot with device-side targets, replayed the preroll's on CUDA)."""
+        return (self._clamp_relative,)
+
     def kernels(self) -> list:
         return (self._features.kernels() if self._features is not None else []) + list(self._kernels)
 
