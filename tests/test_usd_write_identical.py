@@ -137,3 +137,24 @@ def test_simulated_output_is_identical_to_the_frombuffer_writer(tmp_path, monkey
     assert all(sorted(t) == [1.0, 2.0, 3.0, 4.0] for t in got.values())
     layer = Sdf.Layer.FindOrOpen(str(fast))
     assert layer.GetAttributeAtPath("/World/Groom/Rod.points").GetInfo("typeName") == "point3f[]"
+
+
+def test_a_clip_writer_chunk_is_identical_to_the_frombuffer_one(tmp_path, monkeypatch):
+    """The value-clips writer process's chunk layer (output/clip_process.py), authored in this process."""
+    from dftl_warp.output.clip_process import _Chunk
+
+    rng = np.random.default_rng(5)
+    targets = [("/World/A", None), ("/World/B", np.linspace(0.004, 0.001, 12))]
+    widths = [None if w is None else Vt.FloatArray.FromNumpy(w.astype(np.float32)) for _, w in targets]
+    frames = [[(rng.normal(size=(n, 3)).astype(np.float32), rng.normal(size=(n, 3)).astype(np.float32) if v else None)
+               for n, v in ((7, True), (12, False))] for _ in range(3)]
+    texts = []
+    for fast in (True, False):
+        monkeypatch.setattr(vtarrays, "_in_place", None if fast else False)
+        chunk = _Chunk(str(tmp_path / f"clip.{fast}.usdc"), targets, True)
+        for time, arrays in enumerate(frames):
+            chunk.add(float(time), arrays, widths)
+        texts.append(chunk.layer.ExportToString())
+        chunk.drop()
+    assert texts[0] == texts[1]
+    assert texts[0].count("points.timeSamples") == 2 and texts[0].count("velocities.timeSamples") == 1
