@@ -18,7 +18,9 @@ its own arrays (no copy); on a GPU it is one pinned copy that overlaps the next 
     python scripts/bench_usd_write_parts.py [--strands 20000 50000 200000] [--vertices 32] [--frames 8]
         [--out docs/results] [--profile]
 
-Writes ``bench_usd_write_parts.md`` (the table, command, machine, date, commit) into ``--out``;
+Writes ``bench_usd_write_parts.md`` (the table, command, machine, date, and the checkout and commit
+whose writer was timed: the ``dftl_warp`` that Python imports, so another checkout's ``.venv/bin/python``
+times that checkout's writer) into ``--out``;
 ``--profile`` also prints cProfile's top functions for one end-to-end run of the largest groom.
 """
 
@@ -42,9 +44,9 @@ from bench_usd_write import machine  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 
 HEADER = [
-    "| strands | points / frame | write_frame ms | save ms | total ms / frame | commit ms "
+    "| strands | points / frame | write_frame ms | save ms | total ms / frame | CPU ms / frame | commit ms "
     "| to Vt ms (x2) | extent ms | SetTimeSample ms | Save ms |",
-    "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
 ]
 
 
@@ -95,22 +97,24 @@ def frames_data(base: np.ndarray, frames: int):
 
 
 def end_to_end(folder: Path, scene, frames: int) -> dict:
-    """Seconds in write_frame (without its saves), in saves, and in commit, summed over the frames."""
+    """Seconds in write_frame (without its saves), in saves, and in commit, summed over the frames,
+    and the process's CPU seconds in write_frame (its saves included: all threads)."""
     from dftl_warp.output.usd import UsdWriter
 
     output = folder / "bench_parts.usdc"
     writer = UsdWriter.create(output, scene, frames=(0, frames - 1))
-    writing = 0.0
+    writing = cpu = 0.0
     for f, (p, v) in enumerate(frames_data(scene.curves[0].points, frames)):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         writer.write_frame(f, [(p, v)])
         writing += time.perf_counter() - start
+        cpu += time.process_time() - start_cpu
     saving = writer.seconds_saving
     start = time.perf_counter()
     writer.commit()
     commit = time.perf_counter() - start - (writer.seconds_saving - saving)
     output.unlink()
-    return {"write_frame": writing - saving, "save": writer.seconds_saving, "commit": commit}
+    return {"write_frame": writing - saving, "save": writer.seconds_saving, "commit": commit, "cpu": cpu}
 
 
 def parts(folder: Path, scene, frames: int) -> dict:
@@ -164,8 +168,10 @@ def row(folder: Path, strands: int, vertices: int, frames: int, repeat: int) -> 
     commit = 1e3 * min(r["commit"] for r in ends)
     best = min(ends, key=lambda r: r["write_frame"] + r["save"])
     total = 1e3 * (best["write_frame"] + best["save"]) / frames
+    cpu = 1e3 * min(r["cpu"] for r in ends) / frames
     st = {k: 1e3 * min(r[k] for r in steps) / frames for k in steps[0]}
     return (f"| {strands} | {strands * vertices} | {ms['write_frame']:.1f} | {ms['save']:.1f} | {total:.1f} "
+            f"| {cpu:.1f} "
             f"| {commit:.1f} | {st['to_vt']:.1f} | {st['extent']:.1f} | {st['set']:.2f} | {st['save']:.1f} |")
 
 
@@ -199,16 +205,19 @@ def main(argv=None) -> None:
         rows = [row(Path(tmp), s, args.vertices, args.frames, args.repeat) for s in args.strands]
         if args.profile:
             profile(Path(tmp), max(args.strands), args.vertices, args.frames)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+    import dftl_warp
+
+    code = Path(dftl_warp.__file__).resolve().parent.parent   # the checkout whose writer was timed
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=code, capture_output=True,
                             text=True).stdout.strip() or "?"
-    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "dftl_warp"], cwd=ROOT,
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "dftl_warp"], cwd=code,
                            capture_output=True, text=True).stdout.strip()
     lines = [
         f"Command: `python scripts/bench_usd_write_parts.py --strands {' '.join(map(str, args.strands))} "
         f"--vertices {args.vertices} --frames {args.frames} --repeat {args.repeat}`  ",
         f"Machine: {machine()}; usd-core {'.'.join(map(str, Usd.GetVersion()))}; "
         f"load average before the run {load[0]:.2f}  ",
-        f"Date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, commit {commit}"
+        f"Date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC; writer: {code}, commit {commit}"
         + (" (with uncommitted changes)" if dirty else "") + f"; numpy -> Vt: {to_vt()[1]}",
         "",
         *HEADER,
