@@ -39,7 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_usd_write import machine  # noqa: E402
+from bench_usd_write import _groom, machine  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -48,28 +48,6 @@ HEADER = [
     "| to Vt ms (x2) | extent ms | SetTimeSample ms | Save ms |",
     "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
 ]
-
-
-def groom(path: Path, strands: int, vertices: int) -> None:
-    """A BasisCurves groom of ``strands`` strands of ``vertices`` points with per-vertex widths."""
-    from pxr import Usd, UsdGeom, Vt
-
-    rng = np.random.default_rng(0)
-    roots = rng.normal(size=(strands, 3))
-    roots /= np.linalg.norm(roots, axis=1, keepdims=True)
-    pts = roots[:, None, :] * (0.1 + 0.005 * np.arange(vertices)[None, :, None])
-    stage = Usd.Stage.CreateNew(str(path))
-    UsdGeom.SetStageUpAxis(stage, "Y")
-    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
-    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/World").GetPrim())
-    curves = UsdGeom.BasisCurves.Define(stage, "/World/Hair")
-    curves.CreateTypeAttr("linear")
-    curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(strands, vertices, np.int32)))
-    curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts.reshape(-1, 3).astype(np.float32)))
-    widths = np.linspace(6e-4, 2e-4, vertices, dtype=np.float32)
-    curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy(np.tile(widths, strands)))
-    curves.SetWidthsInterpolation("vertex")
-    stage.Save()
 
 
 def to_vt():
@@ -159,7 +137,7 @@ def row(folder: Path, strands: int, vertices: int, frames: int, repeat: int) -> 
     from dftl_warp.usd.read import read_scene
 
     src = folder / f"bench_groom_{strands}x{vertices}.usdc"
-    groom(src, strands, vertices)
+    _groom(src, strands, vertices, vertex_widths=True)
     scene = read_scene(src)
     src.unlink()
     ends = [end_to_end(folder, scene, frames) for _ in range(repeat)]
@@ -182,7 +160,7 @@ def profile(folder: Path, strands: int, vertices: int, frames: int) -> None:
     from dftl_warp.usd.read import read_scene
 
     src = folder / f"bench_groom_{strands}x{vertices}.usdc"
-    groom(src, strands, vertices)
+    _groom(src, strands, vertices, vertex_widths=True)
     scene = read_scene(src)
     prof = cProfile.Profile()
     prof.runcall(end_to_end, folder, scene, frames)
