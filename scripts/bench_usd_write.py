@@ -42,7 +42,9 @@ def _rss_mib() -> float:
         return float("nan")
 
 
-def _groom(path: Path, strands: int, vertices: int) -> None:
+def _groom(path: Path, strands: int, vertices: int, *, vertex_widths: bool = False) -> None:
+    """A BasisCurves groom; widths 0.5 mm (constant) or, with ``vertex_widths``, 0.6 -> 0.2 mm along
+    each strand (bench_usd_write_parts.py: the extent padded per vertex)."""
     from pxr import Usd, UsdGeom, Vt
 
     rng = np.random.default_rng(0)
@@ -59,8 +61,13 @@ def _groom(path: Path, strands: int, vertices: int) -> None:
     curves.CreateTypeAttr("linear")
     curves.CreateCurveVertexCountsAttr(Vt.IntArray([vertices] * strands))
     curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pts.reshape(-1, 3).astype(np.float32)))
-    curves.CreateWidthsAttr(Vt.FloatArray([0.0005]))
-    curves.SetWidthsInterpolation("constant")
+    if vertex_widths:
+        widths = np.linspace(6e-4, 2e-4, vertices, dtype=np.float32)
+        curves.CreateWidthsAttr(Vt.FloatArray.FromNumpy(np.tile(widths, strands)))
+        curves.SetWidthsInterpolation("vertex")
+    else:
+        curves.CreateWidthsAttr(Vt.FloatArray([0.0005]))
+        curves.SetWidthsInterpolation("constant")
     stage.Save()
 
 

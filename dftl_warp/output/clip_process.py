@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..durable import fsync_file
+from .vtarrays import vec3f_array
 
 
 def _die_with_parent(parent: int) -> None:
@@ -77,11 +78,11 @@ class _Chunk:
 
     def add(self, time: float, arrays, widths) -> None:
         """The samples at ``time``: ``arrays`` [(points, velocities or None)] per target."""
-        from pxr import Sdf, UsdGeom, Vt
+        from pxr import Sdf, UsdGeom
 
         with Sdf.ChangeBlock():
             for (p_path, e_path, v_path), (p, v), w in zip(self.specs, arrays, widths):
-                pts = Vt.Vec3fArray.FromNumpy(p)
+                pts = vec3f_array(p)   # one memory copy (FromNumpy converts float by float)
                 self.layer.SetTimeSample(p_path, time, pts)
                 if w is not None:
                     extent = UsdGeom.Curves.ComputeExtent(pts, w)
@@ -89,7 +90,7 @@ class _Chunk:
                     extent = UsdGeom.PointBased.ComputeExtent(pts)
                 self.layer.SetTimeSample(e_path, time, extent)
                 if v is not None:
-                    self.layer.SetTimeSample(v_path, time, Vt.Vec3fArray.FromNumpy(v))
+                    self.layer.SetTimeSample(v_path, time, vec3f_array(v))
 
     def save(self) -> None:
         """Save the layer under its hidden name (then :meth:`finish`)."""

@@ -42,6 +42,7 @@ from ..errors import UserError
 from .base import FrameWriter, ensure_folder  # noqa: F401  (ensure_folder: re-exported)
 from .paths import check_writable
 from .qc import ATTRIBUTES, QC_ROOT, qc_prim_name
+from .vtarrays import vec3f_array
 
 OUTPUT_EXTENSIONS = (".usdc", ".usda", ".usd")
 #: save (and so release) the in-memory samples once this many new bytes have accumulated
@@ -271,15 +272,15 @@ class UsdWriter(FrameWriter):
                 ``scene.curves``: (N, 3) arrays in the prim's local space, stage units and stage
                 units per second.
         """
-        from pxr import Sdf, UsdGeom, Vt
+        from pxr import Sdf, UsdGeom
 
         if len(samples) != len(self.targets):
             raise ValueError(f"expected {len(self.targets)} prims' samples, got {len(samples)}")
         values = []
         for t, (points, velocities) in zip(self.targets, samples):
-            # FromBuffer converts float64 to float32 while copying (no separate astype pass)
-            p = Vt.Vec3fArray.FromBuffer(_rows(points))
-            v = None if t.velocities is None or velocities is None else Vt.Vec3fArray.FromBuffer(_rows(velocities))
+            # one memory copy each (float64 rounded to float32 on the way), not Vt's per-float FromBuffer
+            p = vec3f_array(points)
+            v = None if t.velocities is None or velocities is None else vec3f_array(velocities)
             if t.widths is not None:
                 e = UsdGeom.Curves.ComputeExtent(p, t.widths)
             else:
@@ -375,14 +376,6 @@ class UsdWriter(FrameWriter):
 
     def _close(self) -> None:
         self.layer = None
-
-
-def _rows(array) -> np.ndarray:
-    """(N, 3) C-contiguous float32 or float64 view (a copy only when needed)."""
-    a = np.asarray(array)
-    if a.dtype not in (np.float32, np.float64):
-        a = a.astype(np.float64)
-    return np.ascontiguousarray(a).reshape(-1, 3)
 
 
 def uses_clips_folder(path: Path, folder: Path) -> bool:
