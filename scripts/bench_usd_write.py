@@ -1,7 +1,7 @@
 """Writing speed of the USD writer: points, velocities and extent authored and saved to .usdc.
 
 A 10k-strand groom (32 vertices each, 320k points) over 100 frames, written through
-:class:`dftl_warp.output.usd.UsdWriter` exactly as ``dftl-warp simulate`` writes: float64 local
+:class:`dftl_warp.output.usd.UsdWriter` as ``dftl-warp simulate`` writes (which now hands over float32): float64 local
 arrays in, float32 time samples authored in Sdf change blocks, the crate file saved whenever
 ``flush_bytes`` of samples have accumulated, renamed into place at the end. Target: >= 10 M points
 per second on the CPU machine.
