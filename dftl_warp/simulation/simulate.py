@@ -462,10 +462,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     check_output(check_output_path(output, input), input)   # and: not a layer the input uses
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
-    known = len(scene.warnings)
-    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning,
-    ahead = scene.warnings[known:]         # printed before the run (a long one can be stopped at once)
-    del scene.warnings[known:]
+    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
     step = out_opts["frame_step"] or 1
     last_written = last_written_frame(scene, first, last, step, "--frame-step" if command else "frame_step")
     check_guides_output(scene, guides, cli=command is not None)   # --guides-output with no guides
@@ -473,7 +470,6 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
                      device_option="--device" if command else "device")
-    sim.start_notes[:0] = ahead
     elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
     # options no prim uses: said, not silently ignored
     flag = (lambda name: f"--{name}") if command else (lambda name: name)
@@ -501,10 +497,11 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         "clips": "none" if out_opts["clips"] is None else out_opts["clips"]})
     qc = FrameQC(sim)
     t_load = time.perf_counter() - t0
-    if progress:   # every line "dftl-warp: ...", the clean start's warnings "dftl-warp: warning: ..."
+    ahead = list(scene.warnings)   # the input's and the set-up's: said before the run (a long one can be stopped)
+    if progress:   # every line "dftl-warp: ...", the warnings "dftl-warp: warning: ..."
         infos = (*(sim.guides.notes() if sim.guides else ()), *(sim.tolerance.notes if sim.tolerance else ()))
-        for line in (*notes, *map(start_line, sim.start_notes), *map(stderr_line, infos),
-                     device_line(sim.options.device)):
+        for line in (*notes, *(stderr_line(w, warning=True) for w in ahead), *map(start_line, sim.start_notes),
+                     *map(stderr_line, infos), device_line(sim.options.device)):
             print(line, file=sys.stderr)
 
     with output_place(output):   # missing folders made (gone again on failure), the output lock held
@@ -530,6 +527,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
                 writer.set_record(provenance.RECORD, record)
                 times = run_frames(sim, writer, last_written, progress=bar.update if bar else None, frame_step=step,
                                    qc=qc, gates=gates, velocities=not out_opts["no_velocities"])
+                for text in scene.warnings[len(ahead):]:   # found while running: said as the run's are
+                    sim.warn(text)
                 a = time.perf_counter()
                 if sim.tolerance is not None:   # the estimated error per frame and the choices
                     from .tolerance import RECORD
@@ -556,7 +555,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         seconds_writing=times["writing"],
         groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
                  "features": sorted(g.model.feature_flags)} for g in sim.groups],
-        warnings=list(scene.warnings) + list(sim.start_notes),
+        warnings=ahead + list(sim.start_notes),
         run_warnings=list(sim.warnings),
         tolerance=sim.tolerance.lines() if sim.tolerance is not None else [],
         start_notes=list(sim.start_notes),
