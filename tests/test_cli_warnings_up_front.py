@@ -68,3 +68,54 @@ def test_quiet_gives_the_input_warnings_once_after_the_run(tmp_path, capsys):
         assert len(_where(lines, piece)) == 1, (piece, lines)
     assert len(lines) == len(set(lines)), lines
 
+
+def _ball_stage(path):
+    """Hair without widths over a static ball, its head moving (10 frames): QC measures the
+    penetration in default hair radii, which a note says."""
+    stage = new_stage(path, start=1, end=10)
+    animated_xform(stage, "/World/Head", translate={1: (0, 0, 0), 10: (0.05, 0, 0)})
+    add_curves(stage, "/World/Head/Hair", chain(6, 0.02, direction=(0.0, -1.0, 0.0)), [6])
+    sphere_collider(stage, "/World/Ball", 0.05, translate=(0.0, -0.3, 0.0))
+    stage.Save()
+    return str(path)
+
+
+QC_NOTE = "no hair widths: its QC penetration is the depth below the collider surfaces"
+
+
+def test_a_batch_job_gives_each_set_up_warning_once_resumed_or_not(tmp_path):
+    """A batch job said the QC note after its warnings had gone out (never, in an uninterrupted job);
+    a resumed job said it from its checkpoint and kept it twice in the next one: a job resumed twice
+    gave it... once from a doubled record, twice. Now every job says it once."""
+    from dftl_warp.batch.checkpoint import CheckpointPolicy, JobFiles, run_job
+    from dftl_warp.batch.jobs import Job
+
+    stage = _ball_stage(tmp_path / "in.usda")
+
+    def job(output):
+        return Job(index=1, name="ball", input=stage, output=str(output), options={"solver": "dftl"})
+
+    whole = run_job(job(tmp_path / "whole.usdc"), "cpu")
+    assert whole.status == "done", whole.error
+    assert sum(QC_NOTE in w for w in whole.warnings) == 1, whole.warnings
+
+    class Interrupt(Exception):
+        pass
+
+    def stop_at(frames):
+        def stop(event):
+            if event["event"] == "frames" and event["done"] >= frames:
+                raise Interrupt()
+        return stop
+
+    cut = tmp_path / "cut.usdc"
+    seen = []
+    for frames in (4, 7):   # cut twice, resumed after each
+        first = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), stop_at(frames))
+        assert first.status == "failed" and JobFiles(cut).checkpoint_state.exists(), first.error
+        seen.append(first.warnings)
+    last = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2))
+    assert last.status == "done" and last.resumed_from is not None, last.error
+    for warnings in (*seen, last.warnings):
+        assert sum(QC_NOTE in w for w in warnings) == 1, warnings
+    assert sorted(last.warnings) == sorted(whole.warnings), (last.warnings, whole.warnings)
