@@ -119,3 +119,18 @@ def test_a_batch_job_gives_each_set_up_warning_once_resumed_or_not(tmp_path):
     for warnings in (*seen, last.warnings):
         assert sum(QC_NOTE in w for w in warnings) == 1, warnings
     assert sorted(last.warnings) == sorted(whole.warnings), (last.warnings, whole.warnings)
+
+
+def test_the_summary_keeps_the_input_warnings_apart_from_the_set_up_lines(tmp_path):
+    """``Summary.start_notes`` was documented as the clean start's and the preroll's lines but held
+    the frame-range warning too (and the QC's notes). Now it holds the set-up's lines its docstring
+    lists; the input's warnings are in ``warnings`` only, ahead of them."""
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    summary = simulate_usd(_ball_stage(tmp_path / "in.usda"), str(tmp_path / "o.usdc"), device="cpu",
+                           solver="dftl", end=12, preroll=0.1)
+    ranged = [w for w in summary.warnings if "lie partly outside the stage's time range 1..10" in w]
+    assert len(ranged) == 1 and ranged[0] not in summary.start_notes, summary
+    assert [n.split(":")[0] for n in summary.start_notes] == ["preroll", "/World/Head/Hair"], summary.start_notes
+    assert QC_NOTE in summary.start_notes[1], summary.start_notes
+    assert summary.warnings[-len(summary.start_notes):] == summary.start_notes, summary

@@ -130,8 +130,8 @@ class Simulation:
         self._checked = None
         #: prims already warned about turning faster than their root path follows (root_paths)
         self.fast_turns: set[str] = set()
-        #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
-        #: with the device line and kept in Summary.warnings
+        #: one-line notes of the set-up (Summary.start_notes says which), printed with the device
+        #: line and kept in Summary.warnings and a batch checkpoint (a resumed run repeats them)
         self.start_notes: list[str] = self._clean_start(preroll=not resuming)
         for g in self.groups:   # energy budgets, and styles that cannot stand, from what the clean start left
             g.restart_monitor()
