@@ -134,3 +134,42 @@ def test_the_summary_keeps_the_input_warnings_apart_from_the_set_up_lines(tmp_pa
     assert [n.split(":")[0] for n in summary.start_notes] == ["preroll", "/World/Head/Hair"], summary.start_notes
     assert QC_NOTE in summary.start_notes[1], summary.start_notes
     assert summary.warnings[-len(summary.start_notes):] == summary.start_notes, summary
+
+
+def test_a_batch_job_says_what_its_options_do_not_do_as_simulate_does(tmp_path):
+    """A job's ``iterations`` and ``arithmetic`` that no prim's solver takes, and a quality preset that
+    leaves prims with widths on the elastic solver, were said by simulate and silently ignored by
+    batch. Now a job says them as simulate does, once (resumed too: the note comes with its checkpoint)."""
+    from dftl_warp.batch.checkpoint import CheckpointPolicy, run_job
+    from dftl_warp.batch.jobs import Job
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    plain = _ball_stage(tmp_path / "in.usda")
+    options = {"solver": "dftl", "iterations": 3, "arithmetic": "float64"}
+    said = simulate_usd(plain, str(tmp_path / "s.usdc"), device="cpu", **options).warnings
+    unused = [w for w in said if "does nothing here" in w]
+    assert len(unused) == 2, said
+    job = run_job(Job(index=1, name="j", input=plain, output=str(tmp_path / "j.usdc"), options=options), "cpu")
+    assert job.status == "done" and [w for w in job.warnings if "does nothing here" in w] == unused, job.warnings
+
+    stage = new_stage(tmp_path / "rods.usda", start=1, end=6)
+    add_curves(stage, "/World/Hair", chain(5, 0.02, direction=(0.0, -1.0, 0.0)), [5], widths=1e-4, bending=True)
+    stage.Save()
+
+    class Interrupt(Exception):
+        pass
+
+    def stop(event):
+        if event["event"] == "frames" and event["done"] >= 4:
+            raise Interrupt()
+
+    def rods(**kwargs):
+        return run_job(Job(index=1, name="rods", input=str(tmp_path / "rods.usda"), output=str(tmp_path / "r.usdc"),
+                           options={"quality": "draft", "substeps": 2}), "cpu", **kwargs)
+
+    cut = rods(policy=CheckpointPolicy(every_frames=2), progress=stop)
+    resumed = rods()
+    assert cut.status == "failed" and resumed.status == "done" and resumed.resumed_from is not None, resumed.error
+    for warnings in (cut.warnings, resumed.warnings):
+        assert sum(w.startswith("quality draft: 1 prim with widths keeps the elastic solver") for w in warnings) == 1, \
+            warnings

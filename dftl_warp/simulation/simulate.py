@@ -413,6 +413,25 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
     return {"simulating": t_sim, "writing": t_write, "qc": t_qc}
 
 
+def note_options(sim: Simulation, options: dict, quality: str | None, flag=str) -> None:
+    """What the run's ``options`` do not do here, said before the run, not silently ignored (simulate
+    and a batch job): solver options no prim's solver takes and an arithmetic without elastic prims
+    (the scene's warnings), and a ``quality`` preset that leaves prims with widths on the elastic
+    solver (a start note, once: a resumed batch job has it from its checkpoint). ``flag(name)``
+    spells an option as the user wrote it."""
+    elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
+    solvers = {g.settings.solver for g in sim.groups}
+    sim.scene.warnings.extend(unused_solver_options(options, solvers, flag))
+    if options.get("arithmetic") is not None and not elastic:
+        sim.scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the "
+                                  f"elastic solver, whose arithmetic it sets (the others compute in the precision)")
+    note = (f"quality {quality}: {plural(elastic, 'prim')} with widths {'keeps' if elastic == 1 else 'keep'} the "
+            f"elastic solver, with the preset's substeps and precision (its error under a preset is not measured "
+            f"yet: the presets are measured on chains, docs/accuracy-h200/front.md)")
+    if quality is not None and elastic and note not in sim.start_notes:
+        sim.start_notes.append(note)
+
+
 def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: str | None = None,
                  command: str | None = None, **options) -> Summary:
     """Simulate the hair of the USD stage ``input`` and write ``output`` (in the format its
@@ -470,19 +489,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
                      device_option="--device" if command else "device")
-    elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
-    # options no prim uses: said, not silently ignored
-    flag = (lambda name: f"--{name}") if command else (lambda name: name)
-    solvers = {g.settings.solver for g in sim.groups}
-    scene.warnings.extend(unused_solver_options(options, solvers, flag))
-    if options.get("arithmetic") is not None and not elastic:
-        scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the elastic "
-                              f"solver, whose arithmetic it sets (the others compute in the precision)")
-    if quality is not None and elastic:
-        sim.start_notes.append(f"quality {quality}: {plural(elastic, 'prim')} with widths "
-                               f"{'keeps' if elastic == 1 else 'keep'} the elastic solver, with the "
-                               f"preset's substeps and precision (its error under a preset is not measured yet: "
-                               f"the presets are measured on chains, docs/accuracy-h200/front.md)")
+    note_options(sim, options, quality, (lambda name: f"--{name}") if command else str)
     if sim.guides is not None and sim.guides.output == "binding" and out_opts["clips"] is not None:
         raise UserError(f"{output}: --guides-output binding cannot be written as --clips")
     if out_opts["no_clips"] and out_opts["clips"] is not None:
