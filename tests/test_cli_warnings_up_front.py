@@ -173,3 +173,35 @@ def test_a_batch_job_says_what_its_options_do_not_do_as_simulate_does(tmp_path):
     for warnings in (cut.warnings, resumed.warnings):
         assert sum(w.startswith("quality draft: 1 prim with widths keeps the elastic solver") for w in warnings) == 1, \
             warnings
+
+
+def test_a_collider_approximated_while_running_is_a_run_warning(tmp_path, capsys):
+    """A mesh collider that deformed past its signed distance field's grid mid-run came out as
+    Python's two-line warning ('.../device.py:187: ColliderApproximationWarning: /World/Grow: ...'
+    and a line of source), naming no file, kept in no summary. Now it is one 'dftl-warp: warning:
+    FILE: ...' line when it arises, once, and one of the run's warnings."""
+    from pxr import UsdGeom, UsdPhysics, Vt
+    from test_features import box_mesh
+
+    from dftl_warp.simulation.simulate import simulate_usd
+
+    path = tmp_path / "grow.usda"
+    stage = new_stage(path, start=1, end=4)
+    add_curves(stage, "/World/Hair", chain(6, 0.02, direction=(0.0, -1.0, 0.0), origin=(0.0, 0.5, 0.0)), [6])
+    points, faces = box_mesh((0.04, 0.04, 0.04))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Grow")   # 4 cm, then 1.6 m, 3.2 m and 4.8 m across
+    for f in range(1, 5):
+        mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy((points * (1 + 40 * (f - 1))).astype(np.float32)), f)
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in faces.reshape(-1)]))
+    UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
+    mesh.GetPrim().CreateAttribute("dftl:collisionSdf", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    stage.Save()
+    assert cli.main(["simulate", str(path), "-o", str(tmp_path / "o.usdc"), "--solver", "dftl"]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert all(line.startswith("dftl-warp: ") for line in lines), lines
+    grid = f"dftl-warp: warning: {path}: /World/Grow: the mesh deformed beyond its signed distance field's grid"
+    found = [k for k, line in enumerate(lines) if line.startswith(grid)]
+    assert len(found) == 1 and found[0] > _where(lines, "dftl-warp: device")[0], lines
+    summary = simulate_usd(str(path), str(tmp_path / "p.usdc"), solver="dftl", device="cpu")
+    assert [w for w in summary.run_warnings if "signed distance field's grid" in w] == [lines[found[0]][20:]], summary

@@ -284,9 +284,6 @@ class Simulation:
         import warp as wp
 
         self.check_energy()  # the frame being left, if nobody looked at it
-
-        from ..features import update_frame
-
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
             shot = root_paths.shot(self)
@@ -305,8 +302,7 @@ class Simulation:
                     g.control.set_root_targets(**path)
                     if g.clamps is not None:   # the elastic clamp turns with the roots' transforms
                         g.solver.set_clamp_targets(**root_paths.frame_path(self, "clamps", k, g, self.frame, nxt))
-                # colliders, wind, bound roots (the latter on the C1 path too)
-                update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
+                self._update_frame(g, nxt, shot)   # colliders, wind, bound roots (the latter on the C1 path too)
                 root_paths.bound_clamps(g)   # roots bound to an animated mesh: the clamp turns with it
                 substeps, dt = g.settings.substeps, g.dt
                 if self.tolerance is not None:   # --tolerance: from the error estimate on sampled strands
@@ -320,6 +316,22 @@ class Simulation:
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 3)   # the root path's differences reach 3 frames back (root_paths)
+
+    def _update_frame(self, g: Group, nxt: int, shot) -> None:
+        """The features' frame (:func:`~dftl_warp.features.update_frame`); what a collider
+        approximates on the way (a deforming mesh past its distance field) is a run warning naming
+        the file, once, not Python's two-line warning."""
+        from ..features import update_frame
+        from ..features.colliders import ColliderApproximationWarning
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ColliderApproximationWarning)
+            update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
+        for w in caught:
+            if not issubclass(w.category, ColliderApproximationWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            elif f"{self.scene.source}: {w.message}" not in self.warnings:
+                self.warn(f"{self.scene.source}: {w.message}")
 
     # -- state for batch / resume ----------------------------------------------------------------
 
