@@ -308,7 +308,7 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
 
 
 def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
-    from ..simulation.simulate import Simulation, SimulationOptions, resolve_frames, run_frames
+    from ..simulation.simulate import Simulation, SimulationOptions, note_options, resolve_frames, run_frames
     from ..simulation.settings import frame_range_note, last_written_frame
     from ..usd.read import read_scene
     from ..output import check_output_path, writer_for
@@ -373,6 +373,8 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         if writer is None:   # unusable after all: a clean start, with its preroll
             del scene.warnings[shown:]
             sim = Simulation(scene, opts, first, device_option="device")
+    note_options(sim, options, job.options.get("quality"))   # options that do nothing here, as simulate says
+    qc = FrameQC(sim)   # its notes (penetration without widths) join the start notes said below
     for text in scene.warnings[shown:]:   # found while setting up (e.g. an elastic style that cannot stand)
         warn(text)
     # the clean start's lines (a resumed run: those of the run it continues): a settled preroll is a note
@@ -428,7 +430,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
 
     try:
         run_frames(sim, writer, last, progress=after_frame, write_first=True, frame_step=step, first_frame=first,
-                   qc=FrameQC(sim), gates=gates, velocities=not out_opts["no_velocities"])
+                   qc=qc, gates=gates, velocities=not out_opts["no_velocities"])
         writer.keep_partial = False
         writer.commit()
     except BaseException:

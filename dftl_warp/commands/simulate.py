@@ -104,17 +104,17 @@ def run(args) -> int:
 
 
 def _warnings(s, notes: list, quiet: bool) -> list:
-    """The warnings printed after the run. Without -q the notes, the clean start's lines and the
-    warnings raised while stepping were printed already (before the run and as they happened);
-    -q holds back progress and notes, never a warning: they all come here."""
+    """The warnings printed after the run. Without -q there are none: the notes and every warning
+    known before the first frame (the input's, the set-up's, the clean start's: ``s.warnings``) were
+    printed before the run, and those raised while stepping as they happened. -q holds back progress
+    and notes, never a warning: they all come here, once each."""
     from ..output.progress import is_plain_note, stderr_line
 
-    lines = [stderr_line(w, warning=True) for w in s.warnings if w not in s.start_notes]
     if not quiet:
-        return lines
+        return []
     held = [n for n in notes if n.startswith("dftl-warp: warning: ")]
-    held += [stderr_line(w, warning=True) for w in s.start_notes if not is_plain_note(w)]
-    return held + lines + [stderr_line(w, warning=True) for w in s.run_warnings]
+    held += [stderr_line(w, warning=True) for w in s.warnings if not is_plain_note(w)]
+    return held + [stderr_line(w, warning=True) for w in s.run_warnings]
 
 
 def _check_flags(args) -> list:

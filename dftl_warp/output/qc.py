@@ -222,8 +222,8 @@ class FrameQC:
                             f"{c.path}: {'no' if w is None else 'zero'} hair widths: its QC penetration is the depth "
                             f"below the collider surfaces (their contact distance 0) in units of the default hair "
                             f"radius, {unit:.3g} stage units (40 um)")
-        if hasattr(sim, "start_notes"):
-            sim.start_notes.extend(self.notes)
+        if hasattr(sim, "start_notes"):   # once (a resumed batch job's came with its checkpoint)
+            sim.start_notes.extend(n for n in self.notes if n not in sim.start_notes)
 
     def compute(self) -> dict[str, dict]:
         """prim path -> {stretch, penetration, speed, energy, nan} at the simulation's current frame."""

@@ -246,18 +246,24 @@ class EnergyMonitor:
     def verdicts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The last measure's available energy, budget (model units) and not-finite flag of every
         strand, in input strand order."""
-        order = self.model.layout.strand_order
-        out = []
-        for a in self._out:
-            values = a.numpy()
-            inputs = np.empty_like(values)
-            inputs[order] = values
-            out.append(inputs)
+        out = [self._input_order(a.numpy()) for a in self._out]
         return out[0], out[1], out[2].astype(bool)
 
-    def compose(self, energy, budget, bad, frame=None) -> str:
+    def pushed(self) -> np.ndarray:
+        """Per strand, in input order: whether a moving collider has reached it (its budget counts
+        that collider's work: :attr:`collider_speed` > 0)."""
+        return self._input_order(self.collider_speed) > 0.0
+
+    def _input_order(self, values: np.ndarray) -> np.ndarray:
+        inputs = np.empty_like(values)
+        inputs[self.model.layout.strand_order] = values
+        return inputs
+
+    def compose(self, energy, budget, bad, frame=None, pushed=None) -> str:
         """The warning for the verdicts (input strand order; strands of several monitors
-        concatenated) of a check at ``frame``: the worst strand named as its prim's (:attr:`prims`)."""
+        concatenated, with their :meth:`pushed` in ``pushed``; default this monitor's) of a check at
+        ``frame``: the worst strand named as its prim's (:attr:`prims`), its budget as what its root,
+        and moving colliders where one reached it, can supply."""
         over = bad | (energy > budget)
         at = f" at frame {frame}" if frame is not None else ""
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -268,7 +274,7 @@ class EnergyMonitor:
         if bad.any():
             return f"{self.setting}: {which}: non-finite positions or velocities{at}; this setting is unstable"
         joules = self.meters_per_unit**2  # (stage units / s)^2 -> J/kg
-        supply = "its root and moving colliders" if self.colliders is not None else "its root"
+        supply = "its root and moving colliders" if (self.pushed() if pushed is None else pushed)[k] else "its root"
         return (f"{self.setting}: {which}: energy grew to {energy[k] * joules:.3g} J/kg{at}, more than "
                 f"{budget[k] * joules:.3g} J/kg ({self.factor:g}x what it started with and {supply} can supply); "
                 f"this setting is unstable ({self.advice})")

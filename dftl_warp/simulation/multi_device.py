@@ -356,7 +356,8 @@ class SplitMonitor:
         if over == 0:
             return False
         energy, budget, bad = (np.concatenate(v) for v in zip(*(m.verdicts() for m in self.parts)))
-        self.warned, self.message = True, self.parts[0].compose(energy, budget, bad, frame)
+        pushed = np.concatenate([m.pushed() for m in self.parts])
+        self.warned, self.message = True, self.parts[0].compose(energy, budget, bad, frame, pushed)
         warnings.warn(self.message, EnergyGrowthWarning, stacklevel=2)
         return True
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core.bounds import box
 from ..errors import UserError
-from ..options import MAX_FRAMES, check_api, default
+from ..options import MAX_FRAME, MAX_FRAMES, check_api, default
 from ..usd.scene import Scene
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise (the
@@ -87,6 +87,12 @@ def resolve_frames(scene: Scene, start=None, end=None) -> tuple[int, int]:
         raise UserError(f"{scene.source}: the stage has no startTimeCode/endTimeCode; give --start and --end")
     if end is None and info.end_time_code is None:
         raise UserError(f"{scene.source}: the stage has no endTimeCode; give --end")
+    used = [code for code, flag in ((info.start_time_code, start), (info.end_time_code, end)) if flag is None]
+    if any(abs(code) > MAX_FRAME for code in used):   # where a double cannot tell frames apart (options.MAX_FRAME)
+        codes = f"{info.start_time_code:.17g}..{info.end_time_code:.17g}"
+        raise UserError(f"{scene.source}: the stage's time range {codes} (startTimeCode..endTimeCode) reaches past "
+                        f"+-{float(MAX_FRAME):g}, where a time code (a double) cannot tell frames apart; give --start "
+                        f"and --end")
     first = int(start) if start is not None else math.ceil(info.start_time_code - 1e-9)
     last = int(end) if end is not None else math.floor(info.end_time_code + 1e-9)
     if last < first:

@@ -130,8 +130,8 @@ class Simulation:
         self._checked = None
         #: prims already warned about turning faster than their root path follows (root_paths)
         self.fast_turns: set[str] = set()
-        #: one-line notes of the clean start (hair moved out of colliders, the preroll), printed
-        #: with the device line and kept in Summary.warnings
+        #: one-line notes of the set-up (Summary.start_notes says which), printed with the device
+        #: line and kept in Summary.warnings and a batch checkpoint (a resumed run repeats them)
         self.start_notes: list[str] = self._clean_start(preroll=not resuming)
         for g in self.groups:   # energy budgets, and styles that cannot stand, from what the clean start left
             g.restart_monitor()
@@ -284,9 +284,6 @@ class Simulation:
         import warp as wp
 
         self.check_energy()  # the frame being left, if nobody looked at it
-
-        from ..features import update_frame
-
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
             shot = root_paths.shot(self)
@@ -305,8 +302,7 @@ class Simulation:
                     g.control.set_root_targets(**path)
                     if g.clamps is not None:   # the elastic clamp turns with the roots' transforms
                         g.solver.set_clamp_targets(**root_paths.frame_path(self, "clamps", k, g, self.frame, nxt))
-                # colliders, wind, bound roots (the latter on the C1 path too)
-                update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
+                self._update_frame(g, nxt, shot)   # colliders, wind, bound roots (the latter on the C1 path too)
                 root_paths.bound_clamps(g)   # roots bound to an animated mesh: the clamp turns with it
                 substeps, dt = g.settings.substeps, g.dt
                 if self.tolerance is not None:   # --tolerance: from the error estimate on sampled strands
@@ -320,6 +316,22 @@ class Simulation:
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 3)   # the root path's differences reach 3 frames back (root_paths)
+
+    def _update_frame(self, g: Group, nxt: int, shot) -> None:
+        """The features' frame (:func:`~dftl_warp.features.update_frame`); what a collider
+        approximates on the way (a deforming mesh past its distance field) is a run warning naming
+        the file, once, not Python's two-line warning."""
+        from ..features import update_frame
+        from ..features.colliders import ColliderApproximationWarning
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ColliderApproximationWarning)
+            update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
+        for w in caught:
+            if not issubclass(w.category, ColliderApproximationWarning):
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            elif f"{self.scene.source}: {w.message}" not in self.warnings:
+                self.warn(f"{self.scene.source}: {w.message}")
 
     # -- state for batch / resume ----------------------------------------------------------------
 
@@ -413,6 +425,25 @@ def run_frames(sim: Simulation, writer, last_frame: int, *, progress=None, write
     return {"simulating": t_sim, "writing": t_write, "qc": t_qc}
 
 
+def note_options(sim: Simulation, options: dict, quality: str | None, flag=str) -> None:
+    """What the run's ``options`` do not do here, said before the run, not silently ignored (simulate
+    and a batch job): solver options no prim's solver takes and an arithmetic without elastic prims
+    (the scene's warnings), and a ``quality`` preset that leaves prims with widths on the elastic
+    solver (a start note, once: a resumed batch job has it from its checkpoint). ``flag(name)``
+    spells an option as the user wrote it."""
+    elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
+    solvers = {g.settings.solver for g in sim.groups}
+    sim.scene.warnings.extend(unused_solver_options(options, solvers, flag))
+    if options.get("arithmetic") is not None and not elastic:
+        sim.scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the "
+                                  f"elastic solver, whose arithmetic it sets (the others compute in the precision)")
+    note = (f"quality {quality}: {plural(elastic, 'prim')} with widths {'keeps' if elastic == 1 else 'keep'} the "
+            f"elastic solver, with the preset's substeps and precision (its error under a preset is not measured "
+            f"yet: the presets are measured on chains, docs/accuracy-h200/front.md)")
+    if quality is not None and elastic and note not in sim.start_notes:
+        sim.start_notes.append(note)
+
+
 def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: str | None = None,
                  command: str | None = None, **options) -> Summary:
     """Simulate the hair of the USD stage ``input`` and write ``output`` (in the format its
@@ -462,10 +493,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     check_output(check_output_path(output, input), input)   # and: not a layer the input uses
     scene = read_scene(input, prims=opts.prims, time=opts.start)
     first, last = resolve_frames(scene, opts.start, opts.end)
-    known = len(scene.warnings)
-    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning,
-    ahead = scene.warnings[known:]         # printed before the run (a long one can be stopped at once)
-    del scene.warnings[known:]
+    frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
     step = out_opts["frame_step"] or 1
     last_written = last_written_frame(scene, first, last, step, "--frame-step" if command else "frame_step")
     check_guides_output(scene, guides, cli=command is not None)   # --guides-output with no guides
@@ -473,20 +501,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         start_writers_early(scene, output, out_opts["clips"], (last - first) // (out_opts["frame_step"] or 1) + 1)
     sim = Simulation(scene, opts, first, tolerance=tolerance, guides=guides,
                      device_option="--device" if command else "device")
-    sim.start_notes[:0] = ahead
-    elastic = sum(len(g.members) for g in sim.groups if g.settings.solver == "elastic")
-    # options no prim uses: said, not silently ignored
-    flag = (lambda name: f"--{name}") if command else (lambda name: name)
-    solvers = {g.settings.solver for g in sim.groups}
-    scene.warnings.extend(unused_solver_options(options, solvers, flag))
-    if options.get("arithmetic") is not None and not elastic:
-        scene.warnings.append(f"{flag('arithmetic')} {options['arithmetic']} does nothing here: no prim runs the elastic "
-                              f"solver, whose arithmetic it sets (the others compute in the precision)")
-    if quality is not None and elastic:
-        sim.start_notes.append(f"quality {quality}: {plural(elastic, 'prim')} with widths "
-                               f"{'keeps' if elastic == 1 else 'keep'} the elastic solver, with the "
-                               f"preset's substeps and precision (its error under a preset is not measured yet: "
-                               f"the presets are measured on chains, docs/accuracy-h200/front.md)")
+    note_options(sim, options, quality, (lambda name: f"--{name}") if command else str)
     if sim.guides is not None and sim.guides.output == "binding" and out_opts["clips"] is not None:
         raise UserError(f"{output}: --guides-output binding cannot be written as --clips")
     if out_opts["no_clips"] and out_opts["clips"] is not None:
@@ -501,10 +516,11 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         "clips": "none" if out_opts["clips"] is None else out_opts["clips"]})
     qc = FrameQC(sim)
     t_load = time.perf_counter() - t0
-    if progress:   # every line "dftl-warp: ...", the clean start's warnings "dftl-warp: warning: ..."
+    ahead = list(scene.warnings)   # the input's and the set-up's: said before the run (a long one can be stopped)
+    if progress:   # every line "dftl-warp: ...", the warnings "dftl-warp: warning: ..."
         infos = (*(sim.guides.notes() if sim.guides else ()), *(sim.tolerance.notes if sim.tolerance else ()))
-        for line in (*notes, *map(start_line, sim.start_notes), *map(stderr_line, infos),
-                     device_line(sim.options.device)):
+        for line in (*notes, *(stderr_line(w, warning=True) for w in ahead), *map(start_line, sim.start_notes),
+                     *map(stderr_line, infos), device_line(sim.options.device)):
             print(line, file=sys.stderr)
 
     with output_place(output):   # missing folders made (gone again on failure), the output lock held
@@ -530,6 +546,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
                 writer.set_record(provenance.RECORD, record)
                 times = run_frames(sim, writer, last_written, progress=bar.update if bar else None, frame_step=step,
                                    qc=qc, gates=gates, velocities=not out_opts["no_velocities"])
+                for text in scene.warnings[len(ahead):]:   # found while running: said as the run's are
+                    sim.warn(text)
                 a = time.perf_counter()
                 if sim.tolerance is not None:   # the estimated error per frame and the choices
                     from .tolerance import RECORD
@@ -556,7 +574,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         seconds_writing=times["writing"],
         groups=[{**asdict(g.settings), "prims": len(g.members), "strands": g.num_strands,
                  "features": sorted(g.model.feature_flags)} for g in sim.groups],
-        warnings=list(scene.warnings) + list(sim.start_notes),
+        warnings=ahead + list(sim.start_notes),
         run_warnings=list(sim.warnings),
         tolerance=sim.tolerance.lines() if sim.tolerance is not None else [],
         start_notes=list(sim.start_notes),
