@@ -62,8 +62,8 @@ first check's state is taken as the start.
 After a run, ``monitor.unstable`` (per device strand) and ``monitor.worst_ratio`` (largest
 energy / budget seen) tell which strands blew up and by how much.
 
-Cost: one small kernel launch per check (for elastic strands it also reads their frames), and four totals copied to the host (a per-strand copy only
-when a strand first goes over its budget, to name it); with colliders, also the frame's poses (7
+Cost: one small kernel launch per check (for elastic strands it also reads their frames), and four
+totals copied to the host (a per-strand copy only when a strand first goes over its budget, to name it); with colliders, also the frame's poses (7
 numbers per collider per pose) copied to the host and one launch per mesh collider over its points.
 """
 

@@ -42,30 +42,43 @@ from ..solvers.elastic_blocks import block_funcs
 
 
 @functools.cache
-def strand_energy_func(scalar):
-    """``strand_energy(base, stride, n, rest_lengths, gravity, positions, velocities) -> (available
-    energy J/kg, root speed m/s, root position m (device coordinates), 1 if any position or velocity
-    is not finite else 0)`` of one strand."""
+def root_state_func(scalar):
+    """``root_state(base, stride, positions, velocities) -> (x_0, v_0, 1 if either is not finite else
+    0)``: a strand's root (with stride 0, the particle at ``base``)."""
     vec3 = wp.types.vector(3, scalar)
 
     @wp.func
-    def strand_energy(base: wp.int32, stride: wp.int32, n: wp.int32, rest_lengths: wp.array(dtype=scalar),
-                      gravity: wp.vec3d, positions: wp.array(dtype=vec3), velocities: wp.array(dtype=vec3)):
-        g = wp.length(gravity)
+    def root_state(base: wp.int32, stride: wp.int32, positions: wp.array(dtype=vec3), velocities: wp.array(dtype=vec3)):
         k0 = particle(base, stride, 0)
         x0 = positions[k0]
         v0 = velocities[k0]
         bad = wp.int32(0)
         if not (wp.isfinite(x0) and wp.isfinite(v0)):
             bad = 1
+        return x0, v0, bad
+
+    return root_state
+
+
+@functools.cache
+def strand_energy_func(scalar):
+    """``strand_energy(base, stride, n, rest_lengths, gravity, positions, velocities) -> (available
+    energy J/kg, root speed m/s, root position m (device coordinates), 1 if any position or velocity
+    is not finite else 0)`` of one strand."""
+    vec3 = wp.types.vector(3, scalar)
+    root_state = root_state_func(scalar)
+
+    @wp.func
+    def strand_energy(base: wp.int32, stride: wp.int32, n: wp.int32, rest_lengths: wp.array(dtype=scalar),
+                      gravity: wp.vec3d, positions: wp.array(dtype=vec3), velocities: wp.array(dtype=vec3)):
+        g = wp.length(gravity)
+        x0, v0, bad = root_state(base, stride, positions, velocities)
         e = wp.float64(0.0)
         along = wp.float64(0.0)
         for i in range(1, n):
             k = particle(base, stride, i)
-            x = positions[k]
-            v = velocities[k]
-            if not (wp.isfinite(x) and wp.isfinite(v)):
-                bad = 1
+            x, v, blown = root_state(k, 0, positions, velocities)   # particle k's state
+            bad = wp.max(bad, blown)
             dx = x - x0
             along += wp.float64(rest_lengths[k])
             rel = wp.vec3d(wp.float64(dx[0]), wp.float64(dx[1]), wp.float64(dx[2]))
@@ -104,6 +117,7 @@ def elastic_energy_func(scalar, real):
     ``s`` (``terms``: :func:`elastic_terms_struct`), computed in float64."""
     Terms = elastic_terms_struct(scalar, real)
     curv = block_funcs(wp.float64).curv
+    root_state = root_state_func(scalar)
 
     @wp.func
     def d3(v: typing.Any):
@@ -139,12 +153,7 @@ def elastic_energy_func(scalar, real):
                        positions: wp.array(dtype=wp.types.vector(3, scalar)),
                        velocities: wp.array(dtype=wp.types.vector(3, scalar)), terms: Terms):
         g = wp.length(gravity)
-        k0 = particle(base, stride, 0)
-        x0 = positions[k0]
-        v0 = velocities[k0]
-        bad = wp.int32(0)
-        if not (wp.isfinite(x0) and wp.isfinite(v0)):
-            bad = 1
+        x0, v0, bad = root_state(base, stride, positions, velocities)
         root = d3(x0)
         e = wp.float64(0.0)
         elastic = wp.float64(0.0)
@@ -158,10 +167,8 @@ def elastic_energy_func(scalar, real):
         xj = root
         for i in range(1, n):
             k = particle(base, stride, i)
-            x = positions[k]
-            v = velocities[k]
-            if not (wp.isfinite(x) and wp.isfinite(v)):
-                bad = 1
+            x, v, blown = root_state(k, 0, positions, velocities)   # particle k's state
+            bad = wp.max(bad, blown)
             xp = d3(x)
             vd = d3(v)
             m = wp.float64(terms.mass[k])
