@@ -13,12 +13,18 @@ Usage (one monitor per run, checked once per frame or as often as you like)::
 the first time a strand's *available energy* (:mod:`dftl_warp.kernels.simulation.energy`: kinetic plus
 potential energy above each strand's hanging rest state, per unit particle mass, J/kg) exceeds
 its *budget*, or a position or velocity is not finite. Later checks stay silent. The model's
-lengths are in stage units; the warning converts to J/kg with ``meters_per_unit``.
+lengths are in stage units; the warning converts to J/kg with ``meters_per_unit``. The elastic
+solver's strands (``solver.name == "elastic"``) also store energy in their bending and twist, which
+a strand bent by a collider and let go turns into motion: their available energy is the solver's
+total, kinetic, gravitational and elastic, above the elastic energy of the rest shape (inverse
+statics' bending moments, which hold a styled strand up and which it cannot give away at rest), per
+unit of the strand's mean particle mass (the kernel's docstring), read from the solver's rest data
+and the State's frames and clamp ghosts.
 
 Each strand is judged on its own (one unstable strand is not hidden in a large groom), against
 the smaller of two budgets, each with a safety ``factor`` (default 2)::
 
-    gross:  factor * ( E_start  +  floor  +  2 n (u_max + U_max)^2  [ +  P_lift ] )
+    gross:  factor * ( E_start  +  floor  +  2 n (u_max + U_max)^2  [ +  P_lift ]  [ +  E_stored ] )
     held:   factor * ( E_moved  +  floor )
 
 with ``n`` the strand's free particles, ``E_start`` its available energy in the initial state,
@@ -31,7 +37,9 @@ slow, can carry hair up: it does work by pushing, not only by striking), ``E_mov
 the last check where its root had moved since the previous check, or a collider within its reach had
 moved during the frame (``E_start`` if neither ever moved), and
 ``floor = floor_fraction * n * max(|g| L, (L/1 s)^2/2)`` (the energy scale of the strand, of length
-``L``, falling its own length; 1e-4 of it by default).
+``L``, falling its own length; 1e-4 of it by default), and, for an elastic strand, ``E_stored`` the
+largest elastic energy (above its rest shape's) seen at a check where its root or a collider in reach
+moved: the work they stored in its bending, which it may give back as motion once they stop.
 
 Colliders are counted per strand (:mod:`~dftl_warp.simulation.monitor_colliders`): a collider is in a
 strand's reach when a sphere holding it wherever it was during the frame comes within ``1.1 L`` (plus
@@ -54,8 +62,8 @@ first check's state is taken as the start.
 After a run, ``monitor.unstable`` (per device strand) and ``monitor.worst_ratio`` (largest
 energy / budget seen) tell which strands blew up and by how much.
 
-Cost: one small kernel launch per check, and four totals copied to the host (a per-strand copy only
-when a strand first goes over its budget, to name it); with colliders, also the frame's poses (7
+Cost: one small kernel launch per check (for elastic strands it also reads their frames), and four
+totals copied to the host (a per-strand copy only when a strand first goes over its budget, to name it); with colliders, also the frame's poses (7
 numbers per collider per pose) copied to the host and one launch per mesh collider over its points.
 """
 
@@ -67,7 +75,7 @@ import numpy as np
 import warp as wp
 
 from ..core.layout import strand_offsets
-from ..kernels.simulation.energy import energy_budget_kernel
+from ..kernels.simulation.energy import elastic_terms_struct, energy_budget_kernel
 
 
 class EnergyGrowthWarning(RuntimeWarning):
@@ -142,17 +150,55 @@ class EnergyMonitor:
         self._no_colliders = wp.zeros(1, dtype=wp.float64, device=dev), wp.zeros(1, dtype=wp.vec3d, device=dev)
         # the records, per device strand, on the device (energy_budget_kernel): start energy, energy
         # when the root (or a collider in reach) last moved, root position, fastest root speed, largest
-        # ratio, over budget once, fastest collider in reach
+        # ratio, over budget once, fastest collider in reach, largest elastic energy when the root or a
+        # collider in reach moved (elastic strands; 0 for chains)
         self._records = [wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
                          wp.zeros(n, dtype=wp.vec3d, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
                          wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.int32, device=dev),
-                         wp.zeros(n, dtype=wp.float64, device=dev)]
+                         wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev)]
         self._out = [wp.zeros(n, dtype=wp.float64, device=dev), wp.zeros(n, dtype=wp.float64, device=dev),
                      wp.zeros(n, dtype=wp.int32, device=dev)]
         self._totals = wp.zeros(4, dtype=wp.float64, device=dev)
         self._first = True
+        #: the elastic solver's energy terms (kernels/simulation/energy.py), or None for a chain's
+        self._real, self._terms = self._elastic_terms(solver)
         if state is not None:
             self.measure(state)
+
+    def _elastic_terms(self, solver):
+        """(the computation precision, the energy terms struct) of an elastic solver's strands; for
+        other solvers (float64, an empty struct: the kernel reads none of it)."""
+        m = self.model
+        if getattr(solver, "name", None) != "elastic":
+            return wp.float64, elastic_terms_struct(m.scalar, wp.float64)()
+        terms = elastic_terms_struct(m.scalar, solver.real)()
+        # the solver's rest data (overwritten in place by adopt_rest_shape, so read at every check)
+        fields = solver._fields
+        for name in ("mass", "length", "bend", "twist", "curvature", "rest_rotation"):
+            setattr(terms, name, fields[name])
+        terms.clamp_direction = solver._clamp_direction
+        terms.curved = solver._curved
+        terms.clamp_rotation = solver._clamp_rotation_end   # the frame just simulated ends with it
+        terms.rest_energy = wp.array(self._rest_energy(solver), dtype=wp.float64, device=m.device)
+        return solver.real, terms
+
+    def _rest_energy(self, solver) -> np.ndarray:
+        """Per device strand: the elastic energy of the solver's rest shape (J/kg, per unit of the
+        strand's mean particle mass): the bending moments inverse statics leaves in a styled strand,
+        which hold it up and which it cannot give away at rest (the measure starts from it)."""
+        m = self.model
+        out = np.zeros(m.num_strands)
+        for _, rows, grp in solver._groups:
+            still = np.zeros_like(grp.rest)
+            frames = np.broadcast_to(np.eye(3), (grp.S, grp.N, 3, 3))
+            # no gravity, no velocity, frames at rest: the bending and twist energy alone (J)
+            out[rows] = grp.energy(grp.rest, still, frames, grp.ghost, np.zeros(3)) / grp.m[:, 1:].mean(axis=1)
+        return out[m.layout.strand_order]
+
+    @property
+    def elastic(self) -> bool:
+        """Whether the strands' energy counts their bending and twist (the elastic solver's)."""
+        return self._terms.mass is not None
 
     @property
     def unstable(self) -> np.ndarray:
@@ -170,11 +216,19 @@ class EnergyMonitor:
         its reach so far (0 without one)."""
         return self._records[6].numpy()
 
+    @property
+    def stored_energy(self) -> np.ndarray:
+        """Per device strand: the largest elastic energy (above its rest shape's, J/kg in model units)
+        seen at a check where its root or a collider in its reach moved (0 for chains)."""
+        return self._records[7].numpy()
+
     def restart(self, state) -> None:
         """Take ``state`` as the start of the run (e.g. after a clean start moved hair out of a
         collider, or a preroll: energy they add or remove is not the run's)."""
         for record in self._records[3:]:
             record.zero_()
+        if self.elastic:   # the rest shape may have changed (the clean start adopts the pushed-out shape)
+            self._terms.rest_energy.assign(self._rest_energy(self.solver))
         self._first = True
         self.measure(state)
 
@@ -182,7 +236,8 @@ class EnergyMonitor:
         """The records a resumed run continues from (numpy arrays; :meth:`load`): each strand's
         budget records, whether the next check is the first, the warning given (empty: none), and the
         mesh colliders' points at the last check."""
-        out = {f"record{i}": r.numpy() for i, r in enumerate(self._records)}
+        records = self._records if self.elastic else self._records[:7]   # a chain stores no elastic energy
+        out = {f"record{i}": r.numpy() for i, r in enumerate(records)}
         if self.colliders is not None:
             out.update(self.colliders.save())
         out["first"] = np.array(self._first)
@@ -191,7 +246,9 @@ class EnergyMonitor:
 
     def load(self, saved: dict) -> None:
         """Continue from :meth:`save`'s records (of a monitor of the same strands)."""
-        for i, r in enumerate(self._records):
+        if self.elastic and "record7" not in saved:
+            raise ValueError("saved energy records do not count the elastic energy")
+        for i, r in enumerate(self._records if self.elastic else self._records[:7]):
             values = np.asarray(saved[f"record{i}"])
             if values.shape[0] != r.shape[0]:
                 raise ValueError(f"saved energy records have {values.shape[0]} strands, not {r.shape[0]}")
@@ -217,11 +274,16 @@ class EnergyMonitor:
         else:
             none, center = self._no_colliders
             colliders = [center, none, none, 0]
+        terms = self._terms
+        if self.elastic:
+            if getattr(state, "frames", None) is None:
+                raise ValueError("the energy check of elastic strands needs the elastic solver's States")
+            terms.frames, terms.clamps = state.frames, state.clamps
         wp.launch(
-            energy_budget_kernel(m.scalar),
+            energy_budget_kernel(m.scalar, self._real, self.elastic),
             dim=m.num_strands,
             inputs=[m.strand_base, m.strand_stride, m.strand_count, m.rest_lengths, self._gravity, self.factor,
-                    self._free_d, self._floor_d, state.positions, state.velocities, int(self._first),
+                    self._free_d, self._floor_d, state.positions, state.velocities, terms, int(self._first),
                     self._reach_d, self._lift_d, *colliders, *self._records],
             outputs=[*self._out, self._totals],
             device=m.device,
