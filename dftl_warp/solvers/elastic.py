@@ -575,19 +575,16 @@ class ElasticSolver(Solver):
         q = state.frames.numpy()[lay.slot_of_point].astype(np.float64)
         ghosts = np.zeros((m.num_strands, 3))
         ghosts[lay.strand_order] = state.clamps.numpy().astype(np.float64)
+        turns = np.zeros((m.num_strands, 3, 3))   # the clamps' turn at the end of the frame just stepped
+        turns[lay.strand_order] = self._clamp_rotation_end.numpy()
         starts = elastic_rest.strand_offsets(m.counts)
         total = 0.0
         for n, strands, grp in self._groups:
             idx = starts[strands][:, None] + np.arange(n)[None]
             F = elastic_rest.quat_to_mat(q[idx[:, :n - 1]])
-            F[~grp.curved] = np.eye(3)      # straight strands: the frames carry no force (b = 0)
-            e = grp.energy(x[idx], v[idx], F, ghosts[strands], self.gravity64)
-            if not grp.curved.all():         # ... and no twist energy either
-                G = grp.G
-                grp.G = np.where(grp.curved[:, None], G, 0.0)
-                e = grp.energy(x[idx], v[idx], F, ghosts[strands], self.gravity64)
-                grp.G = G
-            total += float(e.sum())
+            F[~grp.curved] = np.eye(3)      # straight strands: the frames carry no force (b = 0), nor twist
+            total += float(grp.energy(x[idx], v[idx], F, ghosts[strands], self.gravity64, turns[strands],
+                                      grp.curved).sum())
         return total
 
     def diagnostics(self, state) -> dict:

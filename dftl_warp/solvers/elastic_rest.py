@@ -225,20 +225,27 @@ class RodGroup:
             k2[:, i] = al[:, i + 1] * ga[:, i + 1] * W[:, i + 1]
         return k0, k1, k2
 
-    def energy(self, x, v, F, xg, g):
+    def energy(self, x, v, F, xg, g, clamp_rotation=None, twist_mask=None):
         """Kinetic + gravitational + elastic energy per strand (J). The potential energy is
         measured from the strand hanging straight down from its root (``|g| s_i - g.(x_i - x_0)``,
-        ``s_i`` the arc length), so it is >= 0."""
+        ``s_i`` the arc length), so it is >= 0. ``clamp_rotation`` (S, 3, 3): the clamp's turn from
+        its authored pose, which turns the root frame as in the kernel (identity when None);
+        ``twist_mask`` (S,): the strands whose twist energy counts (all when None)."""
         m = self.m[:, 1:]
         ke = 0.5 * np.sum(m * np.sum(v[:, 1:] ** 2, -1), -1)
         s_along = np.cumsum(self.l[:, 1:self.N + 1], axis=1)
         pe = np.sum(m * (np.linalg.norm(g) * s_along - np.sum(g * (x[:, 1:] - x[:, :1]), -1)), -1)
-        R_root = rotation_between(self.d0, x[:, 0] - xg)
+        if clamp_rotation is None:
+            R_root = rotation_between(self.d0, x[:, 0] - xg)
+        else:
+            d0 = np.einsum("sab,sb->sa", clamp_rotation, self.d0)
+            R_root = np.einsum("sab,sbc->sac", rotation_between(d0, x[:, 0] - xg), clamp_rotation)
         r = self.apply_D(x, xg) - np.einsum('sjab,sjb->sja', F, self.b)
         eb = 0.5 * np.sum(self.W * np.sum(r * r, -1), -1)
         Fprev = np.concatenate([R_root[:, None], F[:, :-1]], axis=1)
         rel = np.einsum('sjba,sjbc,sjcd->sjad', F, Fprev, self.Qb)
-        et = np.sum(self.G * (3 - np.trace(rel, axis1=-2, axis2=-1)), -1)
+        G = self.G if twist_mask is None else np.where(np.asarray(twist_mask)[:, None], self.G, 0.0)
+        et = np.sum(G * (3 - np.trace(rel, axis1=-2, axis2=-1)), -1)
         return ke + pe + eb + et
 
 
