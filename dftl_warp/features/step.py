@@ -18,6 +18,7 @@ from ..core.precision import numpy_type
 from ..core.state import AbsentFeatures
 from ..kernels.features.air_grid import blocks_per_strand, split_flags, velocity_features_kernel
 from ..kernels.features.collide import collider_flags, collider_pose_kernel
+from ..kernels.features.mesh import mesh_substep_kernel
 from ..kernels.features.step import feature_struct
 from . import air, binding, colliders, hair_hair
 from .air import Drag, Wind
@@ -195,11 +196,18 @@ class FeatureControl(AbsentFeatures):
         if self.colliders is not None:
             self.colliders.resync()
 
-    def set_mesh_points(self, index: int, points) -> None:
-        """New local points (P, 3), m, of mesh collider ``index`` (Colliders order), from now on."""
+    def set_mesh_points(self, index: int, points, start=None) -> None:
+        """Local points (P, 3), m, of mesh collider ``index`` (Colliders order) at the coming frame's
+        end, set once a frame before its substeps: the mesh moves to them through the frame (from
+        ``start`` when given, else from the points last set;
+        :meth:`ColliderControl.set_mesh_points <dftl_warp.features.colliders.ColliderControl.set_mesh_points>`)."""
         if self.colliders is None:
             return super().set_mesh_points(index, points)
-        self.colliders.set_mesh_points(index, points)
+        self.colliders.set_mesh_points(index, points, start=start)
+
+    def graph_variant(self) -> tuple:
+        """What a frame's CUDA graph depends on beyond its inputs (the meshes moving per substep)."""
+        return () if self.colliders is None else self.colliders.graph_variant()
 
     # -- wind ----------------------------------------------------------------------------------
 
@@ -278,6 +286,8 @@ class FeatureStep:
             ks.append(self._pass_kernel)
         if self.model.feature_data.collider_data is not None:
             ks.append(collider_pose_kernel(self.model.scalar))
+            if "meshes" in self.flags:
+                ks.append(mesh_substep_kernel(self.model.scalar))
         if self._grid is not None:
             ks += self._grid.kernels()
         return ks

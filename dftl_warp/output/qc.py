@@ -129,8 +129,7 @@ class ColliderDepth:
         Features = feature_struct(model.scalar, flags)
         cc = control.features.colliders
         st = Features()
-        cc.fill_struct(st)
-        st.collider_inv_pose_prev = cc.inv_pose
+        cc.fill_struct(st, still=True)
         meshes = cc.kind_data.get("meshes")
         self._band = None
         if meshes is not None:

@@ -10,7 +10,7 @@ jumps at every frame. The prim's local-to-world matrix follows the same curve (t
 in it), and :func:`matrix_rate` is its velocity over the frame's last substep, which turns the
 written world velocities into local ones. Animated collider poses follow the same curve (their
 rates from the same differences: :func:`~dftl_warp.features.colliders.update_from_scene`); a
-deforming collider mesh changes its points once a frame (:func:`collider_note`).
+deforming collider mesh moves linearly between frames (:func:`collider_note`).
 """
 
 from __future__ import annotations
@@ -98,14 +98,14 @@ def matrix_rate(sim, index: int, frame: int, substeps: int) -> np.ndarray:
 def collider_note(scene) -> str | None:
     """The start note of a scene with deforming collider meshes (None without): animated
     collider *poses* follow the roots' C1 path inside each frame
-    (:func:`~dftl_warp.features.colliders.update_from_scene`), but a deforming mesh takes its next
-    frame's points at the frame's start."""
+    (:func:`~dftl_warp.features.colliders.update_from_scene`), but a deforming mesh moves linearly from
+    one frame's points to the next's (interpolated every substep)."""
     deforming = [c.path for c in scene.colliders if c.points_sampler is not None]
     if not deforming:
         return None
     more = f" and {len(deforming) - 1} more" if len(deforming) > 1 else ""
-    return (f"deforming collider {deforming[0]}{more}: its points change once a frame, to the next frame's at the "
-            "frame's start (not interpolated inside the frame); poses follow the roots' C1 path")
+    return (f"deforming collider {deforming[0]}{more}: its points move linearly from frame to frame (interpolated "
+            "every substep); poses follow the roots' C1 path")
 
 
 #: the largest turn (degrees) of an animated prim from one frame to the next that its once-a-frame

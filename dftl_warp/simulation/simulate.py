@@ -14,7 +14,7 @@ a cubic Hermite curve whose end velocities are the roots' fourth-order differenc
 neighbouring frames (:func:`~dftl_warp.core.state.frame_velocity`; one-sided at the shot's ends,
 the first frame and :attr:`Simulation.last_frame`), so a root's velocity does not jump at frames.
 Roots bound to a mesh, the elastic solver's clamp ghosts and animated collider poses take the same
-path (a deforming collider mesh changes its points once a frame: a start note says so).
+path (a deforming collider mesh moves linearly between frames: a start note says so).
 Results go back to each prim's local space: points through the inverse transform; velocities are the motion *relative to the prim's frame* expressed
 in local space, ``(v_world - v_frame(x)) @ inverse(linear part)`` with ``v_frame`` the velocity
 the transform's own path (the roots') gave a point fixed in the prim over the last substep. That

@@ -257,6 +257,8 @@ class Solver:
         if not m.device.is_cuda:
             run()
             return
+        # the features' own (the meshes interpolated per substep: their launches are in the graph)
+        variant = (*variant, *getattr(control.features, "graph_variant", tuple)())
         key = (id(state), id(control), float(dt), int(substeps), *variant)
         graph = self._graphs.get(key)
         if graph is None:

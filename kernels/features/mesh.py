@@ -13,6 +13,15 @@ contact distance plus the band. The response is shared
 A mesh collider with a signed distance field (``cell`` > 0 in its ``collider_sdf`` entry) is
 answered by the field (``kernels/features/sdf.py``) where it can answer, and by the exact query
 above where it cannot (thin parts, sharp edges, beyond the field's reach).
+
+A deforming mesh (a point cache) moving within a frame has its points interpolated every substep
+(:func:`mesh_substep_kernel`) into its mesh and into a second mesh of the previous substep's points
+(``collider_mesh_prev``; 0 while the mesh does not move that way). The continuous test then
+carries the particle's start with the surface: the point of the previous surface nearest it (face
+and barycentric coordinates) moved to where that point is now, so the path is relative to the
+surface wherever it moves, as it is relative to a moving pose; friction then acts on the motion
+relative to the surface too. ``collider_motion`` bounds how far any point of the mesh moved in the
+substep (m): the previous surface is searched that far beyond the contact distance, band and path.
 """
 
 
@@ -26,8 +35,10 @@ from .sdf import EXACT_FROM, TEST_SLOTS, WHY_EXACT, collide_sdf_func, sdf_fields
 
 @functools.cache
 def collide_mesh_func(scalar):
-    """``collide_mesh(x, x_old, leader, rest, ccd, radius, pose, inv_pose, inv_pose_prev, mesh, lower,
-    upper, depth_band, mu) -> (x, touched)``; ``lower``/``upper``: the mesh's local bounds (m)."""
+    """``collide_mesh(x, x_old, leader, rest, ccd, radius, pose, inv_pose, inv_pose_prev, mesh, mesh_prev,
+    motion, lower, upper, depth_band, mu) -> (x, touched)``; ``lower``/``upper``: the mesh's local
+    bounds over the frame (m); ``mesh_prev``: the mesh at the previous substep (0: it did not move
+    within the frame) and ``motion`` (m) the farthest any of its points moved since."""
     vec3 = wp.types.vector(3, scalar)
     transform = transform_type(scalar)
     zero = scalar(0.0)
@@ -37,19 +48,28 @@ def collide_mesh_func(scalar):
 
     @wp.func
     def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
-                     inv_pose: transform, inv_pose_prev: transform, mesh: wp.uint64, lower: vec3, upper: vec3,
-                     depth_band: scalar, mu: scalar):
+                     inv_pose: transform, inv_pose_prev: transform, mesh: wp.uint64, mesh_prev: wp.uint64,
+                     motion: scalar, lower: vec3, upper: vec3, depth_band: scalar, mu: scalar):
         q = wp.transform_point(inv_pose, x)
         q_old = wp.transform_point(inv_pose_prev, x_old)
         # broad phase: the path's box against the mesh's box grown by the contact distance and band
-        reach = radius + depth_band
+        # (a deforming mesh's box holds it over the whole frame)
+        reach = radius + depth_band + motion
         lo = wp.min(q, q_old)
         hi = wp.max(q, q_old)
         if (lo[0] > upper[0] + reach or lo[1] > upper[1] + reach or lo[2] > upper[2] + reach
                 or hi[0] < lower[0] - reach or hi[1] < lower[1] - reach or hi[2] < lower[2] - reach):
             return x, False
+        if mesh_prev != wp.uint64(0):
+            # the surface moved within the step: the start carried with the point of the previous
+            # surface nearest it (a surface that swept past the particle is then crossed by its path)
+            near = wp.mesh_query_point_no_sign(mesh_prev, wp.vec3f(q_old), wp.float32(reach + wp.length(q - q_old)))
+            if near.result:
+                was = vec3(wp.mesh_eval_position(mesh_prev, near.face, near.u, near.v))
+                q_old = q_old + vec3(wp.mesh_eval_position(mesh, near.face, near.u, near.v)) - was
         path = q - q_old
         length = wp.length(path)
+        reach = radius + depth_band
         # the query reaches as far as the path could have crossed the surface (the relative motion
         # in the collider's frame, so a moving collider is covered too), plus the band, in every
         # round: a particle outside at the step's start and inside now is at most its path below
@@ -111,10 +131,12 @@ def collide_mesh_func(scalar):
 
 
 def mesh_fields(scalar) -> dict:
-    """Struct fields of mesh colliders, per device collider: the mesh id, its depth band (m) and
-    its local bounds (m); and their signed distance fields (``kernels/features/sdf.py``)."""
+    """Struct fields of mesh colliders, per device collider: the mesh id, the previous substep's
+    mesh id (0 unless it moves within the frame) and how far its points moved since (m), its depth
+    band (m) and its local bounds (m); and their signed distance fields (``kernels/features/sdf.py``)."""
     vec3 = wp.types.vector(3, scalar)
-    return dict(collider_mesh=wp.array(dtype=wp.uint64), collider_depth_band=wp.array(dtype=scalar),
+    return dict(collider_mesh=wp.array(dtype=wp.uint64), collider_mesh_prev=wp.array(dtype=wp.uint64),
+                collider_motion=wp.array(dtype=scalar), collider_depth_band=wp.array(dtype=scalar),
                 collider_lower=wp.array(dtype=vec3), collider_upper=wp.array(dtype=vec3), **sdf_fields())
 
 
@@ -151,11 +173,38 @@ def _collide_mesh_at_built(scalar, Features, count: bool):
             if why < EXACT_FROM:
                 return z, touched
         y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
-                     f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c], f.collider_upper[c],
-                     f.collider_depth_band[c], f.collider_friction[c])
+                     f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_mesh_prev[c], f.collider_motion[c],
+                     f.collider_lower[c], f.collider_upper[c], f.collider_depth_band[c], f.collider_friction[c])
         return y, hit
 
     return named_func(collide_mesh_at, "collide_mesh_at", unique=True)
+
+
+@functools.cache
+def mesh_substep_kernel(scalar):
+    """``(start, end, alpha_prev, alpha, frame_motion, c, points, points_prev, motion)``: a deforming
+    mesh's points ``alpha`` and ``alpha_prev`` of the way from the frame's ``start`` to its ``end``
+    (collider-local, m), and ``motion[c]``, how far its points moved between the two
+    (``frame_motion[c]``, the farthest any moves in the frame, times ``alpha - alpha_prev``). The
+    frame's last substep (``alpha`` 1) makes ``start`` its end: a frame whose points are not set
+    again keeps the mesh still."""
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def mesh_substep(start: wp.array(dtype=wp.vec3), end: wp.array(dtype=wp.vec3), alpha_prev: wp.float32,
+                     alpha: wp.float32, frame_motion: wp.array(dtype=wp.float32), c: int,
+                     points: wp.array(dtype=wp.vec3), points_prev: wp.array(dtype=wp.vec3),
+                     motion: wp.array(dtype=scalar)):
+        i = wp.tid()
+        a = start[i]
+        b = end[i]
+        points_prev[i] = a + alpha_prev * (b - a)
+        points[i] = a + alpha * (b - a)
+        if alpha >= wp.float32(1.0):
+            start[i] = b
+        if i == 0:
+            motion[c] = scalar(frame_motion[c] * (alpha - alpha_prev))
+
+    return mesh_substep
 
 
 MESH = ColliderKernel(flag="meshes", collide=_collide_mesh_at, fields=mesh_fields)

@@ -176,26 +176,47 @@ class ColliderControl:
         self.curved = True
 
     def resync(self) -> None:
-        """Forget the colliders' previous pose (after restoring a saved state)."""
+        """Forget the colliders' previous pose and where the meshes are (after restoring a saved state)."""
         self._synced = False
+        meshes = self.kind_data.get("meshes")
+        if meshes is not None:
+            meshes.resync()
 
-    def set_mesh_points(self, index: int, points) -> None:
-        """New local points (P, 3), m, of mesh collider ``index`` (Colliders order), from now on."""
+    def mesh_stale(self, index: int) -> bool:
+        """Whether mesh collider ``index`` needs its frame's ``start`` points with the next
+        :meth:`set_mesh_points` (after :meth:`resync`)."""
+        meshes = self.kind_data.get("meshes")
+        return meshes is not None and index in meshes.meshes and meshes.meshes[index][0] in meshes.stale
+
+    def set_mesh_points(self, index: int, points, start=None) -> None:
+        """Local points (P, 3), m, of mesh collider ``index`` (Colliders order) at the coming frame's
+        end: the mesh moves to them through the frame, from ``start`` when given, else from the
+        points last set (:meth:`MeshColliders.set_points <.mesh.MeshColliders.set_points>`)."""
         meshes = self.kind_data.get("meshes")
         if meshes is None:
             raise ValueError(f"collider {index} is not a mesh")
-        meshes.set_points(index, points)
+        meshes.set_points(index, points, start=start)
+
+    def graph_variant(self) -> tuple:
+        """What a frame's CUDA graph depends on beyond its inputs: the meshes moving per substep."""
+        meshes = self.kind_data.get("meshes")
+        return () if meshes is None else meshes.graph_variant()
 
     def advance(self, root_alpha: float) -> None:
         """This substep's poses: ``alpha`` of the way from the frame's start to its end (on the
-        C1 path when this frame's poses came with rates)."""
+        C1 path when this frame's poses came with rates), and the points of the meshes moving
+        within the frame."""
         m = self.model
+        meshes = self.kind_data.get("meshes")
+        if meshes is not None:
+            meshes.advance(root_alpha)
         wp.launch(collider_pose_kernel(m.scalar, self.curved), dim=self.pose.shape[0], device=m.device,
                   inputs=[self.pose_start, self.pose_end, self.deviation_start, self.deviation_end, root_alpha],
                   outputs=[self.pose, self.pose_prev, self.inv_pose, self.inv_pose_prev])
 
-    def fill_struct(self, st) -> None:
-        """The colliders' fields of the step struct."""
+    def fill_struct(self, st, still: bool = False) -> None:
+        """The colliders' fields of the step struct; ``still``: as if nothing had moved since the last
+        substep (previous poses the current ones, meshes not moving: a query of where hair is now)."""
         d, a = self.data, self.data.arrays
         st.particle_radius = a["particle_radius"]
         st.collider_pose = self.pose
@@ -208,6 +229,11 @@ class ColliderControl:
         st.collider_bounds = wp.types.vector(len(d.bounds), wp.int32)(*d.bounds)
         for made in self.kind_data.values():
             made.fill_struct(st)
+        if still:
+            st.collider_inv_pose_prev = self.inv_pose
+            meshes = self.kind_data.get("meshes")
+            if meshes is not None:
+                st.collider_mesh_prev = meshes.still_ids
 
 
 def fixed_bytes(data: ColliderData, precision: str) -> int:

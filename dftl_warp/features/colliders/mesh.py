@@ -3,6 +3,13 @@ Control so that its points can deform per frame (:meth:`MeshColliders.set_points
 BVH). USD: UsdGeomMesh (fan-triangulated), scale baked into the points; a mirroring scale turns
 the faces back outward; ``dftl:collisionSdf`` and ``dftl:collisionSdfCellSize`` choose the signed
 distance field (``sdf.py``). Kernel: ``kernels/features/mesh.py``.
+
+Deforming meshes move inside the frame: from the points they had to the points set for the
+frame's end, interpolated every substep (:meth:`MeshColliders.advance`: one launch over the points
+and two BVH refits per moving mesh and substep; docs/features.md, "Deforming bodies"). A mesh with
+a signed distance field keeps it (built once a frame, at the frame's end, as before) while its
+points move at most its ``depth_band`` in the frame; a frame in which they move farther collides
+through the interpolated exact queries (warned once per collider).
 """
 
 from __future__ import annotations
@@ -13,7 +20,7 @@ import numpy as np
 import warp as wp
 
 from ...core.precision import numpy_type
-from ...kernels.features.mesh import MESH
+from ...kernels.features.mesh import MESH, mesh_substep_kernel
 from ..base import finite_rows, nonnegative
 from .base import ColliderShape
 from .sdf import MeshFields, bounds, estimated_bytes, field_band, field_settings
@@ -107,10 +114,24 @@ class TriangleMesh(ColliderShape):
         return mesh + estimated_bytes(self.points, self.indices, cell, field_band(self.depth_band, 0.0, cell))
 
 
+class _Motion:
+    """A deforming mesh's points at the frame's start and end (device, local, m) and a second
+    :class:`warp.Mesh` of the previous substep's points."""
+
+    def __init__(self, mesh: wp.Mesh, indices: np.ndarray):
+        device = mesh.points.device
+        self.start = wp.clone(mesh.points)
+        self.end = wp.clone(mesh.points)
+        self.prev = wp.Mesh(points=wp.clone(mesh.points), indices=wp.array(indices.reshape(-1), dtype=wp.int32,
+                                                                           device=device))
+
+
 class MeshColliders:
     """The meshes of a Control's mesh colliders, per device collider (others: id 0): ``ids``,
-    local bounds ``lower``/``upper`` (m) and ``depth_band`` (m); ``fields``: the signed distance
-    fields of those that use one (:class:`~.sdf.MeshFields`, rebuilt by :meth:`set_points`)."""
+    local bounds ``lower``/``upper`` (m, over the frame) and ``depth_band`` (m); ``fields``: the
+    signed distance fields of those that use one (:class:`~.sdf.MeshFields`, rebuilt by
+    :meth:`set_points`); ``prev_ids`` (the previous substep's mesh of those moving within the
+    frame, else 0) and ``motion`` (m, how far their points moved in the substep)."""
 
     def __init__(self, model, shapes: dict, num_colliders: int):
         device = model.device
@@ -138,27 +159,117 @@ class MeshColliders:
         self.depth_band = wp.array(band, dtype=model.scalar, device=device)
         radius = model.feature_data.collider_data.arrays["particle_radius"].numpy()
         self.fields = MeshFields(device, num_colliders, with_field, float(radius.max(initial=0.0)))
+        self._shapes = {c: s for c, (_, s) in shapes.items()}
+        #: device collider -> its points where the mesh is now (host float32, the last set)
+        self._given = {c: s.points.astype(np.float32) for c, (_, s) in shapes.items()}
+        #: device colliders whose points on the host may not be where the mesh is (after resync)
+        self._stale: set = set()
+        self._motions: dict = {}
+        #: device colliders whose points are interpolated per substep this frame
+        self.moving: set = set()
+        self._alpha = 0.0
+        self.prev_ids = wp.zeros(num_colliders, dtype=wp.uint64, device=device)
+        #: zeros: no mesh moving (for queries of where hair is now, ``fill_struct(still=True)``)
+        self.still_ids = wp.zeros(num_colliders, dtype=wp.uint64, device=device)
+        self.motion = wp.zeros(num_colliders, dtype=model.scalar, device=device)
+        self._frame_motion_host = np.zeros(num_colliders, dtype=np.float32)
+        self._prev_ids_host = np.zeros(num_colliders, dtype=np.uint64)
+        self.frame_motion = wp.zeros(num_colliders, dtype=wp.float32, device=device)
 
-    def set_points(self, index: int, points) -> None:
-        """New local points (P, 3), m, of mesh collider ``index`` (user order), from now on."""
+    def set_points(self, index: int, points, start=None) -> None:
+        """The local points (P, 3), m, of mesh collider ``index`` (user order) at the end of the
+        coming frame (set once a frame, before its substeps). The mesh moves to them through the
+        frame from where it is (the points last set; ``start``, (P, 3) m, says where it is instead:
+        needed after :meth:`resync`, else the mesh jumps to ``points`` at the frame's start)."""
         if index not in self.meshes:
             raise ValueError(f"collider {index} is not a mesh")
         c, mesh = self.meshes[index]
-        pts = finite_rows(points, 3, f"mesh collider {index} points").astype(np.float32)
-        if pts.shape[0] != mesh.points.shape[0]:
-            raise ValueError(f"mesh collider {index}: expected {mesh.points.shape[0]} points, got {pts.shape[0]}")
+        pts = self._checked(index, points, "points", mesh)
+        if start is not None:
+            here = self._checked(index, start, "start points", mesh)
+        else:
+            here = pts if c in self._stale else self._given[c]
+        self._stale.discard(c)
+        self._given[c] = pts
         mesh.points.assign(pts)
         mesh.refit()
         lo, hi = bounds(pts)
+        moved = float(np.sqrt(np.max(np.sum((pts - here) ** 2, axis=1))))
+        field = c in self.fields.fields
+        fast = moved > float(self._shapes[c].depth_band)
+        if field and fast:
+            self.fields.fields[c].warn("moving", (
+                f"its points move up to {moved:.3g} m in a frame, more than its depth band "
+                f"{float(self._shapes[c].depth_band):.3g} m: its signed distance field, built once a frame, "
+                "would let hair through, so such frames collide through exact mesh queries interpolated per "
+                "substep (slower)"))
+            self.fields.suspend(c)
+        elif field:
+            self.fields.build(c, lo, hi)
+        if moved > 0.0 and (fast or not field):
+            motion = self._motions.get(c)
+            if motion is None:
+                motion = self._motions[c] = _Motion(mesh, self._shapes[c].indices)
+            motion.start.assign(here)
+            motion.end.assign(pts)
+            self.moving.add(c)
+            self._prev_ids_host[c] = motion.prev.id
+            self._frame_motion_host[c] = moved
+            lo, hi = np.minimum(lo, bounds(here)[0]), np.maximum(hi, bounds(here)[1])
+        else:
+            self.moving.discard(c)
+            self._prev_ids_host[c] = 0
+            self._frame_motion_host[c] = 0.0
+        self.prev_ids.assign(self._prev_ids_host)
+        self.frame_motion.assign(self._frame_motion_host)
+        if c not in self.moving:
+            self.motion.zero_()
         # the host keeps the bounds it wrote (no read back from the device)
         self._lower_host[c], self._upper_host[c] = lo, hi
         self.lower.assign(self._lower_host)
         self.upper.assign(self._upper_host)
-        if c in self.fields.fields:
-            self.fields.build(c, lo, hi)
+
+    def _checked(self, index, points, what, mesh) -> np.ndarray:
+        pts = finite_rows(points, 3, f"mesh collider {index} {what}").astype(np.float32)
+        if pts.shape[0] != mesh.points.shape[0]:
+            raise ValueError(f"mesh collider {index}: expected {mesh.points.shape[0]} {what}, got {pts.shape[0]}")
+        return pts
+
+    @property
+    def stale(self) -> set:
+        """Device colliders whose next :meth:`set_points` needs its ``start`` (after :meth:`resync`)."""
+        return self._stale
+
+    def resync(self) -> None:
+        """Forget where the meshes are (after restoring a saved state): the next :meth:`set_points`
+        takes its ``start``, or puts the mesh at its points from the frame's start."""
+        self._stale = set(self._given)
+
+    def advance(self, root_alpha: float) -> None:
+        """This substep's points of the meshes that move within the frame, ``root_alpha`` of the way
+        through it (and the previous substep's, in their second mesh): one launch over the points
+        and two BVH refits per moving mesh."""
+        alpha_prev = self._alpha if root_alpha > self._alpha else 0.0
+        self._alpha = float(root_alpha)
+        for c in sorted(self.moving):
+            motion, mesh = self._motions[c], self._mesh_of(c)
+            wp.launch(mesh_substep_kernel(self.motion.dtype), dim=mesh.points.shape[0], device=self.motion.device,
+                      inputs=[motion.start, motion.end, float(alpha_prev), float(root_alpha), self.frame_motion, c],
+                      outputs=[mesh.points, motion.prev.points, self.motion])
+            mesh.refit()
+            motion.prev.refit()
+
+    def _mesh_of(self, c: int) -> wp.Mesh:
+        return next(mesh for d, mesh in self.meshes.values() if d == c)
+
+    def graph_variant(self) -> tuple:
+        """What a frame's CUDA graph depends on: the meshes interpolated per substep."""
+        return tuple(sorted(self.moving))
 
     def fill_struct(self, st) -> None:
         st.collider_mesh = self.ids
+        st.collider_mesh_prev = self.prev_ids
+        st.collider_motion = self.motion
         st.collider_depth_band = self.depth_band
         st.collider_lower = self.lower
         st.collider_upper = self.upper

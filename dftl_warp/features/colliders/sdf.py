@@ -220,6 +220,14 @@ class MeshFields:
             field.warn("grid", "the mesh deformed beyond its signed distance field's grid: beyond it, "
                                "exact mesh queries answer")
 
+    def suspend(self, c: int) -> None:
+        """Device collider ``c`` collides through exact mesh queries until its field is built again
+        (:meth:`build`)."""
+        still = SdfGrid()
+        still.cell = 0.0
+        self._grids_host[c] = still
+        self.grids.assign(wp.array(self._grids_host, dtype=SdfGrid, device="cpu"))
+
     def fill_struct(self, st) -> None:
         st.collider_sdf = self.grids
         st.sdf_brick_map = self.brick_map

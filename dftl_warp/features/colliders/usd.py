@@ -97,7 +97,8 @@ def from_scene(scene, frame) -> list:
 
 
 def update_from_scene(scene, fc, frame, nxt, shot=None) -> None:
-    """Collider poses and deforming mesh points for the frame ``frame`` -> ``nxt`` (time codes).
+    """Collider poses and deforming mesh points for the frame ``frame`` -> ``nxt`` (time codes): the
+    meshes move from their points at ``frame`` to those at ``nxt`` through the frame.
 
     With ``shot`` (the first and last frame simulated) animated colliders follow the roots' C1 path
     inside the frame: the rates of their poses at ``frame`` and ``nxt`` are the fourth-order
@@ -137,4 +138,7 @@ def update_from_scene(scene, fc, frame, nxt, shot=None) -> None:
     for i, c in enumerate(scene.colliders):
         if c.kind == "mesh" and c.points_sampler is not None:
             _, _, scale = split_matrix(c.transform(frame))
-            fc.set_mesh_points(i, c.points_sampler(nxt) * scale)
+            # the mesh moves from the frame's points to the next's; where it is now is known unless
+            # a saved state was restored
+            start = c.points_sampler(frame) * scale if fc.colliders.mesh_stale(i) else None
+            fc.set_mesh_points(i, c.points_sampler(nxt) * scale, start=start)
