@@ -79,8 +79,9 @@ def lifting(speed):
     ("mesh", through_the_hair(2.0), None), ("deforming", from_the_side(0.025), "dftl"),
     ("plate", lifting(0.3), None)])
 def test_hair_struck_by_a_moving_collider_is_not_called_unstable(tmp_path, capsys, kind, path, solver):
-    """Spheres and a moved mesh through hanging hair, a deforming mesh that pushes it aside (slowly:
-    its points jump once a frame, and hair lets one through that jumps farther than its depth band),
+    """Spheres and a moved mesh through hanging hair, a deforming mesh that pushes it aside (slowly,
+    as written when its points jumped once a frame and hair let one through that jumped farther than
+    its depth band; they move inside the frame since ba19086),
     and a plate that carries it up slowly: a collider at 0.3 m/s can only throw hair at 0.6 m/s
     (0.18 J/kg a particle), but it lifts it by up to 35 cm (3.4 J/kg a particle), work all the same."""
     stage = new_stage(tmp_path / "in.usda", start=1, end=24)
