@@ -173,27 +173,11 @@ class EnergyMonitor:
             return wp.float64, elastic_terms_struct(m.scalar, wp.float64)()
         terms = elastic_terms_struct(m.scalar, solver.real)()
         # the solver's rest data (overwritten in place by adopt_rest_shape, so read at every check)
-        fields = solver._fields
-        for name in ("mass", "length", "bend", "twist", "curvature", "rest_rotation"):
-            setattr(terms, name, fields[name])
-        terms.clamp_direction = solver._clamp_direction
-        terms.curved = solver._curved
-        terms.clamp_rotation = solver._clamp_rotation_end   # the frame just simulated ends with it
-        terms.rest_energy = wp.array(self._rest_energy(solver), dtype=wp.float64, device=m.device)
+        for name, array in solver.energy_arrays().items():
+            setattr(terms, name, array)
+        # the rest shape's bending and twist energy: the measure starts from it
+        terms.rest_energy = wp.array(solver.rest_energy_per_mass(), dtype=wp.float64, device=m.device)
         return solver.real, terms
-
-    def _rest_energy(self, solver) -> np.ndarray:
-        """Per device strand: the elastic energy of the solver's rest shape (J/kg, per unit of the
-        strand's mean particle mass): the bending moments inverse statics leaves in a styled strand,
-        which hold it up and which it cannot give away at rest (the measure starts from it)."""
-        m = self.model
-        out = np.zeros(m.num_strands)
-        for _, rows, grp in solver._groups:
-            still = np.zeros_like(grp.rest)
-            frames = np.broadcast_to(np.eye(3), (grp.S, grp.N, 3, 3))
-            # no gravity, no velocity, frames at rest: the bending and twist energy alone (J)
-            out[rows] = grp.energy(grp.rest, still, frames, grp.ghost, np.zeros(3)) / grp.m[:, 1:].mean(axis=1)
-        return out[m.layout.strand_order]
 
     @property
     def elastic(self) -> bool:
@@ -228,7 +212,7 @@ class EnergyMonitor:
         for record in self._records[3:]:
             record.zero_()
         if self.elastic:   # the rest shape may have changed (the clean start adopts the pushed-out shape)
-            self._terms.rest_energy.assign(self._rest_energy(self.solver))
+            self._terms.rest_energy.assign(self.solver.rest_energy_per_mass())
         self._first = True
         self.measure(state)
 

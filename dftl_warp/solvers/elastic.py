@@ -71,6 +71,7 @@ from ..core.precision import numpy_type, scalar_type
 from ..core.state import State
 from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_step_kernels
 from . import elastic_rest
+from .elastic_energy import ElasticEnergy
 from .base import DEFAULT_GRAVITY, Solver, check_bool, check_gravity, register
 
 #: human hair: Young's modulus (Pa), shear modulus (Pa), density (kg/m^3) (Robbins 2002)
@@ -143,7 +144,7 @@ def _per_point(name: str, value, npts: int) -> np.ndarray:
 
 
 @register
-class ElasticSolver(Solver):
+class ElasticSolver(ElasticEnergy, Solver):
     """Elastic rods, scheme K (see the module docstring).
 
     Args:
@@ -562,33 +563,3 @@ class ElasticSolver(Solver):
         for kernel in self._kernels:
             wp.launch(kernel, dim=m.num_strands, block_dim=ELASTIC_BLOCK_DIM, inputs=inputs, outputs=outputs,
                       device=m.device)
-
-    # -- diagnostics -----------------------------------------------------------------------------
-
-    def energy(self, state) -> float:
-        """Kinetic + gravitational (relative to the roots) + elastic energy of all strands (J, or
-        the model's units), computed on the host in float64."""
-        m = self.model
-        lay = m.layout
-        x = m.points_from_device(state.positions, relative=False)
-        v = m.points_from_device(state.velocities, relative=False)
-        q = state.frames.numpy()[lay.slot_of_point].astype(np.float64)
-        ghosts = np.zeros((m.num_strands, 3))
-        ghosts[lay.strand_order] = state.clamps.numpy().astype(np.float64)
-        turns = np.zeros((m.num_strands, 3, 3))   # the clamps' turn at the end of the frame just stepped
-        turns[lay.strand_order] = self._clamp_rotation_end.numpy()
-        starts = elastic_rest.strand_offsets(m.counts)
-        total = 0.0
-        for n, strands, grp in self._groups:
-            idx = starts[strands][:, None] + np.arange(n)[None]
-            F = elastic_rest.quat_to_mat(q[idx[:, :n - 1]])
-            F[~grp.curved] = np.eye(3)      # straight strands: the frames carry no force (b = 0), nor twist
-            total += float(grp.energy(x[idx], v[idx], F, ghosts[strands], self.gravity64, turns[strands],
-                                      grp.curved).sum())
-        return total
-
-    def diagnostics(self, state) -> dict:
-        """The base diagnostics plus ``elastic_energy`` (:meth:`energy`, J)."""
-        out = super().diagnostics(state)
-        out["elastic_energy"] = self.energy(state)
-        return out
