@@ -98,7 +98,8 @@ def built(scalar, Features, count):
                 if wp.length(x_old - leader) > scalar(1.5) * rest:
                     wp.atomic_add(f.sdf_tests, (BASE + 21) * TS + slot, 1)
         y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
-                     f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c], f.collider_upper[c],
+                     f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_mesh_prev[c],
+                         f.collider_motion[c], f.collider_lower[c], f.collider_upper[c],
                      f.collider_depth_band[c], f.collider_friction[c])
         return y, hit
     return named_func(collide_mesh_at, "collide_mesh_at_probe", unique=True)

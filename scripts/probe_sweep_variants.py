@@ -26,7 +26,8 @@ if "noexact" in variant:
         vec3 = wp.types.vector(3, scalar)
         tr = wp.types.transformation(dtype=scalar)
         def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: tr,
-                         inv_pose: tr, inv_pose_prev: tr, mesh: wp.uint64, lower: vec3, upper: vec3,
+                         inv_pose: tr, inv_pose_prev: tr, mesh: wp.uint64, mesh_prev: wp.uint64, motion: scalar,
+                         lower: vec3, upper: vec3,
                          depth_band: scalar, mu: scalar):
             return x, False
         collide_mesh.__name__ = collide_mesh.__qualname__ = "fake_mesh_" + str(scalar.__name__)
@@ -51,7 +52,8 @@ if "exactdead" in variant:
                 if why < sdf_k.EXACT_FROM or f.collider_friction[c] > scalar(-1.0):
                     return z, touched
             y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
-                         f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_lower[c], f.collider_upper[c],
+                         f.collider_inv_pose_prev[c], f.collider_mesh[c], f.collider_mesh_prev[c],
+                         f.collider_motion[c], f.collider_lower[c], f.collider_upper[c],
                          f.collider_depth_band[c], f.collider_friction[c])
             return y, hit
         return named_func(collide_mesh_at, "collide_mesh_at_dead", unique=True)
