@@ -21,7 +21,7 @@ import os
 import signal
 import sys
 
-from .errors import UserError
+from .errors import UserError, WarningRoute, once
 
 #: command modules (dftl_warp.commands.<module>), in the order ``--help`` lists them; each module's
 #: ``add_parser`` chooses its subcommand's name (``import_groom`` registers ``import``)
@@ -165,28 +165,30 @@ def main(argv=None) -> int:
     _closed_streams()
     previous = install_signal_handlers()
     try:
-        try:
-            init_warp()
-            parser = build_parser()
-            args = parser.parse_args(argv)  # SystemExit(2) after one line for a bad flag
-            args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line (provenance)
-            if not getattr(args, "run", None):
-                parser.print_help()
-                return 0
-            status = int(args.run(args) or 0)
-            sys.stdout.flush()
-            return status
-        except UserError as exc:
-            print(f"dftl-warp: error: {exc}", file=sys.stderr)
-            return 2
-        except Terminated as exc:
-            print(f"dftl-warp: stopped by {exc.name}", file=sys.stderr)
-            return 128 + exc.signum
-        except KeyboardInterrupt:
-            print("dftl-warp: interrupted", file=sys.stderr)
-            return 130
-        except BrokenPipeError:
-            return _stdout_closed()
+        # a Python warning no command routes (each routes its own, naming its file) is still one line
+        with WarningRoute(once(lambda text: print(f"dftl-warp: warning: {text}", file=sys.stderr))):
+            try:
+                init_warp()
+                parser = build_parser()
+                args = parser.parse_args(argv)  # SystemExit(2) after one line for a bad flag
+                args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line (provenance)
+                if not getattr(args, "run", None):
+                    parser.print_help()
+                    return 0
+                status = int(args.run(args) or 0)
+                sys.stdout.flush()
+                return status
+            except UserError as exc:
+                print(f"dftl-warp: error: {exc}", file=sys.stderr)
+                return 2
+            except Terminated as exc:
+                print(f"dftl-warp: stopped by {exc.name}", file=sys.stderr)
+                return 128 + exc.signum
+            except KeyboardInterrupt:
+                print("dftl-warp: interrupted", file=sys.stderr)
+                return 130
+            except BrokenPipeError:
+                return _stdout_closed()
     finally:
         restore_signal_handlers(previous)
 

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..durable import replace_file
-from ..errors import UserError
+from ..errors import UserError, WarningRoute, once
 
 #: version of the checkpoint and completion records (bump when their meaning changes); 2: clips of
 #: a job with a frame step count written frames (commit d7d9519), so a checkpoint of format 1 would
@@ -293,8 +293,9 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
         files = JobFiles(Path(job.output))
         check_output_path(job.output)   # a folder that is a file, ...: simulate's one line, not an OSError
         # a failed job leaves no new empty folder (one holding its checkpoint stays: a rerun resumes)
-        with created_folders(job.output), job_lock(files.lock):
-            _run(job, device, policy, files, result, emit)
+        # Python warnings (a collider approximated, numpy's RuntimeWarnings): the job's, naming its input
+        with created_folders(job.output), job_lock(files.lock), WarningRoute(where=job.input) as route:
+            _run(job, device, policy, files, result, emit, route)
     except UserError as exc:
         result.status, result.error = "failed", str(exc)
     except Exception as exc:  # a bug or an environment problem: one line, details on request
@@ -307,7 +308,7 @@ def run_job(job, device: str, policy: CheckpointPolicy | None = None, progress=N
     return result
 
 
-def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
+def _run(job, device, policy, files: JobFiles, result: JobResult, emit, route) -> None:
     from ..simulation.simulate import Simulation, SimulationOptions, note_options, resolve_frames, run_frames
     from ..simulation.settings import frame_range_note, last_written_frame
     from ..usd.read import read_scene
@@ -337,11 +338,14 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     check_output_path(job.output, job.input)
     check_not_a_dependency(job.output, job.input)   # nor a layer the input uses
     scene = read_scene(job.input, prims=opts.prims, time=opts.start)
+    route.where = scene.source
+    route.keep_in(scene.warnings)   # given with the input's (those of the set-up after it)
     first, last = resolve_frames(scene, opts.start, opts.end)
     frame_range_note(scene, first, last)   # frames outside the stage's animated range (as simulate)
     last = last_written_frame(scene, first, last, step, "frame_step")  # the last frame written
     for text in scene.warnings:   # unknown attributes, ...: what simulate prints as warnings
         warn(text)
+    shown = len(scene.warnings)
     if out_opts["no_clips"] and out_opts["clips"] is not None:
         raise UserError(f"{job.output}: clips and no_clips contradict each other")
     if out_opts["clips"] is None and not out_opts["no_clips"]:  # large outputs: clips (docs/caches.md)
@@ -361,7 +365,6 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
         from ..output.clips import auto_clip_frames
 
         clip_frames = out_opts["clips"] or auto_clip_frames(scene, not out_opts["no_velocities"])
-    shown = len(scene.warnings)
     saved = _saved_state(files, key, first, last, note, clip_frames)
     # resuming: the checkpoint's state replaces the preroll's, which is not stepped (the hair is
     # still moved out of colliders: elastic strands rest where it puts them, as before the checkpoint)
@@ -383,6 +386,7 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit) -> None:
     for text in sim.warnings:   # an energy warning given before the checkpoint, given again
         warn(text)
     sim.on_warning = warn   # energy growth, as it happens
+    route.say = once(sim.warn, scene.warnings)   # and Python's warnings from now on
     if writer is None:
         remove_job_files(files)
         extra = {"velocities": False} if out_opts["no_velocities"] else {}

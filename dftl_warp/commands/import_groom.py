@@ -44,23 +44,20 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    import warnings
-
+    from ..errors import WarningRoute
     from ..importers import GroomImportWarning
     from ..importers.convert import import_groom
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", GroomImportWarning)
+    # the importer's notes (each names its file) and any other Python warning (numpy's, naming the
+    # input): one line each, once, when the groom is written; -q leaves out the summary line, never a warning
+    with WarningRoute(where=args.input, named=(GroomImportWarning,)) as route:
         result = import_groom(
             args.input, args.output, fmt=args.fmt, units=args.units, up_axis=args.up_axis, width=args.width,
             head=args.head, head_friction=args.head_friction, max_strands=args.max_strands, every=args.every,
             segments=args.segments, drop_nonfinite=args.drop_nonfinite,
         )
-    for w in caught:   # -q leaves out the summary line, never a warning
-        if issubclass(w.category, GroomImportWarning):
-            print(f"dftl-warp: warning: {w.message}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    for text in dict.fromkeys(route.held):
+        print(f"dftl-warp: warning: {text}", file=sys.stderr)
     if not args.quiet:
         head = ", head collider /Groom/Head" if result.head else ""
         print(f"{result.output}: {plural(result.strands, 'strand')}, {plural(result.points, 'point')} "

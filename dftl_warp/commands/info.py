@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..errors import plural
+from ..errors import WarningRoute, plural
 from . import strict_json
 
 
@@ -264,11 +264,20 @@ def _bytes(n: float) -> str:
 
 
 def run(args) -> int:
+    # Python warnings while describing (numpy's RuntimeWarnings on extreme sizes, ...) are the
+    # description's warnings, naming the stage (in --json too), not Python's two lines on stderr
+    with WarningRoute(where=args.scene) as route:
+        return _describe(args, route)
+
+
+def _describe(args, route) -> int:
     from ..usd.read import read_scene
 
     from ..output import provenance
 
     scene = read_scene(args.scene, prims=args.prim)
+    route.where = scene.source
+    route.keep_in(scene.warnings)
     guides = None
     if args.guides is not None:   # as simulate picks them (its first frame: the time the scene was read at)
         from ..guides.scene import GuideSet
@@ -277,6 +286,7 @@ def run(args) -> int:
     elif args.guide_method is not None:
         scene.warnings.append(f"--guide-method {args.guide_method} does nothing without --guides: ignored")
     d = describe(scene, guides)
+    route.keep_in(d["warnings"])
     made = provenance.read(args.scene)  # an output of dftl-warp: how it was made
     if made is not None:
         d["provenance"] = made

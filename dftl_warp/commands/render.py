@@ -19,7 +19,7 @@ import tempfile
 import time as _time
 from pathlib import Path
 
-from ..errors import UserError
+from ..errors import UserError, WarningRoute, once
 
 #: the most images one render makes (a --start/--end/--step range, or --turntable N)
 MAX_IMAGES = 100_000
@@ -200,6 +200,12 @@ def _blind_warning(cam_path: str, labels: list, n_images: int, args) -> str:
 
 
 def run(args) -> int:
+    # Python warnings (numpy's RuntimeWarnings on extreme sizes, ...): one line naming the input, once each
+    with WarningRoute(where=args.input) as route:
+        return _render(args, route)
+
+
+def _render(args, route) -> int:
     from ..core.devices import device_line, resolve_device
     from ..output.paths import check_writable
     from ..render import image, usd_scene
@@ -215,6 +221,7 @@ def run(args) -> int:
         print(f"dftl-warp: warning: {text}", file=sys.stderr)
 
     stage_warnings = []
+    route.keep_in(stage_warnings)   # said with the stage's, once the first frame is read
     stage = usd_scene.open_stage(args.input, stage_warnings)
     source = args.input
     times = _frames(args, stage)
@@ -267,6 +274,7 @@ def run(args) -> int:
         warn(f"--step {args.step:g} applies only to a --start/--end range: ignored")
     for w in stage_warnings:
         warn(w)
+    route.say = once(warn, stage_warnings)   # from now on as they come
 
     frames = []
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))

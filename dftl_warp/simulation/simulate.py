@@ -33,7 +33,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve_device
-from ..errors import UserError, plural
+from ..errors import UserError, WarningRoute, once, plural
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
 from . import root_paths, saved_state, transform_roots
@@ -242,7 +242,9 @@ class Simulation:
                     self.warn(g.monitor.message)
 
     def warn(self, message: str) -> None:
-        """A warning found while running: kept in :attr:`warnings` and passed to :attr:`on_warning`."""
+        """A warning found while running: kept in :attr:`warnings` and passed to :attr:`on_warning`, once."""
+        if message in self.warnings:
+            return
         self.warnings.append(message)
         if self.on_warning is not None:
             self.on_warning(message)
@@ -283,6 +285,8 @@ class Simulation:
         (it returns before the device is done); :meth:`samples` waits for it."""
         import warp as wp
 
+        from ..features import update_frame
+
         self.check_energy()  # the frame being left, if nobody looked at it
         nxt = self.frame + 1
         with wp.ScopedDevice(self.device):
@@ -302,7 +306,8 @@ class Simulation:
                     g.control.set_root_targets(**path)
                     if g.clamps is not None:   # the elastic clamp turns with the roots' transforms
                         g.solver.set_clamp_targets(**root_paths.frame_path(self, "clamps", k, g, self.frame, nxt))
-                self._update_frame(g, nxt, shot)   # colliders, wind, bound roots (the latter on the C1 path too)
+                # colliders, wind, bound roots (the latter on the C1 path too)
+                update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
                 root_paths.bound_clamps(g)   # roots bound to an animated mesh: the clamp turns with it
                 substeps, dt = g.settings.substeps, g.dt
                 if self.tolerance is not None:   # --tolerance: from the error estimate on sampled strands
@@ -316,22 +321,6 @@ class Simulation:
         self.frame = nxt
         self._at_rest = False
         self._forget_before(nxt - 3)   # the root path's differences reach 3 frames back (root_paths)
-
-    def _update_frame(self, g: Group, nxt: int, shot) -> None:
-        """The features' frame (:func:`~dftl_warp.features.update_frame`); what a collider
-        approximates on the way (a deforming mesh past its distance field) is a run warning naming
-        the file, once, not Python's two-line warning."""
-        from ..features import update_frame
-        from ..features.colliders import ColliderApproximationWarning
-
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ColliderApproximationWarning)
-            update_frame(self.scene, g.curves, g.control, self.frame, nxt, shot=shot)
-        for w in caught:
-            if not issubclass(w.category, ColliderApproximationWarning):
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-            elif f"{self.scene.source}: {w.message}" not in self.warnings:
-                self.warn(f"{self.scene.source}: {w.message}")
 
     # -- state for batch / resume ----------------------------------------------------------------
 
@@ -463,8 +452,15 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     ``check`` (QC gates: a broken one raises :class:`~dftl_warp.output.qc.QCError` and leaves no
     output), ``clips`` (value clips of that many frames; 0: chosen by size). The output records
     its provenance (:mod:`dftl_warp.output.provenance`; ``quality`` is the preset named, if any)
-    and each written frame's QC.
+    and each written frame's QC. Python warnings raised on the way (a collider approximated at
+    any frame, numpy's RuntimeWarnings) are warnings of the run naming the input (``errors.WarningRoute``):
+    the input's until the frames run, the run's from then on.
     """
+    with WarningRoute(where=str(input)) as route:
+        return _simulate_usd(route, input, output, progress, notes, quality, command, options)
+
+
+def _simulate_usd(route, input, output, progress, notes, quality, command, options) -> Summary:
     from ..usd.read import read_scene
     from ..output.paths import check_output, output_place
     from ..output.progress import progress_bar, start_line, stderr_line
@@ -492,6 +488,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     t0 = time.perf_counter()
     check_output(check_output_path(output, input), input)   # and: not a layer the input uses
     scene = read_scene(input, prims=opts.prims, time=opts.start)
+    route.where = scene.source
+    route.keep_in(scene.warnings)   # said before the run, with the input's
     first, last = resolve_frames(scene, opts.start, opts.end)
     frame_range_note(scene, first, last)   # frames outside the stage's animated range: a warning
     step = out_opts["frame_step"] or 1
@@ -528,6 +526,7 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
         if progress:
             bar = progress_bar(last_written - first + 1, desc="simulating", unit="frame")
             sim.on_warning = lambda message: bar.write(f"dftl-warp: warning: {message}", file=sys.stderr)
+        route.say = once(sim.warn, ahead)   # from now on a warning of the run, said as it comes with progress
         try:
             cls = writer_for(output)
             extra = {}
