@@ -7,8 +7,9 @@ Files next to ``OUTPUT`` (``out/sh010.usdc``), all hidden and all gone once the 
 - ``.sh010.usdc.dftl-checkpoint.usdc``: a copy of the partial file at the last checkpoint (same suffix);
 - ``.sh010.usdc.dftl-checkpoint.npz``: the solver state at that frame
   (:meth:`~dftl_warp.simulation.simulate.Simulation.save_state`), the job's settings hash and state layout,
-  and the clean start's lines (a resumed job repeats them: it moves hair out of colliders again, which
-  sets elastic strands' rest shapes, but does not step the preroll, whose result the state replaces);
+  the clean start's lines (a resumed job repeats them: it moves hair out of colliders again, which
+  sets elastic strands' rest shapes, but does not step the preroll, whose result the state replaces)
+  and the run's warnings so far (repeated too: energy growth, a collider approximated, a fast turn);
 - ``.sh010.usdc.dftl-lock``: held (``flock``) while a process works on the job.
 
 A checkpoint is taken every ``every_frames`` frames and/or ``every_seconds`` seconds: the partial
@@ -31,6 +32,7 @@ import contextlib
 import hashlib
 import json
 import os
+import re
 import shutil
 import time
 from dataclasses import asdict, dataclass, field
@@ -383,10 +385,11 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit, route) -
     # the clean start's lines (a resumed run: those of the run it continues): a settled preroll is a note
     for text in sim.start_notes:
         (note if is_plain_note(text) else warn)(text)
-    for text in sim.warnings:   # an energy warning given before the checkpoint, given again
+    for text in sim.warnings:   # the run's warnings before the checkpoint, given again
         warn(text)
     sim.on_warning = warn   # energy growth, as it happens
-    route.say = once(sim.warn, scene.warnings)   # and Python's warnings from now on
+    # Python's warnings from now on: the run's (a resumed run: not those its checkpoint repeats)
+    route.say = _news(once(sim.warn, scene.warnings), sim.warnings if resumed is not None else ())
     if writer is None:
         remove_job_files(files)
         extra = {"velocities": False} if out_opts["no_velocities"] else {}
@@ -446,6 +449,24 @@ def _run(job, device, policy, files: JobFiles, result: JobResult, emit, route) -
     result.status = "done"
 
 
+#: a number standing alone in a warning (not a part of a path or a name)
+_NUMBER = re.compile(r"(?<![\w/.])[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w/])")
+
+
+def _news(say, given=()):
+    """``say`` for the run's Python warnings from now on (a collider approximated, numpy's), leaving out
+    one that is a warning of ``given`` (a resumed run's, from before its checkpoint) with other
+    numbers: what warns once per run (a mesh outrunning its field, by so much) was said by the run
+    it continues, and the uninterrupted run says it once."""
+    before = {_NUMBER.sub("#", text) for text in given}
+
+    def news(text: str) -> None:
+        if _NUMBER.sub("#", text) not in before:
+            say(text)
+
+    return news
+
+
 def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
     """Save the partial file, copy it, then save the state (see the module docstring)."""
     writer.flush()
@@ -455,11 +476,13 @@ def _checkpoint(files: JobFiles, writer, sim, key: str, signature: str) -> None:
     state["signature"] = np.array(signature)
     state["format"] = np.array(FORMAT)
     state["start_notes"] = np.array(sim.start_notes, dtype=str)   # a resumed run repeats them
+    state["run_warnings"] = np.array(sim.warnings, dtype=str)     # and these (energy growth, colliders, ...)
+    state["fast_turns"] = np.array(sorted(sim.fast_turns), dtype=str)   # prims warned about: not again
     atomic_savez(files.checkpoint_state, files.temporary(files.checkpoint_state), state)
 
 
 #: what a checkpoint's .npz holds besides the simulation's state
-RECORDS = ("settings_hash", "signature", "format", "start_notes")
+RECORDS = ("settings_hash", "signature", "format", "start_notes", "run_warnings", "fast_turns")
 
 
 def _saved_state(files: JobFiles, key, first, last, note, clip_frames=None) -> dict | None:
@@ -519,6 +542,10 @@ def _resume(files: JobFiles, key, state, signature, sim, scene, first, last, not
         writer.abort()
         note("checkpoint output does not match its state; starting over")
         return None, None
+    # the run's warnings before the checkpoint, in their order (the energy check's, given again as it
+    # loads, among them), said again by the resumed run; a prim warned about turning fast is not again
+    sim.warnings = [str(text) for text in state.get("run_warnings", ())]
+    sim.fast_turns = {str(path) for path in state.get("fast_turns", ())}
     sim.load_state({k: v for k, v in state.items() if k not in RECORDS})
     if "start_notes" in state:   # (a checkpoint without them: the push-out's, found again)
         sim.start_notes = [str(text) for text in state["start_notes"]]
