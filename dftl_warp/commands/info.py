@@ -274,10 +274,19 @@ def _describe(args, route) -> int:
     from ..usd.read import read_scene
 
     from ..output import provenance
+    from .render import time_code
 
     scene = read_scene(args.scene, prims=args.prim)
     route.where = scene.source
     route.keep_in(scene.warnings)
+    if scene.stage.start_time_code is not None and scene.stage.end_time_code is not None:
+        from ..errors import UserError
+        from ..simulation.settings import resolve_frames
+
+        try:   # the stage's frames that simulate refuses without --start/--end (past +-1e15, ...): said
+            resolve_frames(scene)
+        except UserError as exc:
+            scene.warnings.append(f"{exc} (simulate refuses the stage's own frames)")
     guides = None
     if args.guides is not None:   # as simulate picks them (its first frame: the time the scene was read at)
         from ..guides.scene import GuideSet
@@ -293,8 +302,8 @@ def _describe(args, route) -> int:
     if args.json:
         print(strict_json.dumps(d, indent=2))
         return 0
-    frames = "none authored (give --start/--end to simulate)" if d["frames"] is None else (
-        f"{d['frames'][0]:g}..{d['frames'][1]:g} at {d['time_codes_per_second']:g} per second")
+    frames = "none authored (give --start/--end to simulate)" if d["frames"] is None else (   # 1000003, not 1e+06
+        f"{time_code(d['frames'][0])}..{time_code(d['frames'][1])} at {d['time_codes_per_second']:g} per second")
     g = d["gravity"]
     print(f"{d['file']}")
     print(f"  units       {d['meters_per_unit']:g} m per unit, up axis {d['up_axis']}"

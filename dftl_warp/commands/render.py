@@ -82,6 +82,13 @@ def parse_resolution(text: str):
     return w, h
 
 
+def time_code(t: float) -> str:
+    """A time code as written, every digit that tells it apart (1000003, 1e+20, 0.5; ``:g`` shows
+    1000003 as 1e+06)."""
+    text = repr(float(t))
+    return text[:-2] if text.endswith(".0") else text
+
+
 def _check_numbers(args) -> None:
     """Time codes finite (``--frame nan`` rendered the default time without a word), and --spp
     and --turntable within the renderer's limits, before the stage is read."""
@@ -89,10 +96,15 @@ def _check_numbers(args) -> None:
 
     from ..render.renderer import MAX_SPP, pixel_width, whole_number
 
+    from ..options import MAX_FRAME
+
     for flag in ("frame", "start", "end", "step"):
         value = getattr(args, flag)
         if value is not None and not math.isfinite(value):
             raise UserError(f"--{flag} {value:g}: expected a finite time code")
+        if value is not None and flag != "step" and abs(value) > MAX_FRAME:   # as simulate's --start/--end
+            raise UserError(f"--{flag} {time_code(value)}: past +-{float(MAX_FRAME):g}, where a time code (a double) "
+                            "cannot tell frames apart")
     if args.step is not None and args.step <= 0:
         raise UserError(f"--step {args.step:g}: must be positive")
     whole_number("--spp", args.spp, 1, MAX_SPP)
@@ -118,10 +130,20 @@ def _frames(args, stage):
             raise UserError(f"--start {args.start:g} --end {args.end:g} --step {step:g}: {span + 1:.6g} frames; "
                             f"one render makes at most {MAX_IMAGES}")
         n = int(span + 1e-9) + 1
-        return [args.start + k * step for k in range(n)]
+        times = [args.start + k * step for k in range(n)]
+        if len(set(times)) < n:   # a step below the spacing of doubles there: frames would repeat
+            raise UserError(f"--start {time_code(args.start)} --end {time_code(args.end)} --step {time_code(step)}: "
+                            "the step is below what a time code (a double) can tell apart there: frames would repeat")
+        return times
     if args.frame is not None:
         return [args.frame]
+    from ..options import MAX_FRAME
+
     r = usd_scene.time_range(stage)
+    if r and abs(r[0]) > MAX_FRAME:   # the frame rendered by default: refused as simulate refuses the range
+        raise UserError(f"{args.input}: the stage's startTimeCode {time_code(r[0])} (the time rendered by default) "
+                        f"lies past +-{float(MAX_FRAME):g}, where a time code (a double) cannot tell frames apart; "
+                        f"give --frame or --start and --end")
     return [r[0] if r else None]
 
 
