@@ -9,9 +9,7 @@ warned about turning fast: the resumed job says each once, as the uninterrupted 
 
 from __future__ import annotations
 
-import numpy as np
-from pxr import Sdf, UsdGeom, UsdPhysics, Vt
-from test_features import box_mesh
+from test_warnings_one_line import field_box
 from usd_stages import add_curves, animated_xform, chain, new_stage
 
 from dftl_warp.batch.checkpoint import CheckpointPolicy, JobFiles, run_job
@@ -27,15 +25,7 @@ def _stage(path):
     stage = new_stage(path, start=1, end=8)
     animated_xform(stage, "/World/Head", rotate_y={1: 0.0, 2: 150.0, 6: 150.0, 7: 250.0})
     add_curves(stage, "/World/Head/Hair", chain(5, 0.02, direction=(0.0, -1.0, 0.0), origin=(0.05, 0.0, 0.0)), [5])
-    points, faces = box_mesh((0.04, 0.04, 0.04))
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Kick")
-    for frame, shift in ((1, 0.0), (2, 0.3), (8, 0.3)):
-        moved = points + np.array([0.5 + shift, 0.0, 0.0])
-        mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy(moved.astype(np.float32)), frame)
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in faces.reshape(-1)]))
-    UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
-    mesh.GetPrim().CreateAttribute("dftl:collisionSdf", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    field_box(stage, "/World/Kick", {1: (1.0, 0.5), 2: (1.0, 0.8), 8: (1.0, 0.8)})
     stage.Save()
     return str(path)
 
@@ -78,15 +68,8 @@ def test_a_mesh_outrunning_its_field_all_along_is_warned_about_once_resumed_or_n
     path = tmp_path / "fast.usda"
     stage = new_stage(path, start=1, end=8)
     add_curves(stage, "/World/Hair", chain(5, 0.02, direction=(0.0, -1.0, 0.0)), [5])
-    points, faces = box_mesh((0.04, 0.04, 0.04))
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Kick")
-    for frame in range(1, 9):   # faster every frame: each frame's distance is another
-        moved = points + np.array([0.5 + 0.1 * frame * frame, 0.0, 0.0])
-        mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy(moved.astype(np.float32)), frame)
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in faces.reshape(-1)]))
-    UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
-    mesh.GetPrim().CreateAttribute("dftl:collisionSdf", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    # faster every frame: each frame's distance is another
+    field_box(stage, "/World/Kick", {frame: (1.0, 0.5 + 0.1 * frame * frame) for frame in range(1, 9)})
     stage.Save()
 
     def job(output):

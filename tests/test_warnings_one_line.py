@@ -26,20 +26,27 @@ from dftl_warp.errors import WarningRoute
 MOVING = "/World/Grow: its points move up to"
 
 
+def field_box(stage, path, at: dict) -> None:
+    """A box mesh collider 8 cm across with a signed distance field, its points time-sampled:
+    ``at[time] = (scale, x shift)``."""
+    points, faces = box_mesh((0.04, 0.04, 0.04))
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    for time, (scale, shift) in at.items():
+        moved = points * scale + np.array([shift, 0.0, 0.0])
+        mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy(moved.astype(np.float32)), time)
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in faces.reshape(-1)]))
+    UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
+    mesh.GetPrim().CreateAttribute("dftl:collisionSdf", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+
+
 def _growing_mesh_stage(path):
     """Hair above a mesh collider with a signed distance field whose points jump 40x between the
     stage's start time 0.5 (where the scene is read) and frame 1 (the first frame simulated): the
     clean start's first-frame collider update moves it past its depth band, which is warned about."""
     stage = new_stage(path, start=0.5, end=3)
     add_curves(stage, "/World/Hair", chain(6, 0.02, direction=(0.0, -1.0, 0.0), origin=(0.0, 0.5, 0.0)), [6])
-    points, faces = box_mesh((0.04, 0.04, 0.04))
-    mesh = UsdGeom.Mesh.Define(stage, "/World/Grow")
-    for time, scale in ((0.5, 1.0), (1, 41.0), (3, 41.0)):
-        mesh.CreatePointsAttr().Set(Vt.Vec3fArray.FromNumpy((points * scale).astype(np.float32)), time)
-    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(faces)))
-    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(i) for i in faces.reshape(-1)]))
-    UsdPhysics.CollisionAPI.Apply(mesh.GetPrim())
-    mesh.GetPrim().CreateAttribute("dftl:collisionSdf", Sdf.ValueTypeNames.Bool, custom=True).Set(True)
+    field_box(stage, "/World/Grow", {0.5: (1.0, 0.0), 1: (41.0, 0.0), 3: (41.0, 0.0)})
     stage.Save()
     return str(path)
 
