@@ -33,6 +33,7 @@ import dftl_warp as dw  # noqa: E402
 import dftl_warp.kernels.solvers.elastic as K  # noqa: E402
 import dftl_warp.kernels.solvers.elastic_blocks as blocks  # noqa: E402
 from bench_elastic import curly_groom  # noqa: E402
+from probe_elastic_scratch import timed_frames  # noqa: E402
 
 #: (label, [(phases, register cap), ...]); a cap of 0 leaves the kernel uncapped
 VARIANTS = [
@@ -62,18 +63,7 @@ def run(pts, counts, parts, frames, substeps, device, arithmetic="float32", each
     correction = "prior" if solver.carries_corrections else "posterior"
     real = wp.float32 if arithmetic == "float32" else wp.float64
     solver._kernels = tuple(phase_kernels(parts, model.scalar, real, correction))
-    state, control = solver.state(), model.control()
-    dt = 1.0 / (24 * substeps)
-    solver.advance(state, control, dt, substeps)
-    wp.synchronize_device(device)
-    x1 = model.points_from_device(state.positions).copy()
-    times = []
-    for _ in range(frames):
-        wp.synchronize_device(device)
-        t = time.perf_counter()
-        solver.advance(state, control, dt, substeps)
-        wp.synchronize_device(device)
-        times.append(time.perf_counter() - t)
+    ms, x1, (state, control, dt) = timed_frames(model, solver, device, substeps, frames)
     per_kernel = []
     if each:
         kernels = solver._kernels
@@ -87,7 +77,7 @@ def run(pts, counts, parts, frames, substeps, device, arithmetic="float32", each
         solver._kernels = kernels
     del solver, state
     gc.collect()
-    return float(np.median(times)) / substeps * 1e3, x1, per_kernel
+    return ms, x1, per_kernel
 
 
 def registers() -> list[str]:

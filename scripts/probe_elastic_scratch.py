@@ -156,6 +156,24 @@ class Launcher:
         return wp.launch(kernel, dim=dim, **kw)
 
 
+def timed_frames(model, solver, device, substeps, frames):
+    """(median ms a step over ``frames`` frames of ``substeps`` substeps after a first frame, the
+    positions after that first frame, (state, control, dt))."""
+    state, control = solver.state(), model.control()
+    dt = 1.0 / (24 * substeps)
+    solver.advance(state, control, dt, substeps)
+    wp.synchronize_device(device)
+    x1 = model.points_from_device(state.positions).copy()
+    times = []
+    for _ in range(frames):
+        wp.synchronize_device(device)
+        t = time.perf_counter()
+        solver.advance(state, control, dt, substeps)
+        wp.synchronize_device(device)
+        times.append(time.perf_counter() - t)
+    return float(np.median(times)) / substeps * 1e3, x1, (state, control, dt)
+
+
 def run(pts, counts, probe, frames, substeps, device):
     lau = E.wp if isinstance(E.wp, Launcher) else Launcher()
     E.wp = lau
@@ -167,19 +185,8 @@ def run(pts, counts, probe, frames, substeps, device):
     try:
         model = dw.Model.from_strands(pts, counts, device=device, widths=80e-6)
         solver = dw.make_solver(model, "elastic", compute_precision="float32")
-        state, control = solver.state(), model.control()
-        dt = 1.0 / (24 * substeps)
-        solver.advance(state, control, dt, substeps)
-        wp.synchronize_device(device)
-        x1 = model.points_from_device(state.positions).copy()
-        times = []
-        for _ in range(frames):
-            wp.synchronize_device(device)
-            t = time.perf_counter()
-            solver.advance(state, control, dt, substeps)
-            wp.synchronize_device(device)
-            times.append(time.perf_counter() - t)
-        return float(np.median(times)) / substeps * 1e3, x1
+        ms, x1, _ = timed_frames(model, solver, device, substeps, frames)
+        return ms, x1
     finally:
         E.elastic_step_kernels = orig
         lau.probe = None
