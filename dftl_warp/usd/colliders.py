@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import UserError
 from .attributes import read_values
+from .curves import check_lengths
 from .sampling import TransformReader, points_sampler, scale_growth
 from .scene import ColliderPrim, MeshSource
 
@@ -128,6 +129,7 @@ def _mesh_arrays(mesh, code, where: str):
     bad = first_bad_row(pts)
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {fmt_point(pts[bad])} is not finite")
+    check_lengths(pts, "points", where)
     if pts.shape[0] == 0:
         raise UserError(f"{where}: the mesh has no points")
     if fvc.size == 0:
@@ -198,6 +200,7 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
     def positive(name, value):
         if value is None or not np.isfinite(value) or value < 0:
             raise UserError(f"{where}: {name} = {value}: expected a finite number >= 0")
+        check_lengths([value], name, where, indexed=False)
         return float(value)
 
     if prim.IsA(UsdGeom.Sphere):
@@ -229,8 +232,26 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
     if c.kind == "mesh":  # the collider-scope dftl: attributes its shape reads (dftl:collisionSdf, ...)
         c.attributes.update({k: v for k, v in read_values(prim, where, "collider", 24.0).items() if k != "dftl:friction"})
     c.transform, c.animated = transforms.sampler(prim, time)
+    _check_world_size(c, where)
     _note_size_animation(prim, c, where, time, warnings)
     return c
+
+
+def _check_world_size(c: ColliderPrim, where: str) -> None:
+    """UserError when the collider's position (the translation of its local-to-world transform, at
+    any sample) or, under its scale, its size or mesh points are too large for float32
+    (:func:`~dftl_warp.usd.curves.check_lengths`)."""
+    samples = getattr(c.transform, "values", None)
+    matrices = np.asarray(c.transform(None) if samples is None else samples, dtype=np.float64).reshape(-1, 4, 4)
+    check_lengths(matrices[:, 3, :3], "translate", where, indexed=False, world=" (its position in world space)")
+    scale = float(np.linalg.norm(matrices[:, :3, :3], axis=2).max())
+    for name in SIZE_ATTRIBUTES.get(c.kind, ()):
+        size = 2.0 * float(c.half_extents[0]) if name == "size" else getattr(c, name)
+        check_lengths([size * scale], name, where, indexed=False,
+                      world=f" in world space ({size:g} under a scale of {scale:g})")
+    if c.kind == "mesh":
+        check_lengths(c.mesh_points * scale, "points", where,
+                      world=f" in world space (under a scale of {scale:g})")
 
 
 #: the size attributes of the built-in collider types, read once at the start frame

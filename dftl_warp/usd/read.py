@@ -162,7 +162,8 @@ def _read_widths(prim, curves, code, counts, n_points, ctype, basis, wrap, where
     values = None if values is None else curve_checks.numbers(values, name, where)
     if values is None or len(values) == 0:
         return None, ""
-    w = curve_checks.check_primvar(values, interp, counts, n_points, ctype, basis, wrap, name, where, nonnegative=True)
+    w = curve_checks.check_primvar(values, interp, counts, n_points, ctype, basis, wrap, name, where, nonnegative=True,
+                                   length=True)
     return w.reshape(-1), interp
 
 
@@ -254,6 +255,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     bad = _first_bad_row(world)
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
+    curve_checks.check_lengths(world, "points", where, world=" in world space")
 
     widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where,
                                                 warnings)
