@@ -107,6 +107,10 @@ def build(rb: RootBinding, ctx) -> dict:
         weights = np.asarray(rb.weights, dtype=np.float64).reshape(-1, 3)
     if tri.shape != (num_strands,) or weights.shape != (num_strands, 3):
         raise ValueError(f"root binding: need one triangle and weight triple per strand ({num_strands})")
+    if tri.min(initial=0) < 0 and rb.triangles is None:
+        k = int(np.flatnonzero(tri < 0)[0])
+        raise ValueError(f"root binding: no non-degenerate triangle to bind strand {k}'s root to (the closest-point "
+                         f"query found none among the mesh's {len(rb.indices)} triangles)")
     if tri.min(initial=0) < 0 or tri.max(initial=0) >= len(rb.indices):
         raise ValueError("root binding: triangle index out of range")
     corners = rb.points[rb.indices[tri]]                                   # (S, 3 corners, 3)

@@ -167,9 +167,16 @@ def read_root_mesh(prim, where: str, file: str, time, transforms: TransformReade
         pts, fvc, fvi = _mesh_arrays(mesh, _code(time), mesh_where)
     except UserError as exc:
         raise UserError(f"{exc} (not a valid mesh for dftl:rootMesh)") from None
+    triangles = fan_triangulate(fvc, fvi)
+    corners = pts[triangles]
+    if not np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1).any():
+        n = len(triangles)
+        raise UserError(f"{where}: dftl:rootMesh -> {target.GetPath()}: no non-degenerate triangle to bind the "
+                        f"strands' roots to ({'its triangle has' if n == 1 else f'all {n} triangles have'} "
+                        f"zero area)")
     points, deforming = points_sampler(mesh.GetPointsAttr(), pts.shape[0], mesh_where, time, pts)
     transform, moving = transforms.sampler(target, time)
-    return MeshSource(str(target.GetPath()), fan_triangulate(fvc, fvi), points, transform, bool(deforming or moving))
+    return MeshSource(str(target.GetPath()), triangles, points, transform, bool(deforming or moving))
 
 
 def _friction(prim, where: str):
