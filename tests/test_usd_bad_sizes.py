@@ -92,6 +92,14 @@ def test_a_mesh_collider_point_whose_square_overflows_is_refused_naming_its_inde
     refused(tmp_path, capfd, stage(tmp_path, mesh), rf"/World/Ball: points\[2\] = \(0, -1, 1e\+30\) {SQUARE}")
 
 
+def test_a_deforming_mesh_collider_point_too_large_at_a_later_time_is_refused(tmp_path, capfd):
+    mesh = ('    def Mesh "Ball" (prepend apiSchemas = ["PhysicsCollisionAPI"])\n    {\n'
+            '        int[] faceVertexCounts = [3]\n        int[] faceVertexIndices = [0, 1, 2]\n'
+            '        point3f[] points.timeSamples = {1: [(0, -1, 0), (1, -1, 0), (0, -1, 1)], '
+            '2: [(0, -1, 0), (1, -1, 0), (0, -1, 1e30)]}\n    }\n')
+    refused(tmp_path, capfd, stage(tmp_path, mesh), rf"/World/Ball: points\[2\] = \(0, -1, 1e\+30\) at time 2 {SQUARE}")
+
+
 def test_curve_widths_whose_square_overflows_float32_are_refused_naming_the_index(tmp_path, capfd):
     path = stage(tmp_path, "", widths="0.01, 3e38, 0.01")
     refused(tmp_path, capfd, path, rf"/World/Hair: widths\[1\] = 3e\+38 {SQUARE}")

@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from ..errors import UserError
+from .curves import check_lengths
 from .scene import Constant, Samples
 
 #: most integer frames read densely per animated transform (beyond: the authored time samples and
@@ -135,7 +136,8 @@ def scale_growth(sampler, read_time) -> float:
 
 def points_sampler(attr, count: int, where: str, read_time, static_points: np.ndarray):
     """``(sampler, animated)`` for a mesh's local points: every authored time sample when they
-    change over time (each checked: ``count`` finite points), else the points read at ``read_time``."""
+    change over time (each checked: ``count`` finite points, none too large for float32:
+    :func:`~dftl_warp.usd.curves.check_lengths`), else the points read at ``read_time``."""
     if not attr.ValueMightBeTimeVarying():
         return Constant(static_points), False
     times = list(attr.GetTimeSamples())
@@ -144,6 +146,7 @@ def points_sampler(attr, count: int, where: str, read_time, static_points: np.nd
         p = np.array(attr.Get(_code(t)) or [], dtype=np.float64).reshape(-1, 3)
         if p.shape[0] != count or not np.isfinite(p).all():
             raise UserError(f"{where}: points at time {t:g} are not {count} finite points")
+        check_lengths(p, "points", where, world=f" at time {t:g}")
         rows.append(p)
     if not rows:
         return Constant(static_points), False
