@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..usd.curves import FLOAT32_MAX
 from ..errors import UserError, plural
 from ..options import OPTIONS, BadValue, OptionError
 from . import Groom, GroomImportWarning, read_groom, reader_for
@@ -139,7 +140,6 @@ def coincident_note(source: str, groom: Groom, resampled: bool) -> str | None:
 
 
 #: the largest float32, USD's point3f and float widths
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def check_float32(source: str, points: np.ndarray, counts=None, widths=None, strand_ids=None) -> None:
