@@ -116,7 +116,9 @@ def elastic_energy_func(scalar, real):
     :func:`strand_energy_func`'s, with the elastic strand's energy (module docstring) of device strand
     ``s`` (``terms``: :func:`elastic_terms_struct`), computed in float64."""
     Terms = elastic_terms_struct(scalar, real)
-    curv = block_funcs(wp.float64).curv
+    blocks = block_funcs(wp.float64)
+    curv = blocks.curv
+    between = blocks.between
     root_state = root_state_func(scalar)
 
     @wp.func
@@ -135,17 +137,7 @@ def elastic_energy_func(scalar, real):
         R = wp.mat33d(wp.float64(m[0, 0]), wp.float64(m[0, 1]), wp.float64(m[0, 2]),
                       wp.float64(m[1, 0]), wp.float64(m[1, 1]), wp.float64(m[1, 2]),
                       wp.float64(m[2, 0]), wp.float64(m[2, 1]), wp.float64(m[2, 2]))
-        a = R * d3(terms.clamp_direction[s])
-        b = wp.normalize(root - ghost)
-        c = wp.cross(a, b)
-        w = wp.float64(1.0) + wp.dot(a, b)
-        if w < wp.float64(1.0e-12):   # antiparallel: a half turn about a normal of a
-            ref = wp.vec3d(wp.float64(0.0), wp.float64(1.0), wp.float64(0.0))
-            if wp.abs(a[0]) < wp.float64(0.9):
-                ref = wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0))
-            c = wp.cross(a, ref)
-            w = wp.float64(0.0)
-        return wp.quat_to_matrix(wp.normalize(wp.quatd(c[0], c[1], c[2], w))) * R
+        return between(R * d3(terms.clamp_direction[s]), root - ghost) * R
 
     @wp.func
     def elastic_energy(s: wp.int32, base: wp.int32, stride: wp.int32, n: wp.int32,

@@ -166,20 +166,6 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
     def stq(q: quat):
         return quats(scalar(q[0]), scalar(q[1]), scalar(q[2]), scalar(q[3]))
 
-    @wp.func
-    def between(a: vec3, b: vec3):
-        """Minimal rotation taking unit ``a`` to the direction of ``b``."""
-        bn = wp.normalize(b)
-        c = wp.cross(a, bn)
-        w = real(1.0) + wp.dot(a, bn)
-        if w < real(1.0e-12):
-            ref = vec3(real(0.0), real(1.0), real(0.0))
-            if wp.abs(a[0]) < real(0.9):
-                ref = vec3(real(1.0), real(0.0), real(0.0))
-            c = wp.cross(a, ref)
-            w = real(0.0)
-        return wp.quat_to_matrix(wp.normalize(quat(c[0], c[1], c[2], w)))
-
     # the frame's rotation: Newton on the rotation manifold from the last step's frame, svd3 where
     # it does not converge in POLAR_ITERATIONS (see :func:`polar_rotation`)
     tol = real(1.0e-8) if real == wp.float64 else real(1.0e-4)
@@ -219,6 +205,7 @@ def elastic_kernel(scalar, real, correction: str, flags: frozenset = frozenset()
         return wp.quat_from_matrix(U * wp.transpose(V))
 
     blocks = block_funcs(real)
+    between = blocks.between
     curv = blocks.curv
     upper3_packed = blocks.upper3_packed
     unpack_symmetric = blocks.unpack_symmetric

@@ -34,6 +34,23 @@ def block_funcs(real):
     vec6 = wp.types.vector(6, real)
     vec10 = wp.types.vector(10, real)
 
+    quat = wp.types.quaternion(real)
+
+    @wp.func
+    def between(a: vec3, b: vec3):
+        """Minimal rotation taking unit ``a`` to the direction of ``b`` (the root frame's, in the step
+        and in the energy check)."""
+        bn = wp.normalize(b)
+        c = wp.cross(a, bn)
+        w = real(1.0) + wp.dot(a, bn)
+        if w < real(1.0e-12):
+            ref = vec3(real(0.0), real(1.0), real(0.0))
+            if wp.abs(a[0]) < real(0.9):
+                ref = vec3(real(1.0), real(0.0), real(0.0))
+            c = wp.cross(a, ref)
+            w = real(0.0)
+        return wp.quat_to_matrix(wp.normalize(quat(c[0], c[1], c[2], w)))
+
     @wp.func
     def curv(xm: vec3, x: vec3, xp: vec3, lj: real, lj1: real):
         """(Dx)_j from x_{j-1}, x_j, x_{j+1} and the segment lengths l_j, l_{j+1}."""
@@ -139,5 +156,5 @@ def block_funcs(real):
                      a1[1] * n1[1] + a2[1] * n2[1], a1[1] * n1[2] + a2[1] * n2[2], m[1],
                      a1[2] * n1[2] + a2[2] * n2[2], m[2], corner)
 
-    return types.SimpleNamespace(curv=curv, unpack_symmetric=unpack_symmetric, upper3_packed=upper3_packed,
+    return types.SimpleNamespace(between=between, curv=curv, unpack_symmetric=unpack_symmetric, upper3_packed=upper3_packed,
                                  block1=block1, kkt_generic=kkt_generic, kkt_plane=kkt_plane)
