@@ -242,7 +242,7 @@ class Solver:
         if m.num_strands == 0:
             return
         self.launch_frame(state, control, dt, substeps, lambda: self.substeps(state, control, dt, substeps),
-                          self.kernels, self.graph_variant())
+                          self.kernels)
 
     def graph_variant(self) -> tuple:
         """What else a frame's CUDA graph depends on: the host scalars its launches pass that can change
@@ -257,8 +257,9 @@ class Solver:
         if not m.device.is_cuda:
             run()
             return
-        # the features' own (the meshes interpolated per substep: their launches are in the graph)
-        variant = (*variant, *getattr(control.features, "graph_variant", tuple)())
+        # the solver's own host scalars, and the features' (the meshes interpolated per substep: their
+        # launches are in the graph)
+        variant = (*variant, *self.graph_variant(), *getattr(control.features, "graph_variant", tuple)())
         key = (id(state), id(control), float(dt), int(substeps), *variant)
         graph = self._graphs.get(key)
         if graph is None:
