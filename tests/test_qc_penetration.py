@@ -70,7 +70,9 @@ def build(precision="float32"):
 
 
 def measure(model, state, control):
-    return prim_penetration(model, state, control, np.arange(len(CASES), dtype=np.int32), len(CASES), UNIT)
+    """Each case its own prim: the member of device strand s is the input strand it holds."""
+    member = np.asarray(model.layout.strand_order, dtype=np.int32)
+    return prim_penetration(model, state, control, member, len(CASES), UNIT)
 
 
 def test_penetration_of_every_shape_against_its_closed_form_distance():

@@ -177,7 +177,8 @@ def prim_penetration(model, state, control, strand_member, num_prims: int, defau
 class FrameQC:
     """The QC of a :class:`~dftl_warp.simulation.simulate.Simulation`'s current frame.
 
-    Per group and part: the strand -> member prim map (on the device, made once) and 5 output
+    Per group and part: the device strand -> member prim map (on the device, made once; a
+    particle-major layout orders a part's strands by their roots, not by prim) and 5 output
     slots per member prim. :meth:`compute` launches one kernel per part, a second where the part
     has colliders (penetration), and reads back the slots. ``notes``: one line per prim whose
     penetration is measured from the surface in default hair radii (no widths); also appended to
@@ -204,9 +205,10 @@ class FrameQC:
                 d = model.device
                 n = len(g.members)
                 depth = ColliderDepth(model, control, unit) if ColliderDepth.present(model, control) else None
+                order = np.asarray(model.layout.strand_order)   # device strand -> the part's input strand
                 self.parts.append({
-                    "group": g, "part": j, "model": model, "strands": s1 - s0, "depth": depth,
-                    "member": wp.array(strands[s0:s1], dtype=wp.int32, device=d),
+                    "group": g, "part": j, "model": model, "strands": s1 - s0, "depth": depth, "order": order,
+                    "member": wp.array(strands[s0:s1][order], dtype=wp.int32, device=d),
                     "stretch": wp.zeros(n, dtype=wp.float64, device=d),
                     "speed": wp.zeros(n, dtype=wp.float64, device=d),
                     "energy": wp.zeros(max(s1 - s0, 1), dtype=wp.float64, device=d),
@@ -246,7 +248,9 @@ class FrameQC:
         out: dict = {}
         energies: dict = {}  # group -> per-strand energies in strand order
         for p in self.parts:
-            energies.setdefault(id(p["group"]), []).append(p["energy"].numpy()[:p["strands"]])
+            per_strand = np.empty(p["strands"])
+            per_strand[p["order"]] = p["energy"].numpy()[:p["strands"]]   # device order -> input order
+            energies.setdefault(id(p["group"]), []).append(per_strand)
         for p in self.parts:
             g = p["group"]
             values = {k: p[k].numpy() for k in ("stretch", "speed", "nans", "penetration")}
