@@ -48,8 +48,10 @@ class State:
     When the model's layout interleaves its state vectors (:mod:`dftl_warp.core.layout`), the three
     arrays are views of one ``storage`` buffer, offset by 32 and 64 slots: each view's slots past
     a chunk's 32 entries belong to the other fields. Kernels index them through the layout and
-    never notice; whole-array operations must go through the State (:meth:`assign`,
-    :meth:`write`), never ``state.velocities.assign(...)`` or ``.zero_()`` on a view.
+    never notice. A view's own ``assign``, ``zero_`` and ``fill_`` write only its field's slots
+    (through :meth:`write`), so ``state.velocities.assign(model.points_to_device(v))`` sets the
+    velocities on every layout; ``wp.copy`` into a view cannot be caught and would write the other
+    fields' slots too: copy whole States with :meth:`assign`.
     """
 
     positions: wp.array
@@ -57,6 +59,16 @@ class State:
     corrections: wp.array | None
     #: the buffer the fields are views of (interleaved layouts), else None
     storage: wp.array | None = None
+
+    def __post_init__(self):
+        if self.storage is None:
+            return
+        for name in FIELDS:
+            view = getattr(self, name)
+            if view is not None:   # the view's whole-array writes keep to the field's own slots
+                view.assign = functools.partial(self.write, name)
+                view.zero_ = functools.partial(self.write, name, None, zero=True)
+                view.fill_ = functools.partial(self._fill, name)
 
     @classmethod
     def at_rest(cls, model, *, with_corrections: bool = True) -> State:
@@ -120,29 +132,37 @@ class State:
 
     def write(self, field: str, values, *, layout=None, zero: bool = False) -> None:
         """Set ``field`` (``"positions"``, ``"velocities"`` or ``"corrections"``) from ``values``,
-        a (num_slots, 3) array in the layout's slot order (``Model.points_to_device``), or to zero.
+        a (num_slots, 3) array in the layout's slot order (``Model.points_to_device``) or a device
+        array of that shape, or to zero.
 
-        Plain States assign the array; interleaved ones write only the field's own slots
-        (``layout`` needed unless ``zero``), leaving the other fields untouched."""
+        Plain States assign the array; interleaved ones write only the field's own slots, leaving
+        the other fields untouched (``layout`` is accepted and not needed: the slots follow from
+        the storage)."""
         target = getattr(self, field)
         if target is None:
             raise ValueError(f"this State has no {field}")
         if self.storage is None:
             target.zero_() if zero else target.assign(values)
             return
+        if not zero:
+            values = values.numpy() if isinstance(values, wp.array) else np.asarray(values)
+            values = values.reshape(target.shape[0], -1)
+        self._write_own(field, 0.0 if zero else values)
+
+    def _fill(self, field: str, value) -> None:
+        """``view.fill_(value)`` of an interleaved field: every slot of the field set to ``value``."""
+        self._write_own(field, np.asarray(value.numpy() if isinstance(value, wp.array) else value))
+
+    def _write_own(self, field: str, values) -> None:
+        """Write ``values`` (per view entry, or one value) into ``field``'s own slots of the storage:
+        view entry ``i`` is storage slot ``32 f + i``, the field's own where ``i`` mod the chunk
+        (32 slots per interleaved vector) is below 32."""
         f = FIELDS.index(field)
+        n = getattr(self, field).shape[0]
+        own = np.flatnonzero(np.arange(n) % (32 * self._interleave()) < 32)
         host = self.storage.numpy()
-        if zero:
-            # a field's own slots: every 32-slot run starting at a multiple of 32 F, offset 32 f
-            n = host.shape[0]
-            chunk = 32 * self._interleave()
-            idx = np.arange(n)
-            host[(idx % chunk) // 32 == f] = 0.0
-        else:
-            if layout is None:
-                raise ValueError("writing an interleaved State needs its layout")
-            slots = layout.slot_of_point
-            host[slots + 32 * f] = np.asarray(values)[slots]
+        values = np.asarray(values)
+        host[32 * f + own] = values[own] if values.ndim == 2 and values.shape[0] == n else values
         self.storage.assign(host)
 
     def _interleave(self) -> int:
