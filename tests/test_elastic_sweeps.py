@@ -67,3 +67,16 @@ def test_three_sweep_kernels_equal_the_single_kernel(tmp_path, monkeypatch, hair
     for frame_got, frame_want in zip(got, want):
         for (p, v), (q, w) in zip(frame_got, frame_want):
             assert p.tobytes() == q.tobytes() and v.tobytes() == w.tobytes()
+
+
+def test_the_kernels_loaded_before_a_graph_capture_are_listed_once():
+    """``kernels()`` (what a CUDA graph capture loads first) named the featured step's first kernel
+    twice: the features' list holds it, and the solver added its own."""
+    import dftl_warp as dw
+    from dftl_warp import features as F
+
+    pts = np.stack([np.zeros(5), -np.arange(5) * 0.01, np.zeros(5)], 1)
+    model = dw.Model.from_strands(pts, [5], widths=1e-4,
+                                  features=[F.Colliders([F.Sphere(radius=0.01, position=(0.0, -0.1, 0.0))])])
+    kernels = dw.make_solver(model, "elastic", radius=5e-5).kernels()
+    assert len(kernels) == len(set(kernels)) >= 2

@@ -508,7 +508,9 @@ class ElasticSolver(ElasticEnergy, Solver):
         return (self._clamp_relative,)
 
     def kernels(self) -> list:
-        return (self._features.kernels() if self._features is not None else []) + list(self._kernels)
+        """Every kernel a step launches, once each (the features' list holds the step's own)."""
+        ks = (self._features.kernels() if self._features is not None else []) + list(self._kernels)
+        return list(dict.fromkeys(ks))
 
     def step(self, state_in, state_out, control, dt: float, root_alpha: float = 1.0) -> None:
         """Advance ``state_in`` by ``dt`` seconds into ``state_out`` (which may be ``state_in``)."""
