@@ -312,14 +312,13 @@ def body_penetration(device="cpu", precision="float32", strands=64, frames=24):
             solver = dw.DFTLSolver(model, gravity=G)
             state, control = solver.state(), model.control()
             meshes = control.features.colliders.kind_data["meshes"]
-            mesh = meshes.meshes[0][1]
             worst = 0.0
             for f in range(frames):
                 control.features.set_mesh_points(0, cycle[(f + 1) % len(cycle)])
                 for k in range(SUBSTEPS):
                     solver.step(state, state, control, 1 / FPS / SUBSTEPS, (k + 1) / SUBSTEPS)
                     x = model.points_from_device(state.positions)
-                    d, _ = mesh_signed_distance(mesh, x, max_dist=0.05)
+                    d, _ = mesh_signed_distance(meshes.mesh_now(0), x, max_dist=0.05)
                     worst = max(worst, float((width / 2 - d).max()))
             out[f"deforming body ({len(tris)} triangles), {label}: penetration / hair radius"] = worst / (width / 2)
             if sdf and rounds == 2:
