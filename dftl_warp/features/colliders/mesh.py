@@ -144,7 +144,8 @@ class MeshColliders:
 
     #: False: the two meshes of a moving collider keep their roles (the collider's own the current
     #: substep's points, the second the previous substep's), both written and refitted every
-    #: substep, as before the ping-pong (a private switch: the reference of tests/test_mesh_pingpong.py)
+    #: substep, as before the ping-pong (a private switch: the reference of tests/test_mesh_pingpong.py
+    #: and ``scripts/bench_features.py --mesh-two-refits``)
     _ping_pong = True
 
     def __init__(self, model, shapes: dict, num_colliders: int):
