@@ -43,6 +43,7 @@ from dftl_warp import features as F  # noqa: E402
 import dftl_warp.features.step as feature_step  # noqa: E402
 from dftl_warp.kernels.features import sdf as sdf_kernels  # noqa: E402
 from dftl_warp.core.layout import strand_offsets  # noqa: E402
+from dftl_warp.features.colliders.mesh import MeshColliders  # noqa: E402
 from dftl_warp.features.colliders.sdf import mesh_signed_distance  # noqa: E402
 
 G = (0.0, -9.81, 0.0)
@@ -312,14 +313,13 @@ def body_penetration(device="cpu", precision="float32", strands=64, frames=24):
             solver = dw.DFTLSolver(model, gravity=G)
             state, control = solver.state(), model.control()
             meshes = control.features.colliders.kind_data["meshes"]
-            mesh = meshes.meshes[0][1]
             worst = 0.0
             for f in range(frames):
                 control.features.set_mesh_points(0, cycle[(f + 1) % len(cycle)])
                 for k in range(SUBSTEPS):
                     solver.step(state, state, control, 1 / FPS / SUBSTEPS, (k + 1) / SUBSTEPS)
                     x = model.points_from_device(state.positions)
-                    d, _ = mesh_signed_distance(mesh, x, max_dist=0.05)
+                    d, _ = mesh_signed_distance(meshes.mesh_now(0), x, max_dist=0.05)
                     worst = max(worst, float((width / 2 - d).max()))
             out[f"deforming body ({len(tris)} triangles), {label}: penetration / hair radius"] = worst / (width / 2)
             if sdf and rounds == 2:
@@ -473,7 +473,14 @@ def main(argv=None):
     ap.add_argument("--plain-field-trace", action="store_true",
                     help="the field's continuous test as before its path bounds and relaxed steps (16 plain steps; "
                          "kernels/features/sdf.py: PATH_BOUNDS, RELAXATION, FIELD_TRACE_ITERATIONS)")
+    ap.add_argument("--mesh-two-refits", action="store_true",
+                    help="a deforming mesh's two meshes written and refitted every substep, as before the "
+                         "ping-pong (dftl_warp/features/colliders/mesh.py: MeshColliders._ping_pong; the "
+                         "exact-queries row's per-frame update then holds a refit that the ping-pong does "
+                         "in the frame's first substep: compare the rows' times per step)")
     args = ap.parse_args(argv)
+    if args.mesh_two_refits:
+        MeshColliders._ping_pong = False
     if args.no_velocity_pass:
         feature_step.VELOCITY_PASS = False
     if args.plain_field_trace:  # before any kernel is built

@@ -96,7 +96,6 @@ def fall(sdf):
     solver = dw.DFTLSolver(model, gravity=G)
     state, control = solver.state(), model.control()
     meshes = control.features.colliders.kind_data["meshes"]
-    mesh = meshes.meshes[0][1]
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     inner = np.ones(len(pts) - 1, bool)
     inner[starts[1:] - 1] = False  # pairs across strands
@@ -108,7 +107,7 @@ def fall(sdf):
         for k in range(SUBSTEPS):
             solver.step(state, state, control, 1.0 / FPS / SUBSTEPS, (k + 1) / SUBSTEPS)
             x = model.points_from_device(state.positions)
-            d, _ = mesh_signed_distance(mesh, x, max_dist=0.05)
+            d, _ = mesh_signed_distance(meshes.mesh_now(0), x, max_dist=0.05)   # the mesh the step saw
             d[starts] = np.inf  # roots excluded (placed, not simulated)
             worst = max(worst, float((HAIR_RADIUS - d).max()))
             seg = np.linalg.norm(np.diff(x, axis=0), axis=1)[inner]

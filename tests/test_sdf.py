@@ -215,7 +215,7 @@ def drape(sdf: bool, directions, tris, frames=24, substeps=5, width=1e-3):
         control.features.set_mesh_points(0, body_points(directions, (f + 1) / 24))
         for k in range(substeps):
             solver.step(state, state, control, 1 / 24 / substeps, (k + 1) / substeps)
-            d, _ = mesh_signed_distance(meshes.meshes[0][1], model.points_from_device(state.positions), 0.05)
+            d, _ = mesh_signed_distance(meshes.mesh_now(0), model.points_from_device(state.positions), 0.05)
             worst = max(worst, float((width / 2 - d).max()))
     touching = int(np.sum(d < width / 2 + 1e-4))
     return worst / (width / 2), touching, meshes

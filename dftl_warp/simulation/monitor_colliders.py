@@ -63,12 +63,13 @@ class ColliderMotion:
         #: per device collider: the radius around its origin that holds it (meshes: from their points)
         self._radius = np.array([0.0 if s.kind == "meshes" else float(np.abs(s.size_axis()[0]).sum())
                                  for s in shapes])
-        meshes = cc.kind_data.get("meshes")
-        #: device collider -> (the mesh's live points, their copy at the last check)
-        self._meshes = {c: (mesh.points, wp.clone(mesh.points)) for c, mesh in
-                        (meshes.meshes.values() if meshes is not None else ())}
+        self._mesh_data = meshes = cc.kind_data.get("meshes")
+        #: device collider -> (its user index, its mesh's points at the last check); a moving mesh's
+        #: live points are in whichever of its two meshes the step queries now (``mesh_now``)
+        self._meshes = {c: (user, wp.clone(mesh.points)) for user, (c, mesh) in
+                        (meshes.meshes.items() if meshes is not None else ())}
         self._mesh_out = wp.zeros(max(2 * len(self._meshes), 1), dtype=wp.float64, device=device)
-        for c, (points, _) in self._meshes.items():
+        for c, (_, points) in self._meshes.items():
             self._radius[c] = float(np.linalg.norm(points.numpy(), axis=1).max(initial=0.0))
         self.center = wp.zeros(self.count, dtype=wp.vec3d, device=device)
         self.reach = wp.zeros(self.count, dtype=wp.float64, device=device)
@@ -80,7 +81,8 @@ class ColliderMotion:
         radius, deformation = self._radius.copy(), np.zeros(self.count)
         if self._meshes:
             self._mesh_out.zero_()
-            for k, (points, before) in enumerate(self._meshes.values()):
+            for k, (user, before) in enumerate(self._meshes.values()):
+                points = self._mesh_data.mesh_now(user).points
                 wp.launch(mesh_motion_kernel(), dim=points.shape[0], device=points.device,
                           inputs=[points, 2 * k], outputs=[before, self._mesh_out])
             out = self._mesh_out.numpy()

@@ -15,8 +15,9 @@ answered by the field (``kernels/features/sdf.py``) where it can answer, and by 
 above where it cannot (thin parts, sharp edges, beyond the field's reach).
 
 A deforming mesh (a point cache) moving within a frame has its points interpolated every substep
-(:func:`mesh_substep_kernel`) into its mesh and into a second mesh of the previous substep's points
-(``collider_mesh_prev``; 0 while the mesh does not move that way). The continuous test then
+(:func:`mesh_substep_kernel`) into one of its two meshes, the other holding the previous substep's
+points (``collider_mesh_prev``; 0 while the mesh does not move that way): they swap roles every
+substep, so that one is written and refitted per substep. The continuous test then
 carries the particle's start with the surface: the point of the previous surface nearest it (face
 and barycentric coordinates) moved to where that point is now, so the path is relative to the
 surface wherever it moves, as it is relative to a moving pose; friction then acts on the motion
@@ -182,27 +183,35 @@ def _collide_mesh_at_built(scalar, Features, count: bool):
 
 @functools.cache
 def mesh_substep_kernel(scalar):
-    """``(start, end, alpha_prev, alpha, frame_motion, c, points, points_prev, motion)``: a deforming
-    mesh's points ``alpha`` and ``alpha_prev`` of the way from the frame's ``start`` to its ``end``
-    (collider-local, m), and ``motion[c]``, how far its points moved between the two
-    (``frame_motion[c]``, the farthest any moves in the frame, times ``alpha - alpha_prev``). The
-    frame's last substep (``alpha`` 1) makes ``start`` its end: a frame whose points are not set
-    again keeps the mesh still."""
+    """``(start, end, alpha_prev, alpha, frame_motion, c, write_prev, mesh, mesh_prev, points,
+    points_prev, ids, prev_ids, motion)``: a deforming mesh's points ``alpha`` of the way from the
+    frame's ``start`` to its ``end`` (collider-local, m) into ``points`` (those of ``mesh``), and
+    with ``write_prev`` those ``alpha_prev`` of the way into ``points_prev`` (of ``mesh_prev``;
+    else it holds them already: the previous substep's mesh); ``ids[c]``/``prev_ids[c]`` name the
+    two meshes (read by the step at replay time, so a CUDA graph follows meshes that swap roles),
+    and ``motion[c]`` is how far the points moved between the two (``frame_motion[c]``, the
+    farthest any moves in the frame, times ``alpha - alpha_prev``). The frame's last substep
+    (``alpha`` 1) makes ``start`` its end: a frame whose points are not set again keeps the mesh
+    still."""
 
     @wp.kernel(enable_backward=False, module="unique")
     def mesh_substep(start: wp.array(dtype=wp.vec3), end: wp.array(dtype=wp.vec3), alpha_prev: wp.float32,
-                     alpha: wp.float32, frame_motion: wp.array(dtype=wp.float32), c: int,
-                     points: wp.array(dtype=wp.vec3), points_prev: wp.array(dtype=wp.vec3),
-                     motion: wp.array(dtype=scalar)):
+                     alpha: wp.float32, frame_motion: wp.array(dtype=wp.float32), c: int, write_prev: int,
+                     mesh: wp.uint64, mesh_prev: wp.uint64, points: wp.array(dtype=wp.vec3),
+                     points_prev: wp.array(dtype=wp.vec3), ids: wp.array(dtype=wp.uint64),
+                     prev_ids: wp.array(dtype=wp.uint64), motion: wp.array(dtype=scalar)):
         i = wp.tid()
         a = start[i]
         b = end[i]
-        points_prev[i] = a + alpha_prev * (b - a)
+        if write_prev != 0:
+            points_prev[i] = a + alpha_prev * (b - a)
         points[i] = a + alpha * (b - a)
         if alpha >= wp.float32(1.0):
             start[i] = b
         if i == 0:
             motion[c] = scalar(frame_motion[c] * (alpha - alpha_prev))
+            ids[c] = mesh
+            prev_ids[c] = mesh_prev
 
     return mesh_substep
 

@@ -6,10 +6,11 @@ distance field (``sdf.py``). Kernel: ``kernels/features/mesh.py``.
 
 Deforming meshes move inside the frame: from the points they had to the points set for the
 frame's end, interpolated every substep (:meth:`MeshColliders.advance`: one launch over the points
-and two BVH refits per moving mesh and substep; docs/features.md, "Deforming bodies"). A mesh with
-a signed distance field keeps it (built once a frame, at the frame's end, as before) while its
-points move at most its ``depth_band`` in the frame; a frame in which they move farther collides
-through the interpolated exact queries (warned once per collider).
+and one BVH refit per moving mesh and substep, two in a frame's first: its two meshes swap roles;
+docs/features.md, "Deforming bodies"). A mesh with a signed distance field keeps it (built once a
+frame, at the frame's end, as before) while its points move at most its ``depth_band`` in the
+frame; a frame in which they move farther collides through the interpolated exact queries (warned
+once per collider).
 """
 
 from __future__ import annotations
@@ -115,15 +116,21 @@ class TriangleMesh(ColliderShape):
 
 
 class _Motion:
-    """A deforming mesh's points at the frame's start and end (device, local, m) and a second
-    :class:`warp.Mesh` of the previous substep's points."""
+    """A deforming mesh's points at the frame's start and end (device, local, m) and its two
+    :class:`warp.Mesh`: ``pair`` (the collider's own, and a second one built from the same points,
+    so that both have the same tree and any query answers alike on either). One holds the last
+    substep's points (``pair[now]``, ``holds`` of the way through the frame: None when it holds
+    none of this frame's start and end), the other the substep's before."""
 
-    def __init__(self, mesh: wp.Mesh, indices: np.ndarray):
+    def __init__(self, mesh: wp.Mesh, shape):
         device = mesh.points.device
         self.start = wp.clone(mesh.points)
         self.end = wp.clone(mesh.points)
-        self.prev = wp.Mesh(points=wp.clone(mesh.points), indices=wp.array(indices.reshape(-1), dtype=wp.int32,
-                                                                           device=device))
+        second = wp.Mesh(points=wp.array(shape.points.astype(np.float32), dtype=wp.vec3, device=device),
+                         indices=wp.array(shape.indices.reshape(-1), dtype=wp.int32, device=device))
+        self.pair = (mesh, second)
+        self.now = 0
+        self.holds = None
 
 
 class MeshColliders:
@@ -131,7 +138,15 @@ class MeshColliders:
     local bounds ``lower``/``upper`` (m, over the frame) and ``depth_band`` (m); ``fields``: the
     signed distance fields of those that use one (:class:`~.sdf.MeshFields`, rebuilt by
     :meth:`set_points`); ``prev_ids`` (the previous substep's mesh of those moving within the
-    frame, else 0) and ``motion`` (m, how far their points moved in the substep)."""
+    frame, else 0) and ``motion`` (m, how far their points moved in the substep). A moving mesh's
+    ``ids`` entry names whichever of its two meshes holds the last substep's points
+    (:meth:`mesh_now`); the collider's own (``meshes``) holds the points set while it does not move."""
+
+    #: False: the two meshes of a moving collider keep their roles (the collider's own the current
+    #: substep's points, the second the previous substep's), both written and refitted every
+    #: substep, as before the ping-pong (a private switch: the reference of tests/test_mesh_pingpong.py
+    #: and ``scripts/bench_features.py --mesh-two-refits``)
+    _ping_pong = True
 
     def __init__(self, model, shapes: dict, num_colliders: int):
         device = model.device
@@ -173,7 +188,6 @@ class MeshColliders:
         self.still_ids = wp.zeros(num_colliders, dtype=wp.uint64, device=device)
         self.motion = wp.zeros(num_colliders, dtype=model.scalar, device=device)
         self._frame_motion_host = np.zeros(num_colliders, dtype=np.float32)
-        self._prev_ids_host = np.zeros(num_colliders, dtype=np.uint64)
         self.frame_motion = wp.zeros(num_colliders, dtype=wp.float32, device=device)
 
     def set_points(self, index: int, points, start=None) -> None:
@@ -191,12 +205,16 @@ class MeshColliders:
             here = pts if c in self._stale else self._given[c]
         self._stale.discard(c)
         self._given[c] = pts
-        mesh.points.assign(pts)
-        mesh.refit()
         lo, hi = bounds(pts)
         moved = float(np.sqrt(np.max(np.sum((pts - here) ** 2, axis=1))))
         field = c in self.fields.fields
         fast = moved > float(self._shapes[c].depth_band)
+        moving = moved > 0.0 and (fast or not field)
+        if not (moving and self._ping_pong):
+            # the mesh at the points (a moving mesh's substeps write their own: the ping-pong's first
+            # writes the frame's start into this mesh, so these would go unread)
+            mesh.points.assign(pts)
+            mesh.refit()
         if field and fast:
             self.fields.fields[c].warn("moving", (
                 f"its points move up to {moved:.3g} m in a frame, more than its depth band "
@@ -206,21 +224,23 @@ class MeshColliders:
             self.fields.suspend(c)
         elif field:
             self.fields.build(c, lo, hi)
-        if moved > 0.0 and (fast or not field):
+        if moving:
             motion = self._motions.get(c)
             if motion is None:
-                motion = self._motions[c] = _Motion(mesh, self._shapes[c].indices)
+                motion = self._motions[c] = _Motion(mesh, self._shapes[c])
             motion.start.assign(here)
             motion.end.assign(pts)
+            motion.holds = None   # a new start and end: the next substep writes both meshes
             self.moving.add(c)
-            self._prev_ids_host[c] = motion.prev.id
             self._frame_motion_host[c] = moved
             lo, hi = np.minimum(lo, bounds(here)[0]), np.maximum(hi, bounds(here)[1])
+            # ids/prev_ids: written by its substeps (they name the meshes they wrote)
         else:
             self.moving.discard(c)
-            self._prev_ids_host[c] = 0
             self._frame_motion_host[c] = 0.0
-        self.prev_ids.assign(self._prev_ids_host)
+            # this collider's entries only: the others' are the device's (their substeps write them)
+            self.ids[c:c + 1].assign(np.array([mesh.id], dtype=np.uint64))
+            self.prev_ids[c:c + 1].assign(np.zeros(1, dtype=np.uint64))
         self.frame_motion.assign(self._frame_motion_host)
         if c not in self.moving:
             self.motion.zero_()
@@ -247,24 +267,54 @@ class MeshColliders:
 
     def advance(self, root_alpha: float) -> None:
         """This substep's points of the meshes that move within the frame, ``root_alpha`` of the way
-        through it (and the previous substep's, in their second mesh): one launch over the points
-        and two BVH refits per moving mesh."""
+        through it, and the previous substep's: one launch over the points per moving mesh.
+
+        Ping-pong: the previous substep's points are those the last substep wrote, so the two
+        meshes swap roles: the last substep's mesh becomes the previous one untouched, and the other
+        gets this substep's points and one refit. A frame's first substep (``alpha_prev`` 0), or
+        one after :meth:`set_points`, writes and refits both (the collider's own mesh the previous
+        one): the mesh of the last frame's end holds ``start + 1 (end - start)``, not bit for bit
+        the next frame's start (nor a ``start`` given after :meth:`resync`). So a frame of ``k``
+        substeps refits ``k + 1`` times (``2 k + 1`` before, with the refit in :meth:`set_points`).
+
+        CUDA graphs: the kernel writes the two meshes' ids into ``ids``/``prev_ids`` on the
+        device, which the step reads when it runs, and a frame's substeps make the same choices
+        whatever ran before it (the first writes both and starts on the same meshes), so a graph
+        captured once replays them right, keyed by the moving meshes as before. The host's record of
+        which mesh holds what (``_Motion.now``/``holds``) serves the substeps of one frame run in
+        order; a replay does not update it, and the next frame starts afresh."""
         alpha_prev = self._alpha if root_alpha > self._alpha else 0.0
         self._alpha = float(root_alpha)
         for c in sorted(self.moving):
-            motion, mesh = self._motions[c], self._mesh_of(c)
+            motion = self._motions[c]
+            if not self._ping_pong:
+                now, before, both = 0, 1, True
+            elif alpha_prev > 0.0 and motion.holds == alpha_prev:
+                now, before, both = 1 - motion.now, motion.now, False
+            else:
+                now, before, both = 1, 0, True
+            mesh, prev = motion.pair[now], motion.pair[before]
             wp.launch(mesh_substep_kernel(self.motion.dtype), dim=mesh.points.shape[0], device=self.motion.device,
-                      inputs=[motion.start, motion.end, float(alpha_prev), float(root_alpha), self.frame_motion, c],
-                      outputs=[mesh.points, motion.prev.points, self.motion])
+                      inputs=[motion.start, motion.end, float(alpha_prev), float(root_alpha), self.frame_motion, c,
+                              int(both), mesh.id, prev.id],
+                      outputs=[mesh.points, prev.points, self.ids, self.prev_ids, self.motion])
             mesh.refit()
-            motion.prev.refit()
+            if both:
+                prev.refit()
+            motion.now = now
+            motion.holds = float(root_alpha) if root_alpha < 1.0 else None   # 1: start became end
 
-    def _mesh_of(self, c: int) -> wp.Mesh:
-        return next(mesh for d, mesh in self.meshes.values() if d == c)
+    def mesh_now(self, index: int) -> wp.Mesh:
+        """The :class:`warp.Mesh` of mesh collider ``index`` (user order) that the step queries now:
+        the last substep's points of a moving mesh, else the points set (reads the device's ids)."""
+        c, mesh = self.meshes[index]
+        now = int(self.ids.numpy()[c])
+        return next((m for m in self._motions[c].pair if m.id == now), mesh) if c in self._motions else mesh
 
     def graph_variant(self) -> tuple:
-        """What a frame's CUDA graph depends on: the meshes interpolated per substep."""
-        return tuple(sorted(self.moving))
+        """What a frame's CUDA graph depends on: the meshes interpolated per substep (and the private
+        switch of the two refits per substep)."""
+        return tuple(sorted(self.moving)) + (() if self._ping_pong else ("two refits",))
 
     def fill_struct(self, st) -> None:
         st.collider_mesh = self.ids
