@@ -44,6 +44,15 @@ def centre_at(speed):
     return lambda t: np.array([-0.07 + speed * min(t, TRAVEL / speed), Y, 0.0])
 
 
+def move_box(control, deforming, box, centre, t0, t1):
+    """The frame from ``t0`` to ``t1`` (s) of a box whose centre is ``centre(t)``: its points at
+    ``t1`` (a deforming mesh) or its poses at both ends (moved by its pose)."""
+    if deforming:
+        control.features.set_mesh_points(0, box + centre(t1))
+    else:
+        control.features.set_collider_poses([np.r_[centre(t0), 0, 0, 0, 1]], [np.r_[centre(t1), 0, 0, 0, 1]])
+
+
 def push(kind, speed, sdf=False, frames=None):
     """Hair after a box moved through it (``kind``: "deforming", its points set every frame, or
     "pose", its pose animated) and 6 frames more, the box's final centre, and the warnings."""
@@ -60,11 +69,7 @@ def push(kind, speed, sdf=False, frames=None):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ColliderApproximationWarning)
         for f in range(frames):
-            t0, t1 = f / FPS, (f + 1) / FPS
-            if deforming:
-                control.features.set_mesh_points(0, box + centre(t1))
-            else:
-                control.features.set_collider_poses([np.r_[centre(t0), 0, 0, 0, 1]], [np.r_[centre(t1), 0, 0, 0, 1]])
+            move_box(control, deforming, box, centre, f / FPS, (f + 1) / FPS)
             solver.advance(state, control, 1.0 / FPS / SUBSTEPS, SUBSTEPS)
     x = model.points_from_device(state.positions)
     return np.delete(x, np.arange(9) * 16, axis=0), centre(frames / FPS), control, caught

@@ -10,6 +10,14 @@ projection put it. A broad phase first tests the path's box against the mesh's b
 contact distance plus the band. The response is shared
 (:func:`~dftl_warp.kernels.features.collide.respond_func`).
 
+A contact plane farther behind the particle's leader than the segment's rest length (the nearest
+face, or the face the path crossed, round a convex edge from the leader's face) has no point at the
+rest length: the particle put there was pulled back inside along the segment by the rest length's
+restoration, every round (hair sliding round an edge of a moving box, 17-20 mm in). There, the
+face the segment from the leader enters the mesh through (``entry_face``, the face the strand rests
+on) answers instead; a crossing whose segment enters no face is not stopped (the path cut an edge,
+ending outside) and is left to the closest-point projection.
+
 A mesh collider with a signed distance field (``cell`` > 0 in its ``collider_sdf`` entry) is
 answered by the field (``kernels/features/sdf.py``) where it can answer, and by the exact query
 above where it cannot (thin parts, sharp edges, beyond the field's reach).
@@ -46,6 +54,24 @@ def collide_mesh_func(scalar):
     tiny = tiny_length(scalar)
     respond = respond_func(scalar)
     slide = slide_func(scalar)
+
+    @wp.func
+    def entry_face(mesh: wp.uint64, q: vec3, lead: vec3):
+        # the first front face the segment from the leader to q crosses: (found, its normal, q's
+        # signed height above it)
+        arm = q - lead
+        length = wp.length(arm)
+        n = vec3()
+        dist = zero
+        found = bool(False)
+        if length > tiny:
+            direction = arm / length
+            hit = wp.mesh_query_ray(mesh, wp.vec3f(lead), wp.vec3f(direction), wp.float32(length))
+            if hit.result and hit.sign > wp.float32(0.0):
+                n = vec3(hit.normal)
+                dist = (length - scalar(hit.t)) * wp.dot(direction, n)
+                found = True
+        return found, n, dist
 
     @wp.func
     def collide_mesh(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
@@ -108,7 +134,16 @@ def collide_mesh_func(scalar):
                     stop = q_old + scalar(hit.t) * direction + radius * n
                     blocked = wp.dot(stop - q, n)
                     lead = wp.transform_point(inv_pose, leader)
-                    return wp.transform_point(pose, slide(stop, q_old, lead, rest, n, mu * blocked)), True
+                    if wp.dot(lead - stop, n) > -rest:
+                        return wp.transform_point(pose, slide(stop, q_old, lead, rest, n, mu * blocked)), True
+                    # a stop on a contact plane farther behind the leader than the rest length is
+                    # no answer (the rest length restored from it pulls the particle back inside
+                    # along the segment): the particle goes onto the face the segment from the
+                    # leader enters the body through, if it crosses one (a path through a thin
+                    # part), else the path cut an edge and the projection below places it
+                    entered, n_in, dist_in = entry_face(mesh, q, lead)
+                    if entered:
+                        return wp.transform_point(pose, respond(q, q_old, lead, rest, dist_in, n_in, radius, mu)), True
         if not query.result:
             return x, False
         closest = vec3(wp.mesh_eval_position(mesh, query.face, query.u, query.v))
@@ -126,6 +161,16 @@ def collide_mesh_func(scalar):
         if dist >= radius:
             return x, False
         lead = wp.transform_point(inv_pose, leader)
+        if wp.dot(lead - q, n) - (radius - dist) <= -rest:
+            # the nearest face's contact plane is farther behind the leader than the rest length:
+            # no point at the rest length clears it, and the rest length restored from that plane
+            # pulls the particle back inside along the segment, in every round (a strand sliding
+            # around an edge of a moving body, 2 mm in per round). It leaves by the face the segment
+            # from the leader enters the body through, the face the strand rests on
+            entered, n_in, dist_in = entry_face(mesh, q, lead)
+            if entered:
+                n = n_in
+                dist = dist_in
         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True
 
     return collide_mesh
