@@ -195,6 +195,26 @@ def read_render_scene(stage, time=None, source: str | None = None) -> RenderScen
         raise UserError(f"{source}: {_usd_message(exc)}") from None
 
 
+#: the authored size attribute of each analytic shape, and the factor from the shape's first parameter
+_SIZE = {SPHERE: ("radius", 1.0), CAPSULE: ("radius", 1.0), BOX: ("size", 2.0)}
+
+
+def _check_float32(shape, source) -> None:
+    """UserError naming the prim and attribute where a shape's size or position, in world space, is
+    beyond what the float32 ray tracer squares (:data:`~dftl_warp.usd.curves.MAX_LENGTH`): before,
+    a Sphere of radius 1e300 rendered with numpy's overflow warning."""
+    name, factor = _SIZE[shape.kind]
+    where = f"{source}: {shape.path}"
+    linear = shape.world_from_local[:3, :3]
+    stretch = max(float(np.linalg.norm(linear, axis=0).max()), 1.0)
+    curve_checks.check_lengths([factor * shape.params[0] * stretch], name, where, indexed=False,
+                               world=" in world space" if stretch > 1.0 else "")
+    if shape.kind == CAPSULE:
+        curve_checks.check_lengths([2.0 * shape.params[1] * stretch], "height", where, indexed=False)
+    curve_checks.check_lengths([shape.world_from_local[:3, 3]], "its position", where, indexed=False,
+                               world=" in world space")
+
+
 def _usd_message(exc) -> str:
     """The last line of a USD error, without its 'Error in ... at line ... in file ...' prefix."""
     import re
@@ -239,6 +259,7 @@ def _read_render_scene(stage, time, source) -> RenderScene:
     for s in shapes:
         if not np.isfinite(s.world_from_local).all() or not np.isfinite(s.params).all() or s.params[0] < 0:
             raise UserError(f"{source}: {s.path}: transform or size is not a finite, non-negative value")
+        _check_float32(s, source)
     if strands:
         scene.points = np.concatenate([s[0] for s in strands])
         scene.curve_vertex_counts = np.concatenate([s[1] for s in strands])
