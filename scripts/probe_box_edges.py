@@ -13,9 +13,12 @@ was, its leader, and the leader's height above the contact plane of the particle
 below minus the rest length (2 cm) no point at the rest length clears that face, the mechanism of
 the edge bug fixed in ``kernels/features/mesh.py`` (docs/features.md, "Around the edges of a
 moving mesh"): before it, 17-20 mm deep at 1-2 m/s; now nothing behind the surface.
+``--sdf`` collides the box through its signed distance field (5 mm cells; a deforming box moving
+more than its depth band a frame is collided by exact queries instead, warned): before the field's
+edge fix (docs/features.md, "Around the edges, through the field"), 11.5 mm deep at 2 m/s by pose.
 
     python scripts/probe_box_edges.py [--speeds 1,2] [--iterations 2,4] [--turn AX,AY,AZ,RAD]
-        [--strands 3] [--frames 12] [--why]
+        [--strands 3] [--frames 12] [--why] [--sdf]
 """
 import argparse
 
@@ -51,17 +54,18 @@ def local_distance(q):
     return dist, normal
 
 
-def run(kind, speed, iterations, rot, quat, strands, frames):
+def run(kind, speed, iterations, rot, quat, strands, frames, sdf=False):
     xs = np.linspace(-0.02, 0.02, strands)
     n = strands * strands
     pts = np.concatenate([np.stack([np.full(16, x), -SEGMENT * np.arange(16), np.full(16, z)], 1)
                           for x in xs for z in xs])
     box, tris = box_mesh(HALF)
     centre = lambda t: np.array([-0.07 + speed * t, -0.2, 0.0])  # noqa: E731
+    field = dict(sdf=True, sdf_cell=0.005) if sdf else {}
     if kind == "deforming":
-        shape = F.TriangleMesh(points=box @ rot.T + centre(0.0), indices=tris)
+        shape = F.TriangleMesh(points=box @ rot.T + centre(0.0), indices=tris, **field)
     else:
-        shape = F.TriangleMesh(points=box, indices=tris, position=centre(0.0), rotation=quat)
+        shape = F.TriangleMesh(points=box, indices=tris, position=centre(0.0), rotation=quat, **field)
     model = dw.Model.from_strands(pts, [16] * n, widths=2 * RADIUS, device="cpu",
                                   features=[F.Colliders([shape], iterations=iterations)])
     solver = dw.DFTLSolver(model, gravity=(0.0, -9.81, 0.0))
@@ -99,6 +103,7 @@ def main():
     ap.add_argument("--strands", type=int, default=3, help="strands per side of the square patch")
     ap.add_argument("--frames", type=int, default=12)
     ap.add_argument("--why", action="store_true", help="print the deepest first entries")
+    ap.add_argument("--sdf", action="store_true", help="collide through the box's signed distance field (5 mm cells)")
     a = ap.parse_args()
     ax, ay, az, angle = (float(v) for v in a.turn.split(","))
     rot, quat = turn((ax, ay, az), angle)
@@ -106,7 +111,7 @@ def main():
     for iterations in (int(v) for v in a.iterations.split(",")):
         for speed in (float(v) for v in a.speeds.split(",")):
             for kind in ("deforming", "pose"):
-                worst, entries = run(kind, speed, iterations, rot, quat, a.strands, a.frames)
+                worst, entries = run(kind, speed, iterations, rot, quat, a.strands, a.frames, a.sdf)
                 print(f"iterations {iterations} {kind:9s} {speed:4.2f} m/s: deepest {worst * 1e3:6.2f} mm, "
                       f"first entries {len(entries)}", flush=True)
                 for f, k, i, depth, q, was, lead, height in sorted(entries, key=lambda e: -e[3])[:3] if a.why else []:

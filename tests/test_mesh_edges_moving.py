@@ -29,12 +29,18 @@ FRAMES = 6          # 0.25 s: the box (from 3 cm before the first strands) goes 
 def deepest(kind: str, speed: float, iterations: int):
     """The deepest any non-root particle is inside the box (m, 0 when none is behind its surface)
     over every substep, and how far the box pushed the hair (the farthest particle's x, m)."""
+    return push_through(kind, speed, iterations)[:2]
+
+
+def push_through(kind: str, speed: float, iterations: int, **mesh_options):
+    """:func:`deepest`'s depth and reach, and the run's control, of the box built with
+    ``mesh_options`` (``TriangleMesh``'s: ``sdf=True``, ...)."""
     pts, counts = hanging_hair()
     box, tris = box_mesh(HALF)
     centre = lambda t: np.array([-0.07 + speed * t, Y, 0.0])  # noqa: E731
     deforming = kind == "deforming"
     shape = F.TriangleMesh(points=box + centre(0.0) if deforming else box, indices=tris,
-                           position=np.zeros(3) if deforming else centre(0.0))
+                           position=np.zeros(3) if deforming else centre(0.0), **mesh_options)
     model = dw.Model.from_strands(pts, counts, widths=2 * RADIUS, device="cpu",
                                   features=[F.Colliders([shape], iterations=iterations)])
     solver = dw.DFTLSolver(model, gravity=(0.0, -9.81, 0.0))
@@ -49,7 +55,7 @@ def deepest(kind: str, speed: float, iterations: int):
             x = np.delete(model.points_from_device(state.positions), roots, axis=0)
             worst = max(worst, -float(box_distance(x, centre(t0 + (k + 1) / SUBSTEPS / FPS)).min()))
             reach = max(reach, float(x[:, 0].max()))
-    return worst, reach
+    return worst, reach, control
 
 
 @pytest.mark.parametrize("kind", ["deforming", "pose"])
