@@ -82,12 +82,11 @@ def segment_lengths(x):
     return np.linalg.norm(np.diff(x, axis=1), axis=-1)
 
 
-#: (shape, turning): the smooth shapes still and turning, the box and the mesh box still. At a
-#: convex edge the shared response (back to the rest length on the contact plane,
-#: kernels/features/collide.py) can land a particle inside the next face: the box needs 4 rounds
-#: instead of 2 here, and a *turning* box leaves particles up to ~40 hair radii inside its edges
-#: with the featured DFTL sweep as with this solver (measured), so it is not asserted here.
-CASES = [(s, t) for s in ("sphere", "capsule", "ellipsoid") for t in (False, True)] + [("box", False), ("mesh", False)]
+#: (shape, turning): every shape still and turning. Before the convex-edge fixes (a contact plane
+#: out of the leader's reach answered by the face the segment enters, kernels/features/mesh.py and
+#: the box's entry face in kernels/features/analytic.py), a *turning* box left particles 38-43 hair
+#: radii inside its edges (29-30 with 4 rounds), with the featured DFTL sweep as with this solver.
+CASES = [(s, t) for s in ("sphere", "capsule", "ellipsoid", "box", "mesh") for t in (False, True)]
 
 
 @pytest.mark.parametrize("shape,turning", CASES, ids=[f"{s}-{'turning' if t else 'still'}" for s, t in CASES])
@@ -97,13 +96,12 @@ def test_hair_draped_on_a_collider_stays_outside_and_keeps_its_lengths(shape, tu
     ``turning``. Every substep: no particle nearer the surface than the hair radius minus 1e-3 of
     it, segment lengths exact."""
     make, sd, top = SHAPES[shape]
-    iterations = 4 if shape in ("box", "mesh") else 2
     L = 4 * LB
     xs = np.linspace(-0.03, 0.03, 5)
     pts = np.stack([np.stack([np.full(N + 1, x), np.full(N + 1, top + 0.002), np.linspace(0, L, N + 1) - 0.03], 1)
                     for x in xs])
     model = dw.Model.from_strands(pts.reshape(-1, 3), [N + 1] * len(xs), widths=2 * R, precision="float64",
-                                  features=[F.Colliders([make()], iterations=iterations)])
+                                  features=[F.Colliders([make()])])
     solver = dw.make_solver(model, "elastic", inverse_statics=False)
     state, control = solver.state(), model.control()
     rest = segment_lengths(pts)

@@ -13,7 +13,10 @@
 
 Each ``*_sdf_func(scalar)`` returns ``sdf(q, size, axis) -> (d, n)``: the signed distance ``d``
 of point ``q`` (negative inside) and the outward unit normal ``n`` of the closest surface point.
-The response is shared (:func:`~dftl_warp.kernels.features.collide.analytic_collide_func`).
+The response is shared (:func:`~dftl_warp.kernels.features.collide.analytic_collide_func`). The box
+also answers which face the segment from a particle's leader enters it through
+(:func:`box_entry_func`): round its convex edges, a contact plane can lie farther behind the leader
+than the rest length, and the particle then leaves by that face.
 """
 
 
@@ -82,6 +85,43 @@ def box_sdf_func(scalar):
 
 
 @functools.cache
+def box_entry_func(scalar):
+    """``entry(q, lead, size) -> (found, n, d)``: the face the segment from ``lead`` to ``q`` enters
+    the box through (slab test; ``found`` false where ``lead`` is inside or the segment misses),
+    its outward normal ``n`` and ``q``'s signed height ``d`` above its plane (negative behind it)."""
+    vec3 = wp.types.vector(3, scalar)
+    zero, one, tiny = scalar(0.0), scalar(1.0), tiny_length(scalar)
+
+    @wp.func
+    def box_entry(q: vec3, lead: vec3, size: vec3):
+        arm = q - lead
+        length = wp.length(arm)
+        n = vec3()
+        if length <= tiny:
+            return False, n, zero
+        direction = arm / length
+        t_in = -length
+        t_out = length
+        face = int(-1)
+        for i in range(3):
+            if wp.abs(direction[i]) > tiny:
+                a = (-size[i] - lead[i]) / direction[i]
+                b = (size[i] - lead[i]) / direction[i]
+                if wp.min(a, b) > t_in:
+                    t_in = wp.min(a, b)
+                    face = i
+                t_out = wp.min(t_out, wp.max(a, b))
+            elif wp.abs(lead[i]) > size[i]:
+                t_out = -length  # parallel to this slab, outside it: the segment misses
+        if face < 0 or t_in < zero or t_in > t_out:
+            return False, n, zero
+        n[face] = -wp.sign(direction[face]) * one
+        return True, n, (length - t_in) * direction[face] * n[face]
+
+    return box_entry
+
+
+@functools.cache
 def ellipsoid_sdf_func(scalar):
     vec3 = wp.types.vector(3, scalar)
     f64 = wp.float64
@@ -136,5 +176,5 @@ def ellipsoid_sdf_func(scalar):
 
 SPHERE = analytic_collider("spheres", "collide_sphere", sphere_sdf_func)
 CAPSULE = analytic_collider("capsules", "collide_capsule", capsule_sdf_func)
-BOX = analytic_collider("boxes", "collide_box", box_sdf_func)
+BOX = analytic_collider("boxes", "collide_box", box_sdf_func, box_entry_func)
 ELLIPSOID = analytic_collider("ellipsoids", "collide_ellipsoid", ellipsoid_sdf_func)

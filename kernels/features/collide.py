@@ -286,18 +286,29 @@ def respond_func(scalar):
 
 
 @functools.cache
-def analytic_collide_func(scalar, sdf_factory, name: str):
+def analytic_collide_func(scalar, sdf_factory, name: str, entry_factory=None):
     """The collide function of an analytic shape given by its signed distance
     ``sdf(q, size, axis) -> (d, outward normal)`` (collider-local, m; ``sdf_factory(scalar)``
     makes it): ``collide(x, x_old, leader, rest, ccd, radius, pose, inv_pose, inv_pose_prev, size,
     axis, mu) -> (x, touched)``, the continuous test by sphere tracing (the SDF must be
-    1-Lipschitz)."""
+    1-Lipschitz).
+
+    ``entry_factory(scalar)``, for a shape with convex edges, makes ``entry(q, leader, size) ->
+    (found, n, d)``: the face the segment from the leader to ``q`` enters the shape through, its
+    outward normal and ``q``'s signed height above it. A contact (the nearest face, or where the
+    path crossed) whose plane lies farther behind the leader than the rest length has no point at
+    the rest length: the rest length restored from it pulled the particle back inside along the
+    segment, every round (hair sliding round an edge of a moving box, 5-6 mm in). It is answered by
+    the face the segment enters through (the face the strand rests on), as for meshes
+    (``kernels/features/mesh.py``)."""
     vec3 = wp.types.vector(3, scalar)
     transform = transform_type(scalar)
     zero = scalar(0.0)
     tiny = tiny_length(scalar)
     sdf = sdf_factory(scalar)
     respond = respond_func(scalar)
+    entry = entry_factory(scalar) if entry_factory is not None else None
+    EDGES = entry is not None
 
     def body(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
              inv_pose: transform, inv_pose_prev: transform, size: vec3, axis: vec3, mu: scalar):
@@ -341,12 +352,21 @@ def analytic_collide_func(scalar, sdf_factory, name: str):
             return x, False
         lead = wp.transform_point(inv_pose, leader)
         dist = wp.min(dist, radius)  # a stopped particle goes onto its contact plane too
+        if wp.static(EDGES):
+            if wp.dot(lead - q, n) - (radius - dist) <= -rest:
+                # the contact plane is farther behind the leader than the rest length (a face round
+                # a convex edge from the leader's): the particle leaves by the face the segment from
+                # the leader enters the shape through, the face the strand rests on
+                entered, n_in, dist_in = entry(q, lead, size)
+                if entered:
+                    n = n_in
+                    dist = dist_in
         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True
 
     return named_func(body, name)
 
 
-def analytic_collider(flag: str, name: str, sdf_factory) -> ColliderKernel:
+def analytic_collider(flag: str, name: str, sdf_factory, entry_factory=None) -> ColliderKernel:
     """The :class:`ColliderKernel` of an analytic shape: its geometry in the common
     ``collider_size`` and ``collider_axis`` of each collider, its surface given by
     ``sdf_factory(scalar)`` (see :func:`analytic_collide_func`); ``name`` names its function in
@@ -355,7 +375,7 @@ def analytic_collider(flag: str, name: str, sdf_factory) -> ColliderKernel:
     @functools.cache
     def collide(scalar, Features):
         vec3 = wp.types.vector(3, scalar)
-        one = analytic_collide_func(scalar, sdf_factory, name)
+        one = analytic_collide_func(scalar, sdf_factory, name, entry_factory)
 
         def at(f: Features, c: int, x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar):
             y, hit = one(x, x_old, leader, rest, ccd, radius, f.collider_pose[c], f.collider_inv_pose[c],
