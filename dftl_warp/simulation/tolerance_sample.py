@@ -169,12 +169,17 @@ class Lane:
         advance with each substep (the continuous test and friction use the motion since the
         previous one), so every run of a frame (``k``, ``2 k`` substeps) must start from the same
         poses: without this the second run's first substep swept the colliders back across the
-        whole frame."""
+        whole frame. Deforming meshes likewise (:meth:`~..features.colliders.mesh.MeshColliders.rewind`):
+        the frame's last substep leaves them at its end, and a second run (the shadow on the trial's
+        lane in float64, a retry at other substeps) saw them stand still there."""
         from ..features.colliders.device import inverse_poses
 
         c = None if self.control.features is None else self.control.features.colliders
         if c is None:
             return
+        meshes = c.kind_data.get("meshes")
+        if meshes is not None:
+            meshes.rewind()
         start = c.pose_start.numpy()
         inverse = inverse_poses(start).astype(start.dtype)
         for a, v in ((c.pose, start), (c.pose_prev, start), (c.inv_pose, inverse), (c.inv_pose_prev, inverse)):
