@@ -2,19 +2,23 @@
 moves 2 cm a frame (0.5 m/s at 24 fps) through hanging hair.
 
 The sample (dftl_warp/simulation/tolerance_sample.py) runs a frame more than once on one Control:
-the trial and the shadow share a lane in float64, and a retry runs the frame again at other
-substeps. The mesh is interpolated per substep, and the
+the trial and the shadow share a lane in float64, a retry runs the frame again at other substeps,
+and a plan that goes back sets earlier frames again. The mesh is interpolated per substep, and the
 frame's last substep leaves its start at the frame's end (``MeshColliders.advance``). Before, only
 the collider poses were rewound: a second run of a frame saw the box stand still at the frame's
 end (it jumped 2 cm between frames, and the shadow's hair ended 2-3 cm inside it): the estimates
 were those of another scene (in float64 at 8 substeps: 0.019-0.16 over five frames against 0.0006-0.007).
+And a frame set again after the plan went back moved the box from a later frame's points
+(backwards), or kept it still (with the rewind alone, ``--tolerance 0.005`` in float64 still
+estimated 0.016-0.10 at 16 substeps here, 20 x the tolerance).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pxr import UsdGeom, UsdPhysics, Vt
-from usd_stages import add_curves, new_stage
+from usd_stages import add_curves, composed_samples, new_stage
 
 FPS, HALF, RADIUS, SPEED, Y = 24.0, 0.04, 5e-4, 0.5, -0.2   # an 8 cm box 20 cm below the roots; hair radius
 
@@ -47,6 +51,17 @@ def box_distance(x, f):
     """Signed distance (m) of points ``x`` from the box's surface at frame ``f`` (negative inside)."""
     q = np.abs(x - centre(f)) - HALF
     return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+
+
+def frames(path):
+    """The hair's points at every frame written, (F, P, 3)."""
+    samples = composed_samples(path, "/World/Hair")
+    return np.stack([samples[t] for t in sorted(samples)])
+
+
+def error(x, ref):
+    """RMS over the particles of the position difference, per frame (the estimator's error)."""
+    return np.sqrt(((x - ref) ** 2).sum(-1).mean(-1))
 
 
 def sample_run(tmp_path, precision="float64"):
@@ -101,3 +116,51 @@ def test_every_run_of_a_frame_sees_the_box_move_through_it(tmp_path):
     moved = run.model.points_from_device(run.trial.positions)[:, 0] - first[:, 0]
     assert moved.max() > 0.02, moved.max()
 
+
+def test_a_plan_that_goes_back_sees_the_box_move_as_before(tmp_path):
+    """The controller plans frames 1-4, goes back to frame 1 and plans them again with the same
+    floors: the same substeps and estimates bit for bit, and the trial's hair outside the box.
+    Before, frame 1 set again moved the box from frame 5's points back to frame 2's."""
+    from dftl_warp.simulation.tolerance import ToleranceController
+
+    sim, run, roots, shot = sample_run(tmp_path, "float32")
+    g = sim.groups[0]
+    c = ToleranceController(run, 0.005, roots, 5, k=4, carried=4, shot=shot)
+    c.start(1, 1.0 / FPS, g.state, g.model)
+    planned = []
+    for _ in range(2):
+        c.look_ahead(1)
+        assert sorted(c.plan) == [1, 2, 3, 4] and c._offended   # it went back on its own too
+        x = run.model.points_from_device(run.trial.positions)
+        planned.append((dict(c.plan), x))
+        c._back_to(1)
+    assert planned[1][0] == planned[0][0]
+    np.testing.assert_array_equal(planned[1][1], planned[0][1])
+    assert box_distance(planned[1][1], 5).min() > 0.5 * RADIUS
+
+
+@pytest.mark.parametrize("precision,tolerance", [("float32", 0.001), ("float64", 0.005)])
+def test_the_estimate_follows_the_error_against_a_converged_run(tmp_path, precision, tolerance):
+    """``--tolerance`` on the scene: every frame's estimate is 1 to 3 x the run's actual error
+    against DFTL in float64 at 2048 substeps (converged: 1024 differs by 1.5e-5 at most), and the
+    run meets the tolerance. Measured: 1.3-1.9 x (float32 at 0.001: 64 substeps, actual 6e-5 to
+    4.3e-4; float64 at 0.005: 16-32 substeps, 1.3e-4 to 8.6e-4). Before, float32 at 0.001 ended at
+    20 x the tolerance (2 substeps: error 0.0197, estimates 0.004-0.028), and in float64 at 0.005 the
+    estimates were 30-130 x the error (0.016-0.13)."""
+    from dftl_warp.output.usd import UsdWriter
+    from dftl_warp.simulation.simulate import simulate_usd
+    from dftl_warp.simulation.tolerance import RECORD
+
+    src = box_scene(tmp_path / "box.usda")
+    runs = {}
+    for n in (1024, 2048):
+        runs[n] = tmp_path / f"ref{n}.usdc"
+        simulate_usd(src, runs[n], solver="dftl", precision="float64", substeps=n, device="cpu", monitor=False)
+    ref = frames(runs[2048])
+    assert error(frames(runs[1024]), ref).max() < 0.05 * tolerance
+    out = tmp_path / "tolerance.usdc"
+    simulate_usd(src, out, tolerance=tolerance, solver="dftl", precision=precision, device="cpu", monitor=False)
+    actual = error(frames(out), ref)[1:]
+    estimates = np.array([float(e) for e in UsdWriter.read_record(out, RECORD)["group0.error"].split()])
+    assert np.all((estimates >= actual) & (estimates <= 3.0 * actual)), (estimates, actual)
+    assert actual.max() <= tolerance
