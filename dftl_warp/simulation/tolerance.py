@@ -12,7 +12,8 @@ after its clean start:
   which step doubling in one precision cannot see).
 
 Both take the group's root path (``simulation/root_paths.py``), colliders and wind; each run of a
-frame starts from the frame's collider poses (:meth:`~.tolerance_sample.Lane.rewind_colliders`),
+frame starts from the frame's collider poses and deforming meshes' points
+(:meth:`~.tolerance_sample.Lane.rewind_colliders`),
 and DFTL's carried correction is rescaled whenever ``k`` changes (``kernels/simulation/tolerance.py``),
 in the sample and in the group. Their difference estimates the *global* error of the run
 (accumulated since the first frame, not one frame's local error), by Richardson:

@@ -163,18 +163,25 @@ class Lane:
             self.solver = make_solver(self.model, solver, damping=settings.damping, correction=settings.correction,
                                       gravity=scene.gravity, **extra)
             self.control = self.model.control()
+        #: the frame the control was last set to reach (:meth:`SampleRun.set_frame`)
+        self.reached = None
 
     def rewind_colliders(self) -> None:
         """Colliders back at the frame's start, for the previous substep too. The control's poses
         advance with each substep (the continuous test and friction use the motion since the
         previous one), so every run of a frame (``k``, ``2 k`` substeps) must start from the same
         poses: without this the second run's first substep swept the colliders back across the
-        whole frame."""
+        whole frame. Deforming meshes likewise (:meth:`~..features.colliders.mesh.MeshColliders.rewind`):
+        the frame's last substep leaves them at its end, and a second run (the shadow on the trial's
+        lane in float64, a retry at other substeps) saw them stand still there."""
         from ..features.colliders.device import inverse_poses
 
         c = None if self.control.features is None else self.control.features.colliders
         if c is None:
             return
+        meshes = c.kind_data.get("meshes")
+        if meshes is not None:
+            meshes.rewind()
         start = c.pose_start.numpy()
         inverse = inverse_poses(start).astype(start.dtype)
         for a, v in ((c.pose, start), (c.pose_prev, start), (c.inv_pose, inverse), (c.inv_pose_prev, inverse)):
@@ -219,7 +226,9 @@ class SampleRun:
         arguments of :meth:`~dftl_warp.core.state.Control.set_root_targets` for the whole group
         (per-strand arrays in input order, picked here), and for the elastic solver under ``clamps``
         those of its ``set_clamp_targets`` (the clamps' rotations too), or None (still roots);
-        ``shot``: the first and last frame, for roots bound to a mesh (None: not passed). Roots
+        ``shot``: the first and last frame, for roots bound to a mesh (None: not passed). A frame
+        that does not follow the one last set (the plan went back) starts the colliders afresh
+        (``resync``): its deforming meshes move from the frame's points. Roots
         bound to an animated mesh turn the elastic clamps with them, as the group's
         (:func:`~.root_paths.bound_clamps`)."""
         from ..features import update_frame
@@ -233,6 +242,11 @@ class SampleRun:
         bound = self.name == "elastic" and mesh is not None and mesh.animated
         extra = {} if shot is None else {"shot": shot}
         for lane in {id(self.lane): self.lane, id(self.wide): self.wide}.values():
+            if lane.reached != frame:
+                # not the frame after the last set (the plan went back, or the first): deforming meshes
+                # start at the frame's points, not where the last frame set left them (a later frame's)
+                lane.control.features.resync()
+            lane.reached = nxt
             if roots is not None:
                 lane.control.set_root_targets(**roots)
             if clamps is not None:

@@ -131,6 +131,8 @@ class _Motion:
         self.pair = (mesh, second)
         self.now = 0
         self.holds = None
+        #: the frame's start (host), as :meth:`MeshColliders.set_points` gave it
+        self.first = None
 
 
 class MeshColliders:
@@ -229,6 +231,7 @@ class MeshColliders:
             if motion is None:
                 motion = self._motions[c] = _Motion(mesh, self._shapes[c])
             motion.start.assign(here)
+            motion.first = here   # the frame's start, for :meth:`rewind`
             motion.end.assign(pts)
             motion.holds = None   # a new start and end: the next substep writes both meshes
             self.moving.add(c)
@@ -303,6 +306,17 @@ class MeshColliders:
                 prev.refit()
             motion.now = now
             motion.holds = float(root_alpha) if root_alpha < 1.0 else None   # 1: start became end
+
+    def rewind(self) -> None:
+        """The meshes moving within the frame back at its start, to run the frame again (``--tolerance``'s
+        sample runs a frame more than once on one Control): its last substep made their start its end
+        (``mesh_substep_kernel``), so another run saw them stand still at the frame's end. The next
+        substep writes both meshes from the start the frame's :meth:`set_points` gave."""
+        for c in self.moving:
+            motion = self._motions[c]
+            motion.start.assign(motion.first)
+            motion.holds = None
+        self._alpha = 0.0
 
     def mesh_now(self, index: int) -> wp.Mesh:
         """The :class:`warp.Mesh` of mesh collider ``index`` (user order) that the step queries now:
