@@ -17,11 +17,13 @@ FPS = 24
 
 
 def generated_source(kernel) -> str:
-    """The C++ Warp generates for ``kernel``'s module on the CPU."""
+    """The C++ Warp generates for ``kernel``'s module on the CPU, without its ``//`` comment lines
+    (they name the Python source files, whose paths hold the checkout's folder names)."""
     from warp._src.context import ModuleBuilder
 
     module = kernel.module
-    return ModuleBuilder(module, module.options, target="cpu").codegen("cpu")
+    code = ModuleBuilder(module, module.options, target="cpu").codegen("cpu")
+    return "\n".join(line for line in code.splitlines() if not line.lstrip().startswith("//"))
 
 
 def box_mesh(half):

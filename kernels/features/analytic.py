@@ -13,10 +13,12 @@
 
 Each ``*_sdf_func(scalar)`` returns ``sdf(q, size, axis) -> (d, n)``: the signed distance ``d``
 of point ``q`` (negative inside) and the outward unit normal ``n`` of the closest surface point.
-The response is shared (:func:`~dftl_warp.kernels.features.collide.analytic_collide_func`). The box
-also answers which face the segment from a particle's leader enters it through
-(:func:`box_entry_func`): round its convex edges, a contact plane can lie farther behind the leader
-than the rest length, and the particle then leaves by that face.
+The response is shared (:func:`~dftl_warp.kernels.features.collide.analytic_collide_func`). Each
+shape also answers where the segment from a particle's leader enters it (``*_entry_func``): round a
+box's convex edges, or round a shape thinner than a segment (a capsule of 2 mm radius under 5 mm
+segments, a small sphere, a flat ellipsoid's rim), the contact plane of the nearest point can lie
+farther behind the leader than the rest length, and the particle then leaves by the tangent plane
+where the segment enters.
 """
 
 
@@ -85,24 +87,45 @@ def box_sdf_func(scalar):
 
 
 @functools.cache
-def box_entry_func(scalar):
-    """``entry(q, lead, size) -> (found, n, d)``: the face the segment from ``lead`` to ``q`` enters
-    the box through (slab test; ``found`` false where ``lead`` is inside or the segment misses),
-    its outward normal ``n`` and ``q``'s signed height ``d`` above its plane (negative behind it)."""
+def entry_func(scalar, ray_factory):
+    """``entry(q, lead, size, axis) -> (found, n, d)``: where the segment from ``lead`` to ``q``
+    enters the shape (``found`` false where ``lead`` is inside or the segment misses), the outward
+    normal ``n`` there (a box's face, a smooth shape's tangent plane) and ``q``'s signed height
+    ``d`` above that plane (negative behind it). ``ray(lead, direction, size, axis) -> (found, t,
+    n)``: the first ``t >= 0`` where the ray ``lead + t direction`` (unit) enters the shape and the
+    normal there (``found`` false where ``lead`` is inside or the ray misses)."""
     vec3 = wp.types.vector(3, scalar)
-    zero, one, tiny = scalar(0.0), scalar(1.0), tiny_length(scalar)
+    zero, tiny = scalar(0.0), tiny_length(scalar)
+    ray = ray_factory(scalar)
 
     @wp.func
-    def box_entry(q: vec3, lead: vec3, size: vec3):
+    def entry(q: vec3, lead: vec3, size: vec3, axis: vec3):
         arm = q - lead
         length = wp.length(arm)
         n = vec3()
         if length <= tiny:
             return False, n, zero
         direction = arm / length
-        t_in = -length
-        t_out = length
+        found, t, n_e = ray(lead, direction, size, axis)
+        if not found or t > length:
+            return False, n, zero
+        return True, n_e, (length - t) * wp.dot(direction, n_e)
+
+    return entry
+
+
+@functools.cache
+def box_ray_func(scalar):
+    """The ray's entry into the box: the face of its last slab entered (slab test)."""
+    vec3 = wp.types.vector(3, scalar)
+    zero, one, tiny, far = scalar(0.0), scalar(1.0), tiny_length(scalar), scalar(1.0e30)
+
+    @wp.func
+    def box_ray(lead: vec3, direction: vec3, size: vec3, axis: vec3):
+        t_in = -far
+        t_out = far
         face = int(-1)
+        n = vec3()
         for i in range(3):
             if wp.abs(direction[i]) > tiny:
                 a = (-size[i] - lead[i]) / direction[i]
@@ -112,13 +135,188 @@ def box_entry_func(scalar):
                     face = i
                 t_out = wp.min(t_out, wp.max(a, b))
             elif wp.abs(lead[i]) > size[i]:
-                t_out = -length  # parallel to this slab, outside it: the segment misses
+                t_out = -far  # parallel to this slab, outside it: the ray misses
         if face < 0 or t_in < zero or t_in > t_out:
-            return False, n, zero
+            return False, t_in, n
         n[face] = -wp.sign(direction[face]) * one
-        return True, n, (length - t_in) * direction[face] * n[face]
+        return True, t_in, n
 
-    return box_entry
+    return box_ray
+
+
+@functools.cache
+def box_entry_func(scalar):
+    return entry_func(scalar, box_ray_func)
+
+
+@functools.cache
+def interval_func(scalar):
+    """``interval(a, b, c) -> (found, t0, t1)``: where ``a t^2 + 2 b t + c <= 0`` (``a >= 0``), the
+    roots taken without cancellation; ``a`` near 0 (a ray along a cylinder's axis) gives all ``t``
+    where ``c <= 0`` and none elsewhere."""
+    zero, tiny, far = scalar(0.0), tiny_length(scalar), scalar(1.0e30)
+
+    @wp.func
+    def interval(a: scalar, b: scalar, c: scalar):
+        if a <= tiny * tiny:
+            return c <= zero, -far, far
+        disc = b * b - a * c
+        if disc < zero:
+            return False, zero, zero
+        root = wp.sqrt(disc)
+        k = root - b
+        if b >= zero:
+            k = -(b + root)
+        if k == zero:
+            return True, zero, zero
+        return True, wp.min(k / a, c / k), wp.max(k / a, c / k)
+
+    return interval
+
+
+@functools.cache
+def smooth_ray_func(scalar, pieces_factory, surface_factory):
+    """The ray's entry into a smooth shape: ``pieces(lead, direction, size, axis) -> (inside, t)``,
+    whether ``lead`` is inside it, else the first ``t >= 0`` where the ray meets it (``far`` where
+    it misses); ``surface(e, size, axis) -> (_, n)``: the outward unit normal ``n`` at the surface
+    point ``e`` (the sphere's and capsule's signed distances serve)."""
+    vec3 = wp.types.vector(3, scalar)
+    far = scalar(1.0e30)
+    pieces, surface = pieces_factory(scalar), surface_factory(scalar)
+
+    @wp.func
+    def smooth_ray(lead: vec3, direction: vec3, size: vec3, axis: vec3):
+        inside, t = pieces(lead, direction, size, axis)
+        if inside or t >= far:
+            return False, t, vec3()
+        _, n = surface(lead + t * direction, size, axis)
+        return True, t, n
+
+    return smooth_ray
+
+
+@functools.cache
+def _first(scalar):
+    """``first(found, t0, t1, inside, t) -> (inside, t)``: a convex piece's interval ``[t0, t1]``
+    along the ray merged into the union's ``inside`` and first entry ``t``."""
+    zero = scalar(0.0)
+
+    @wp.func
+    def first(found: bool, t0: scalar, t1: scalar, inside: bool, t: scalar):
+        if found and t1 >= zero:
+            if t0 < zero:
+                return True, t
+            return inside, wp.min(t, t0)
+        return inside, t
+
+    return first
+
+
+@functools.cache
+def ellipsoid_pieces_func(scalar):
+    """The ray's entry into the ellipsoid of semi-axes ``size`` (a sphere where they are equal):
+    the unit sphere's, scaled (``t`` stays in the ray's own length)."""
+    vec3 = wp.types.vector(3, scalar)
+    one, far = scalar(1.0), scalar(1.0e30)
+    interval, first = interval_func(scalar), _first(scalar)
+
+    @wp.func
+    def ellipsoid_pieces(lead: vec3, direction: vec3, size: vec3, axis: vec3):
+        o = wp.cw_div(lead, size)
+        v = wp.cw_div(direction, size)
+        found, t0, t1 = interval(wp.dot(v, v), wp.dot(o, v), wp.dot(o, o) - one)
+        return first(found, t0, t1, False, far)
+
+    return ellipsoid_pieces
+
+
+@functools.cache
+def ellipsoid_surface_func(scalar):
+    """``(0, n)``: the outward normal at the ellipsoid's surface point ``e``, its implicit gradient."""
+    vec3 = wp.types.vector(3, scalar)
+
+    @wp.func
+    def ellipsoid_surface(e: vec3, size: vec3, axis: vec3):
+        return scalar(0.0), wp.normalize(wp.cw_div(wp.cw_div(e, size), size))
+
+    return ellipsoid_surface
+
+
+@functools.cache
+def sphere_pieces_func(scalar):
+    vec3 = wp.types.vector(3, scalar)
+    pieces = ellipsoid_pieces_func(scalar)
+
+    @wp.func
+    def sphere_pieces(lead: vec3, direction: vec3, size: vec3, axis: vec3):
+        return pieces(lead, direction, vec3(size[0], size[0], size[0]), axis)
+
+    return sphere_pieces
+
+
+@functools.cache
+def capsule_pieces_func(scalar):
+    """The ray's entry into the capsule: the first of its two end balls and its cylinder between
+    the end planes."""
+    vec3 = wp.types.vector(3, scalar)
+    one, tiny, far = scalar(1.0), tiny_length(scalar), scalar(1.0e30)
+    interval, first = interval_func(scalar), _first(scalar)
+
+    @wp.func
+    def capsule_pieces(lead: vec3, direction: vec3, size: vec3, axis: vec3):
+        r = size[0]
+        h = size[1]
+        inside = bool(False)
+        t = far
+        for end in range(2):
+            o = lead - (scalar(2 * end - 1) * h) * axis
+            found, t0, t1 = interval(one, wp.dot(o, direction), wp.dot(o, o) - r * r)
+            inside, t = first(found, t0, t1, inside, t)
+        s = wp.dot(lead, axis)
+        v = wp.dot(direction, axis)
+        o = lead - s * axis
+        w = direction - v * axis
+        found, t0, t1 = interval(wp.dot(w, w), wp.dot(o, w), wp.dot(o, o) - r * r)
+        if wp.abs(v) > tiny:  # between the end planes
+            lower = (-h - s) / v
+            upper = (h - s) / v
+            t0 = wp.max(t0, wp.min(lower, upper))
+            t1 = wp.min(t1, wp.max(lower, upper))
+        elif wp.abs(s) > h:
+            found = False
+        return first(found and t0 <= t1, t0, t1, inside, t)
+
+    return capsule_pieces
+
+
+@functools.cache
+def sphere_ray_func(scalar):
+    return smooth_ray_func(scalar, sphere_pieces_func, sphere_sdf_func)
+
+
+@functools.cache
+def capsule_ray_func(scalar):
+    return smooth_ray_func(scalar, capsule_pieces_func, capsule_sdf_func)
+
+
+@functools.cache
+def ellipsoid_ray_func(scalar):
+    return smooth_ray_func(scalar, ellipsoid_pieces_func, ellipsoid_surface_func)
+
+
+@functools.cache
+def sphere_entry_func(scalar):
+    return entry_func(scalar, sphere_ray_func)
+
+
+@functools.cache
+def capsule_entry_func(scalar):
+    return entry_func(scalar, capsule_ray_func)
+
+
+@functools.cache
+def ellipsoid_entry_func(scalar):
+    return entry_func(scalar, ellipsoid_ray_func)
 
 
 @functools.cache
@@ -174,7 +372,7 @@ def ellipsoid_sdf_func(scalar):
     return ellipsoid_sdf
 
 
-SPHERE = analytic_collider("spheres", "collide_sphere", sphere_sdf_func)
-CAPSULE = analytic_collider("capsules", "collide_capsule", capsule_sdf_func)
+SPHERE = analytic_collider("spheres", "collide_sphere", sphere_sdf_func, sphere_entry_func)
+CAPSULE = analytic_collider("capsules", "collide_capsule", capsule_sdf_func, capsule_entry_func)
 BOX = analytic_collider("boxes", "collide_box", box_sdf_func, box_entry_func)
-ELLIPSOID = analytic_collider("ellipsoids", "collide_ellipsoid", ellipsoid_sdf_func)
+ELLIPSOID = analytic_collider("ellipsoids", "collide_ellipsoid", ellipsoid_sdf_func, ellipsoid_entry_func)

@@ -293,22 +293,22 @@ def analytic_collide_func(scalar, sdf_factory, name: str, entry_factory=None):
     axis, mu) -> (x, touched)``, the continuous test by sphere tracing (the SDF must be
     1-Lipschitz).
 
-    ``entry_factory(scalar)``, for a shape with convex edges, makes ``entry(q, leader, size) ->
-    (found, n, d)``: the face the segment from the leader to ``q`` enters the shape through, its
-    outward normal and ``q``'s signed height above it. A contact (the nearest face, or where the
-    path crossed) whose plane lies farther behind the leader than the rest length has no point at
-    the rest length: the rest length restored from it pulled the particle back inside along the
-    segment, every round (hair sliding round an edge of a moving box, 5-6 mm in). It is answered by
-    the face the segment enters through (the face the strand rests on), as for meshes
-    (``kernels/features/mesh.py``)."""
+    ``entry_factory(scalar)`` makes ``entry(q, leader, size, axis) -> (found, n, d)``: where the
+    segment from the leader to ``q`` enters the shape (a box's face, a smooth shape's tangent plane
+    there), its outward normal and ``q``'s signed height above it. A contact (the nearest point, or
+    where the path crossed) whose plane lies farther behind the leader than the rest length has no
+    point at the rest length: the rest length restored from it pulled the particle back inside
+    along the segment, every round (hair sliding round an edge of a moving box, 5-6 mm in; round a
+    capsule, sphere or flat ellipsoid thinner than a segment, 0.6-3.1 mm). It is answered by where
+    the segment enters (the side the strand rests on), as for meshes (``kernels/features/mesh.py``)."""
     vec3 = wp.types.vector(3, scalar)
     transform = transform_type(scalar)
     zero = scalar(0.0)
     tiny = tiny_length(scalar)
     sdf = sdf_factory(scalar)
     respond = respond_func(scalar)
-    entry = entry_factory(scalar) if entry_factory is not None else None
-    EDGES = entry is not None
+    entry = entry_factory(scalar) if entry_factory is not None else None  # every shape has one
+    ENTRY = entry is not None
 
     def body(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
              inv_pose: transform, inv_pose_prev: transform, size: vec3, axis: vec3, mu: scalar):
@@ -352,12 +352,12 @@ def analytic_collide_func(scalar, sdf_factory, name: str, entry_factory=None):
             return x, False
         lead = wp.transform_point(inv_pose, leader)
         dist = wp.min(dist, radius)  # a stopped particle goes onto its contact plane too
-        if wp.static(EDGES):
+        if wp.static(ENTRY):
             if wp.dot(lead - q, n) - (radius - dist) <= -rest:
                 # the contact plane is farther behind the leader than the rest length (a face round
-                # a convex edge from the leader's): the particle leaves by the face the segment from
-                # the leader enters the shape through, the face the strand rests on
-                entered, n_in, dist_in = entry(q, lead, size)
+                # a convex edge from the leader's, the far side of a thin part): the particle leaves
+                # by where the segment from the leader enters the shape, the side the strand rests on
+                entered, n_in, dist_in = entry(q, lead, size, axis)
                 if entered:
                     n = n_in
                     dist = dist_in
