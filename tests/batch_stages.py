@@ -88,3 +88,15 @@ def layer_content(path) -> dict:
 
 def hidden_files(folder) -> list[str]:
     return sorted(p.name for p in Path(folder).rglob(".*"))
+
+
+class Interrupt(Exception):
+    """Raised by :func:`stop_after` to cut a job short, as a kill would (tests of resuming)."""
+
+
+def stop_after(frames: int):
+    """A ``run_job`` progress callback that interrupts the job once ``frames`` frames are written."""
+    def stop(event):
+        if event["event"] == "frames" and event["done"] >= frames:
+            raise Interrupt()
+    return stop

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from pxr import Sdf
 from test_usd_features import sphere_collider
+from batch_stages import stop_after
 from usd_stages import add_curves, animated_xform, chain, new_stage
 
 from dftl_warp import cli
@@ -99,19 +100,10 @@ def test_a_batch_job_gives_each_set_up_warning_once_resumed_or_not(tmp_path):
     assert whole.status == "done", whole.error
     assert sum(QC_NOTE in w for w in whole.warnings) == 1, whole.warnings
 
-    class Interrupt(Exception):
-        pass
-
-    def stop_at(frames):
-        def stop(event):
-            if event["event"] == "frames" and event["done"] >= frames:
-                raise Interrupt()
-        return stop
-
     cut = tmp_path / "cut.usdc"
     seen = []
     for frames in (4, 7):   # cut twice, resumed after each
-        first = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), stop_at(frames))
+        first = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), stop_after(frames))
         assert first.status == "failed" and JobFiles(cut).checkpoint_state.exists(), first.error
         seen.append(first.warnings)
     last = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2))
@@ -156,18 +148,11 @@ def test_a_batch_job_says_what_its_options_do_not_do_as_simulate_does(tmp_path):
     add_curves(stage, "/World/Hair", chain(5, 0.02, direction=(0.0, -1.0, 0.0)), [5], widths=1e-4, bending=True)
     stage.Save()
 
-    class Interrupt(Exception):
-        pass
-
-    def stop(event):
-        if event["event"] == "frames" and event["done"] >= 4:
-            raise Interrupt()
-
     def rods(**kwargs):
         return run_job(Job(index=1, name="rods", input=str(tmp_path / "rods.usda"), output=str(tmp_path / "r.usdc"),
                            options={"quality": "draft", "substeps": 2}), "cpu", **kwargs)
 
-    cut = rods(policy=CheckpointPolicy(every_frames=2), progress=stop)
+    cut = rods(policy=CheckpointPolicy(every_frames=2), progress=stop_after(4))
     resumed = rods()
     assert cut.status == "failed" and resumed.status == "done" and resumed.resumed_from is not None, resumed.error
     for warnings in (cut.warnings, resumed.warnings):

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from pxr import Gf, UsdGeom, UsdPhysics
 
-from batch_stages import hidden_files, layer_content
+from batch_stages import hidden_files, layer_content, stop_after
 from usd_stages import add_curves, animated_xform, chain
 from usd_stages import new_stage
 from dftl_warp.batch.checkpoint import CheckpointPolicy, JobFiles, run_job
@@ -25,10 +25,6 @@ from dftl_warp.solvers.dftl import DFTLSolver
 
 RADIUS = 0.025   # hair radius, cm
 END = 10
-
-
-class Interrupt(Exception):
-    pass
 
 
 def _stage(path, ball=True):
@@ -71,12 +67,7 @@ def _job(stage, output, **options) -> Job:
 
 def _interrupted(stage, cut, options):
     """Run the job into ``cut`` until frame 7 is written, with a checkpoint at frame 7's state."""
-
-    def stop(event):
-        if event["event"] == "frames" and event["done"] >= 7:
-            raise Interrupt()
-
-    first = run_job(_job(stage, cut, **options), "cpu", CheckpointPolicy(every_frames=3), stop)
+    first = run_job(_job(stage, cut, **options), "cpu", CheckpointPolicy(every_frames=3), stop_after(7))
     assert first.status == "failed" and JobFiles(cut).checkpoint_state.exists()
 
 

@@ -10,6 +10,7 @@ warned about turning fast: the resumed job says each once, as the uninterrupted 
 from __future__ import annotations
 
 from test_warnings_one_line import field_box
+from batch_stages import stop_after
 from usd_stages import add_curves, animated_xform, chain, new_stage
 
 from dftl_warp.batch.checkpoint import CheckpointPolicy, JobFiles, run_job
@@ -30,17 +31,6 @@ def _stage(path):
     return str(path)
 
 
-class Interrupt(Exception):
-    pass
-
-
-def _stop_at(frames):
-    def stop(event):
-        if event["event"] == "frames" and event["done"] >= frames:
-            raise Interrupt()
-    return stop
-
-
 def test_a_resumed_job_repeats_the_run_s_warnings_once(tmp_path):
     stage = _stage(tmp_path / "in.usda")
 
@@ -53,7 +43,7 @@ def test_a_resumed_job_repeats_the_run_s_warnings_once(tmp_path):
         assert sum(f"{stage}: {piece}" in w for w in whole.warnings) == 1, (piece, whole.warnings)
 
     cut = tmp_path / "cut.usdc"
-    first = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), _stop_at(5))
+    first = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), stop_after(5))
     assert first.status == "failed" and JobFiles(cut).checkpoint_state.exists(), first.error
     resumed = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2))
     assert resumed.status == "done" and resumed.resumed_from is not None, resumed.error
@@ -79,7 +69,7 @@ def test_a_mesh_outrunning_its_field_all_along_is_warned_about_once_resumed_or_n
     said = [w for w in whole.warnings if MOVING in w]
     assert whole.status == "done" and len(said) == 1, (whole.error, whole.warnings)
     cut = tmp_path / "cut.usdc"
-    assert run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), _stop_at(5)).status == "failed"
+    assert run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2), stop_after(5)).status == "failed"
     resumed = run_job(job(cut), "cpu", CheckpointPolicy(every_frames=2))
     assert resumed.status == "done" and resumed.resumed_from is not None, resumed.error
     assert [w for w in resumed.warnings if MOVING in w] == said, resumed.warnings
