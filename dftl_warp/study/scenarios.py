@@ -8,6 +8,8 @@
 - :func:`groom` / :func:`head_roots`: a small groom hanging from a spherical head that turns and nods;
 - :func:`hair_cantilever` / :func:`hair_helix` / :func:`shaken_roots`: elastic strands (80 um hair,
   :data:`HAIR_RADIUS`) and a root shaken to and fro;
+- :func:`folded_strands`: strands folded tighter than a right angle at every joint, moving fast
+  (what a collider leaves when it drags hair through itself; docs/accuracy/folded.md);
 - :func:`record`: run any solver over frames and record the trajectory.
 
 Units: metres, seconds, m/s^2. Gravity is along -Y.
@@ -134,6 +136,29 @@ def shaken_roots(roots0: np.ndarray, amplitude: float = 0.02, frequency: float =
     """Root targets ``t -> roots0 + amplitude sin(2 pi frequency t) x`` (m, Hz): a head shaken sideways."""
     roots0 = np.asarray(roots0, dtype=np.float64)
     return lambda t: roots0 + np.array([amplitude * np.sin(2.0 * np.pi * frequency * t), 0.0, 0.0])
+
+
+def folded_strands(count: int, points: int = 16, segment: float = 0.005, speed: float = 0.7, seed: int = 1):
+    """(count * points, 3) positions and velocities (m, m/s) of ``count`` strands of ``points``
+    particles ``segment`` apart from roots 0.1 m apart along x (too far apart to meet): the first
+    segment hangs along -y, then every joint turns by an angle drawn in [100, 175] degrees about a
+    random axis; each free particle's velocity components are normal with deviation ``speed``."""
+    rng = np.random.default_rng(seed)
+    positions, velocities = [], []
+    for s in range(count):
+        directions = [np.array([0.0, -1.0, 0.0])]
+        for turn in np.radians(rng.uniform(100.0, 175.0, points - 2)):
+            axis = rng.normal(size=3)
+            axis -= axis.dot(directions[-1]) * directions[-1]
+            axis /= np.linalg.norm(axis)
+            d = directions[-1] * np.cos(turn) + np.cross(axis, directions[-1]) * np.sin(turn)
+            directions.append(d / np.linalg.norm(d))
+        root = np.array([0.1 * s, 0.0, 0.0])
+        positions.append(np.vstack([root, root + segment * np.cumsum(directions, 0)]))
+        v = rng.normal(size=(points, 3)) * speed
+        v[0] = 0.0
+        velocities.append(v)
+    return np.concatenate(positions), np.concatenate(velocities)
 
 
 def strand_starts(counts) -> np.ndarray:
