@@ -1,12 +1,16 @@
-"""Folded, fast strands (docs/accuracy/folded.md): DFTL with s = 1 can create energy there.
+"""Folded, fast strands (docs/accuracy/folded.md): DFTL with s = 1 no longer creates energy there.
 
 Strands folded tighter than a right angle at every joint and moving fast (as a collider leaves
 them) hold their energy under the true dynamics: the RATTLE reference in float64 at a fine step
-keeps it to 1e-3. DFTL with s = 1 at 32 substeps a frame settles into a thrash in which its
-particles move most of a segment every step and the strands hold several times that energy; the
-energy monitor flags them, and ``simulate`` advises the elastic solver for DFTL with s = 1 (before,
-it advised more substeps, which makes this worse: 64 substeps thrash harder than 32). The
-elastic solver, whose rest shape is the fold, loses energy from the same start.
+keeps it to 1e-3. With the paper's correction carried whole, DFTL with s = 1 settles at 32
+substeps a frame into a thrash in which its particles move most of a segment every step and the
+strands hold several times that energy (the numpy baseline with ``scale_pushes=False``). The
+kernels scale a follower's push on its leader by how far short of a segment it moved in the step
+(``kernels/solvers/ftl.py``, ``carried_func``): from the same start their strands lose energy at
+8 to 64 substeps, in both correction forms, and the monitor stays silent. The scaling vanishes as
+the step shrinks: on an inverted chain, whose links push as it starts to fall, DFTL still
+converges to the reference at first order, as with the paper's correction, where dropping the
+pushes outright does not converge.
 """
 
 import importlib.util
@@ -14,12 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from usd_stages import add_curves, chain, new_stage
 
-from dftl_warp.simulation.settings import SimulationOptions
-from dftl_warp.simulation.simulate import Simulation
+import dftl_warp as dw
 from dftl_warp.study.scenarios import folded_strands
-from dftl_warp.usd.read import read_scene
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "probe_dftl_folded.py"
 STRANDS, POINTS, SEGMENT, FPS, FRAMES = 4, 16, 0.005, 24, 8
@@ -50,14 +51,25 @@ def true_energy():
     return energies[0]
 
 
-def test_dftl_s1_thrashes_from_folded_fast_starts_and_the_monitor_flags_it(true_energy):
-    energies, speeds, flagged = run("dftl", 32)
-    ratio = energies.max(axis=0) / true_energy
-    assert (ratio > 3.0).all(), ratio
+def test_the_papers_correction_thrashes_from_folded_fast_starts(true_energy):
+    positions, velocities = folded_strands(STRANDS, POINTS, SEGMENT, speed=0.7, seed=1)
+    energies, speeds, _ = PROBE.run_paper(positions, velocities, STRANDS, 32)
+    energies, speeds = energies[:FRAMES], speeds[:FRAMES]
+    assert (energies.max(axis=0) / true_energy > 3.0).all(), energies.max(axis=0) / true_energy
     # the thrash: the particles move about a segment every step (not a blow-up: the speed is bounded)
     per_step = speeds[FRAMES // 2:].mean(axis=0) / FPS / 32 / SEGMENT
     assert ((per_step > 0.5) & (per_step < 1.5)).all(), per_step
-    assert flagged.all(), flagged
+
+
+@pytest.mark.parametrize("substeps", [8, 16, 32, 64])
+@pytest.mark.parametrize("correction", ["prior", "posterior"])
+def test_dftl_loses_energy_from_folded_fast_starts(true_energy, substeps, correction):
+    kind = "dftl" if correction == "prior" else "dftl posterior"
+    energies, _, flagged = run(kind, substeps)
+    # the first frames may exceed the reference's energy after its first frame (the two project
+    # the start's velocity along the segments differently); from the third frame on, below it
+    assert (energies[2:].max(axis=0) < true_energy).all(), energies[2:].max(axis=0) / true_energy
+    assert (energies.max(axis=0) < 2.0 * true_energy).all() and not flagged.any()
 
 
 def test_the_elastic_solver_loses_energy_from_the_same_start(true_energy):
@@ -65,16 +77,50 @@ def test_the_elastic_solver_loses_energy_from_the_same_start(true_energy):
     assert (energies.max(axis=0) < true_energy).all() and not flagged.any()
 
 
-def test_dftl_at_s1_advises_the_elastic_solver(tmp_path):
-    """The warning's advice for DFTL with s = 1 names the elastic solver, not more substeps."""
-    stage = new_stage(tmp_path / "in.usda", start=1, end=2)
-    add_curves(stage, "/World/Hair", chain(8, 0.01, direction=(1.0, 0.0, 0.0)), [8])
-    stage.Save()
-    advice = {}
-    for solver, damping in (("dftl", 1.0), ("dftl", 0.5), ("pbd", 1.0)):
-        sim = Simulation(read_scene(str(tmp_path / "in.usda")),
-                         SimulationOptions(device="cpu", solver=solver, damping=damping), frame=1)
-        advice[(solver, damping)] = sim.groups[0].monitor.advice
-    assert "elastic solver" in advice[("dftl", 1.0)] and "more substeps" not in advice[("dftl", 1.0)], advice
-    assert "use s = 1" in advice[("dftl", 0.5)], advice
-    assert "more substeps" in advice[("pbd", 1.0)], advice
+def inverted_chain_errors(steps_list):
+    """Largest position error (over particles, relative to L) at T = 0.1 s of a 5-particle, 2 cm chain
+    standing 10 degrees off upright, against RATTLE (float64, 20000 steps): the kernels' DFTL and the
+    numpy DFTL with the paper's correction and with pushes dropped."""
+    n, length, duration = 5, 0.02, 0.1
+    tilt = np.radians(10.0)
+    points = np.stack([np.linspace(0, length, n) * np.sin(tilt), np.linspace(0, length, n) * np.cos(tilt),
+                       np.zeros(n)], 1)
+
+    def kernel_run(solver_name, steps):
+        model = dw.Model.from_strands(points, [n], widths=1e-4, device="cpu", precision="float64")
+        solver = dw.make_solver(model, solver_name, gravity=(0.0, -9.81, 0.0))
+        state, control = solver.state(), model.control()
+        solver.advance(state, control, duration / steps, steps)
+        return model.points_from_device(state.positions, relative=False)
+
+    def numpy_run(steps, pulls_only):
+        from dftl_warp.solvers.numpy_baseline import pad_strands, step, unpad_strands
+
+        x = pad_strands(points, [n])
+        v, c = np.zeros_like(x), np.zeros_like(x)
+        rest = np.zeros((1, n))
+        rest[:, 1:] = np.linalg.norm(np.diff(x, axis=1), axis=2)
+        for _ in range(steps):
+            x, v, c = step(x, v, c, rest, np.array([n]), x[:, 0], dt=duration / steps, gravity=(0.0, -9.81, 0.0),
+                           scale_pushes=False)
+            if pulls_only:
+                pushed = np.einsum("sij,sij->si", c[:, 1:], x[:, 1:] - x[:, :-1]) > 0.0
+                c[:, 1:][pushed] = 0.0
+        return unpad_strands(x, [n])
+
+    reference = kernel_run("reference", 20000)
+    assert reference[-1, 1] < 0.0   # the chain fell past its root within the run
+    error = {"kernels": [], "paper": [], "pulls only": []}
+    for steps in steps_list:
+        error["kernels"].append(np.abs(kernel_run("dftl", steps) - reference).max() / length)
+        error["paper"].append(np.abs(numpy_run(steps, False) - reference).max() / length)
+        error["pulls only"].append(np.abs(numpy_run(steps, True) - reference).max() / length)
+    return {k: np.array(v) for k, v in error.items()}
+
+
+def test_scaled_pushes_keep_dftls_convergence_where_links_push():
+    error = inverted_chain_errors([96, 384, 1536])
+    kernels, paper = error["kernels"], error["paper"]
+    assert kernels[-1] < 0.01 and kernels[1] / kernels[2] > 3.5, kernels      # first order, to 1% of L
+    assert np.allclose(kernels, paper, rtol=0.1), (kernels, paper)            # as the paper's correction
+    assert error["pulls only"][-1] > 3.0 * kernels[-1], error                  # dropping pushes does not

@@ -100,7 +100,9 @@ def test_no_particle_enters_a_thin_shape_moving_through_hair(make, speed):
     at any substep, and the shape did push the hair."""
     worst, moved = deepest(make, speed)
     assert worst < 2 * RADIUS, f"{worst * 1e3:.3f} mm inside"
-    assert moved > 0.01
+    # pushed aside (a pass between the particles moves none): 8.9 mm for the 1 mm capsule at 0.5 m/s;
+    # 31 mm with the paper's whole push carried, whose strands then thrashed (docs/accuracy/folded.md)
+    assert moved > 0.005
 
 
 @pytest.mark.parametrize("scalar", [wp.float32, wp.float64], ids=["float32", "float64"])

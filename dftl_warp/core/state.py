@@ -43,7 +43,8 @@ class State:
     """Particle state in the model's layout, relative to ``model.origin``.
 
     positions: m; velocities: m/s; corrections: m, the prior form's carried ``x - p`` of the last
-    step (``None`` when the solver does not carry it).
+    step, a push scaled down by the step's motion (``kernels/solvers/ftl.py``, ``carried_func``;
+    ``None`` when the solver does not carry it).
 
     When the model's layout interleaves its state vectors (:mod:`dftl_warp.core.layout`), the three
     arrays are views of one ``storage`` buffer, offset by 32 and 64 slots: each view's slots past

@@ -139,13 +139,7 @@ class Group:
 
             setting = describe_setting(scene, members, settings, options)
             advice = None   # the default: DFTL with s < 1
-            if settings.solver == "dftl" and settings.damping == 1.0:
-                # s = 1 thrashes where strands fold tighter than a right angle and move fast, at some
-                # substep counts and not at others (docs/accuracy/folded.md): more substeps can be worse
-                advice = ("DFTL strands folded tighter than a right angle can thrash, their particles moving "
-                          "about a segment every substep (docs/accuracy/folded.md): the elastic solver "
-                          "(--solver elastic) holds them; another substep count may")
-            elif not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
+            if not (settings.solver in ("dftl", "ftl") and settings.damping < 1.0):
                 advice = "more substeps per frame (--substeps, or --quality production) may hold it"
             seconds = 1.0 / scene.stage.time_codes_per_second   # the time the controls' collider poses span
             monitors = [EnergyMonitor(s, setting, st, meters_per_unit=scene.stage.meters_per_unit, advice=advice,

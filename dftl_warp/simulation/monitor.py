@@ -50,9 +50,9 @@ sees the colliders when it is given the run's Control and the frame's duration (
 the colliders followed in it); without them a moving collider's work looks created.
 
 A physical strand never gains energy while its root and the colliders it touches are held, and DFTL
-with ``s = 1`` dissipates on straight strands (the stability map in docs/accuracy.md records its largest
-energy / budget ratio), though not always on strands folded tighter than a right angle and moving fast
-(docs/accuracy/folded.md); a strand above its budget has *created* energy -- at least doubled it since its root (or a
+with ``s = 1`` dissipates (the stability map in docs/accuracy.md records its largest energy / budget
+ratio; on strands folded tighter than a right angle and moving fast since its pushes are scaled,
+docs/accuracy/folded.md); a strand above its budget has *created* energy -- at least doubled it since its root (or a
 collider in reach) last moved, or grown from rest to more than ``floor``. That is the signature of ``s < 1`` at small steps: the unbalanced
 velocity corrections pump energy into the strand faster than follow-the-leader dissipates it,
 and a strand hanging at rest starts to move by itself.

@@ -35,11 +35,14 @@ def _of_follower(values, counts):
     return out
 
 
-def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correction="prior", degenerate=1e-12):
+def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correction="prior", degenerate=1e-12,
+         scale_pushes=True):
     """One DFTL step on padded arrays; returns new ``(x, v, corr)``.
 
     x, v, corr: (S, n, 3); rest: (S, n) rest length of the segment ending at each particle;
-    roots: (S, 3) root targets after the step.
+    roots: (S, 3) root targets after the step. ``scale_pushes``: a follower's correction that
+    pushes its leader is scaled by ``max(1 - m, 0)``, ``m`` its motion in the step over its rest
+    length, as the kernels do (``kernels/solvers/ftl.py``); False: the paper's ``x - p``.
     """
     S, n, _ = x.shape
     g = np.asarray(gravity, dtype=x.dtype) * dt * dt
@@ -66,6 +69,11 @@ def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correctio
         )
         xn[:, i] = xn[:, i - 1] + rest[:, i, None] * direction
     cn[:, 1:] = xn[:, 1:] - p[:, 1:]
+    if scale_pushes:
+        pushes = np.einsum("sij,sij->si", cn[:, 1:], xn[:, 1:] - xn[:, :-1]) > 0.0
+        moved = np.linalg.norm(xn[:, 1:] - x[:, 1:], axis=2)
+        share = np.maximum(rest[:, 1:] - moved, 0.0) / np.where(pushes, rest[:, 1:], 1.0)
+        cn[:, 1:] *= np.where(pushes, share, 1.0)[..., None]
     vn[:, 1:] = (xn[:, 1:] - x[:, 1:]) / dt
     if correction == "posterior":
         vn[:, 1:] -= damping * _of_follower(cn, counts)[:, 1:] / dt

@@ -142,7 +142,9 @@ def folded_strands(count: int, points: int = 16, segment: float = 0.005, speed: 
     """(count * points, 3) positions and velocities (m, m/s) of ``count`` strands of ``points``
     particles ``segment`` apart from roots 0.1 m apart along x (too far apart to meet): the first
     segment hangs along -y, then every joint turns by an angle drawn in [100, 175] degrees about a
-    random axis; each free particle's velocity components are normal with deviation ``speed``."""
+    random axis. Each free particle's velocity is drawn on its own, its components normal with
+    deviation ``speed``: along the segments too, as a collider's push leaves hair, which the links
+    then correct; the roots are still."""
     rng = np.random.default_rng(seed)
     positions, velocities = [], []
     for s in range(count):

@@ -37,7 +37,7 @@ from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
 from ..features.grid import grid_sample_func
 from ..features.step import NOISE_STRIDE, check_flags, feature_struct  # noqa: F401  (re-exported)
-from .ftl import STEP_MODULE_OPTIONS, follow_func
+from .ftl import STEP_MODULE_OPTIONS, carried_func, follow_func
 
 #: CUDA register cap of the featured sweep (None: the compiler's choice; ``scripts/profile_features.py
 #: --sweep-caps`` measures others)
@@ -53,6 +53,7 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
     vec3 = wp.types.vector(3, scalar)
     Features = feature_struct(scalar, flags)
     follow = follow_func(scalar)
+    carried = carried_func(scalar)
     grid_sample = grid_sample_func(scalar)
 
     PRIOR = correction == "prior"
@@ -146,7 +147,7 @@ def featured_step_kernel(scalar, correction: str, flags: frozenset):
                     p = madd(-damping, corrections_in[particle(base, stride, i + 1)], p)
             rest = rest_lengths[k]
             x = follow(leader, p, rest, leader_old, x_old)
-            correction = x - p
+            correction = carried(x, p, leader, x_old, rest)
             if wp.static(COLLIDE):
                 radius = features.particle_radius[k]
                 for it in range(features.collider_iterations):

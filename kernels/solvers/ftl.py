@@ -15,6 +15,14 @@ Each kernel advances every strand by one substep ``dt`` (s):
    - *prior* (the seed's eq. 4-6): the previous step's correction of particle ``i+1`` enters the
      prediction, ``p_i -= s dx_{i+1}^{n-1}``, and ``v_i = (x_i - x_i_old)/dt``.
 
+   The correction a follower hands its leader (:func:`carried_func`) is ``x - p`` where the link
+   pulls; where it *pushes* (``x - p`` points away from the leader) it is scaled by
+   ``max(1 - m, 0)``, ``m`` the follower's motion in the step over its rest length. Unscaled, the
+   lagged push of a follower that moves most of a segment every step pumps energy into folded,
+   fast strands (docs/accuracy/folded.md); ``m`` is ``|v| dt / l``, so the scaling vanishes as
+   ``dt -> 0`` and the convergence to the constrained dynamics is kept (a change of order ``dt``
+   in a push of order ``dt^2``: below DFTL's own first-order error).
+
 Both forms produce the same positions. The kernels are made per precision (``wp.float32`` or
 ``wp.float64``) by :func:`step_kernel`; they may run in place (``*_in`` and ``*_out`` the same
 arrays) because each thread reads a particle before it writes it.
@@ -84,12 +92,33 @@ def follow_func(scalar):
 
 
 @functools.cache
+def carried_func(scalar):
+    """The correction a follower hands its leader, for ``scalar`` precision (cached ``wp.func``)."""
+    vec3 = wp.types.vector(3, scalar)
+
+    @wp.func
+    def carried(x: vec3, p: vec3, leader: vec3, x_old: vec3, rest: scalar):
+        """``x - p`` of a follower now at ``x`` (predicted ``p``, before the step at ``x_old``)
+        behind ``leader``: whole where the link pulls it toward the leader; where the link pushes it
+        away, times ``max(rest - |x - x_old|, 0) / rest`` (none once it moved a segment in the step).
+        A push has ``x`` off the leader, so ``rest`` > 0 there."""
+        c = x - p
+        if wp.dot(c, x - leader) > scalar(0.0):
+            moved = wp.sqrt(norm2(x - x_old))
+            c = c * (wp.max(rest - moved, scalar(0.0)) / rest)
+        return c
+
+    return carried
+
+
+@functools.cache
 def bare_step_kernel(scalar, correction: str):
     """The bare DFTL step kernel (gravity and roots only) for ``scalar`` precision and ``correction`` form."""
     if correction not in CORRECTIONS:
         raise ValueError(f"unknown correction {correction!r}")
     vec3 = wp.types.vector(3, scalar)
     follow = follow_func(scalar)
+    carried = carried_func(scalar)
     bounds = STEP_LAUNCH_BOUNDS.get(scalar)
 
     if correction == "prior":
@@ -135,10 +164,11 @@ def bare_step_kernel(scalar, correction: str):
                 p = madd(dt, velocities_in[k], x_old) + gdt2
                 if i + 1 < n:
                     p = madd(-damping, corrections_in[particle(base, stride, i + 1)], p)
-                x = follow(leader, p, rest_lengths[k], leader_old, x_old)
+                rest = rest_lengths[k]
+                x = follow(leader, p, rest, leader_old, x_old)
                 positions_out[k] = x
                 velocities_out[k] = (x - x_old) * inv_dt
-                corrections_out[k] = x - p
+                corrections_out[k] = carried(x, p, leader, x_old, rest)
                 leader = x
                 leader_old = x_old
 
@@ -181,11 +211,13 @@ def bare_step_kernel(scalar, correction: str):
             k = particle(base, stride, i)
             x_old = positions_in[k]
             p = madd(dt, velocities_in[k], x_old) + gdt2
-            x = follow(leader, p, rest_lengths[k], leader_old, x_old)
+            rest = rest_lengths[k]
+            x = follow(leader, p, rest, leader_old, x_old)
             positions_out[k] = x
             if i > 1:
                 # the leader's velocity, now that this particle's correction is known
-                velocities_out[k_prev] = madd(-(damping * inv_dt), x - p, (leader - leader_old) * inv_dt)
+                velocities_out[k_prev] = madd(-(damping * inv_dt), carried(x, p, leader, x_old, rest),
+                                              (leader - leader_old) * inv_dt)
             leader = x
             leader_old = x_old
             k_prev = k

@@ -29,7 +29,7 @@ import functools
 import warp as wp
 
 from ..core.arith import madd
-from .ftl import CORRECTIONS, STEP_MODULE_OPTIONS, follow_func
+from .ftl import CORRECTIONS, STEP_MODULE_OPTIONS, carried_func, follow_func
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 
@@ -105,6 +105,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     rows = wp.types.matrix(shape=(N, 3), dtype=scalar)
     column = wp.types.vector(N, dtype=scalar)
     follow = follow_func(scalar)
+    carried = carried_func(scalar)
     prior = correction == "prior"
     options = {**STEP_MODULE_OPTIONS, "max_unroll": 4 * N + 16}
     # rest lengths stay on chip up to REST_ON_CHIP_MAX; longer strands re-read them to save registers
@@ -137,7 +138,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
         next substep's prediction (before its follower's correction is subtracted)."""
         xi = follow(leader, p, rest, leader_old, x_old)
         vi = (xi - x_old) * inv_dt
-        return xi, vi, xi - p, madd(dt, vi, xi) + gdt2
+        return xi, vi, carried(xi, p, leader, x_old, rest), madd(dt, vi, xi) + gdt2
 
     @wp.kernel(enable_backward=False, module="unique", module_options=options,
                launch_bounds=FUSED_LAUNCH_BOUNDS.get((scalar, N)))
@@ -220,7 +221,8 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                     else:
                         xi = follow(leader, p, rest_i, leader_old, x_old)
                         if i > 1:
-                            v_leader = madd(-(damping * inv_dt), xi - p, (leader - leader_old) * inv_dt)
+                            v_leader = madd(-(damping * inv_dt), carried(xi, p, leader, x_old, rest_i),
+                                            (leader - leader_old) * inv_dt)
                             b[i - 1] = madd(dt, v_leader, leader) + gdt2
                         if i + 1 == n:
                             b[i] = madd(dt, (xi - x_old) * inv_dt, xi) + gdt2
@@ -258,7 +260,8 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
                 else:
                     xi = follow(leader, p, rest_i, leader_old, x_old)
                     if i > 1:
-                        velocities[k_prev] = madd(-(damping * inv_dt), xi - p, (leader - leader_old) * inv_dt)
+                        velocities[k_prev] = madd(-(damping * inv_dt), carried(xi, p, leader, x_old, rest_i),
+                                                  (leader - leader_old) * inv_dt)
                     if i + 1 == n:
                         velocities[k] = (xi - x_old) * inv_dt
                 positions[k] = xi

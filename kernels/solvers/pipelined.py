@@ -43,7 +43,7 @@ import functools
 import warp as wp
 
 from ..core.arith import madd
-from .ftl import STEP_MODULE_OPTIONS, follow_func
+from .ftl import STEP_MODULE_OPTIONS, carried_func, follow_func
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 
@@ -92,6 +92,7 @@ def pipeline_funcs(scalar):
     apart (32 unless the layout interleaves state vectors; the host checks it)."""
     vec3 = wp.types.vector(3, scalar)
     follow = follow_func(scalar)
+    carried = carried_func(scalar)
 
     @wp.func
     def run_strand_base(run_base: wp.int32, r: wp.int32, strand_step: wp.int32, chunk: wp.int32):
@@ -153,7 +154,7 @@ def pipeline_funcs(scalar):
             return x, v, vec3(), x_old, root_start, b_in
         x = follow(leader, b_in, rest, leader_old, x_in)
         v = (x - x_in) * inv_dt
-        return x, v, x - b_in, x_in, x, madd(dt, v, x) + gdt2
+        return x, v, carried(x, b_in, leader, x_in, rest), x_in, x, madd(dt, v, x) + gdt2
 
     @wp.func
     def handover(i: wp.int32, b: vec3, follower_correction: vec3, damping: scalar):
