@@ -12,7 +12,7 @@ from a fixed root; each joint turns by an angle drawn in [100, 175] degrees abou
 every free particle gets a random velocity, each component normal with deviation ``--speed`` m/s.
 Gravity -9.81 m/s^2 along y, 24 frames a second.
 
-Runs, on the CPU device:
+Runs, on ``--device`` (the CPU by default; the numpy runs on the host):
 - ``dftl``: DFTL, s = 1, the prior form (the default), as the kernels run it: a follower's
   correction that pushes its leader is scaled by how far short of a segment it moved in the step
   (``kernels/solvers/ftl.py``, ``carried_func``); ``dftl posterior``: the paper's velocity form;
@@ -56,14 +56,14 @@ POINTS, SEGMENT, FPS, FRAMES, G = 16, 0.005, 24, 24, 9.81
 SUBSTEPS = (4, 8, 16, 32, 64, 128, 256)
 
 
-def run_solver(kind: str, points, velocities, count: int, substeps: int, frames: int = FRAMES):
+def run_solver(kind: str, points, velocities, count: int, substeps: int, frames: int = FRAMES, device: str = "cpu"):
     """Per frame and strand (frames x count): the available energy (J/kg) and the RMS speed of the
     free particles (m/s); per strand, whether the energy monitor flagged it."""
     import dftl_warp as dw
     from dftl_warp.simulation.monitor import EnergyGrowthWarning, EnergyMonitor
 
     precision = "float64" if kind == "reference" else "float32"
-    model = dw.Model.from_strands(points, [POINTS] * count, widths=1e-4, device="cpu", precision=precision)
+    model = dw.Model.from_strands(points, [POINTS] * count, widths=1e-4, device=device, precision=precision)
     name, options = {"dftl": ("dftl", {}), "dftl posterior": ("dftl", {"correction": "posterior"}),
                      "reference": ("reference", {}), "elastic": ("elastic", {})}[kind]
     solver = dw.make_solver(model, name, gravity=(0.0, -G, 0.0), **options)
@@ -166,6 +166,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--substeps", type=int, nargs="+", default=list(SUBSTEPS))
     parser.add_argument("--reference-substeps", type=int, default=1024)
+    parser.add_argument("--device", default="cpu")
     parser.add_argument("--out", type=Path, default=Path("docs/accuracy"))
     args = parser.parse_args(argv)
     import warp as wp
@@ -176,7 +177,8 @@ def main(argv=None) -> int:
     points, velocities = folded_strands(args.strands, POINTS, SEGMENT, args.speed, args.seed)
     kinds = ("dftl", "dftl posterior", "elastic", "paper's correction", "paper's, pulls only")
     rows, started = [], time.time()
-    reference, _, _ = run_solver("reference", points, velocities, args.strands, args.reference_substeps)
+    reference, _, _ = run_solver("reference", points, velocities, args.strands, args.reference_substeps,
+                                 device=args.device)
     true_energy = reference[0]
     drift = float(np.abs(reference / true_energy - 1.0).max())
     for kind in kinds:
@@ -185,7 +187,8 @@ def main(argv=None) -> int:
                 energies, speeds, flagged = run_paper(points, velocities, args.strands, substeps,
                                                       pulls_only=kind == "paper's, pulls only")
             else:
-                energies, speeds, flagged = run_solver(kind, points, velocities, args.strands, substeps)
+                energies, speeds, flagged = run_solver(kind, points, velocities, args.strands, substeps,
+                                                       device=args.device)
             grew, median, per_step, warned = summarize(energies, speeds, flagged, true_energy, substeps)
             rows.append({"run": kind, "substeps": substeps, "strands": args.strands, "energy_doubled": grew,
                          "median_largest_ratio": round(median, 4), "segments_per_step": round(per_step, 4),
@@ -198,7 +201,8 @@ def main(argv=None) -> int:
         writer.writerows(rows)
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     command = "python scripts/probe_dftl_folded.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    lines = [f"`{command.strip()}` ({platform.machine()} CPU, {stamp}, {time.time() - started:.0f} s). "
+    machine = f"{platform.machine()} CPU" if args.device == "cpu" else wp.get_device(args.device).name
+    lines = [f"`{command.strip()}` ({machine}, {stamp}, {time.time() - started:.0f} s). "
              f"{args.strands} strands of {POINTS} points {SEGMENT * 1e3:g} mm apart, folded by 100-175 degrees at "
              f"every joint, velocity components of deviation {args.speed:g} m/s; one second at {FPS} fps. "
              "Cells: strands whose energy at some frame exceeded twice their true energy / median of the largest "

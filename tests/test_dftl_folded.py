@@ -40,7 +40,7 @@ def run(kind, substeps):
     """Per frame and strand, the available energy (J/kg, summed over particles) and the RMS speed,
     and the strands the monitor flagged (the probe's runs, on 4 strands for 8 frames)."""
     positions, velocities = folded_strands(STRANDS, POINTS, SEGMENT, speed=0.7, seed=1)
-    return PROBE.run_solver(kind, positions, velocities, STRANDS, substeps, frames=FRAMES)
+    return PROBE.run_solver(kind, positions, velocities, STRANDS, substeps, frames=FRAMES, device="cpu")
 
 
 @pytest.fixture(scope="module")
@@ -124,3 +124,55 @@ def test_scaled_pushes_keep_dftls_convergence_where_links_push():
     assert kernels[-1] < 0.01 and kernels[1] / kernels[2] > 3.5, kernels      # first order, to 1% of L
     assert np.allclose(kernels, paper, rtol=0.1), (kernels, paper)            # as the paper's correction
     assert error["pulls only"][-1] > 3.0 * kernels[-1], error                  # dropping pushes does not
+
+
+@pytest.mark.parametrize("points", [16, 40])   # on-chip fused kernel; pipelined (longer than 32)
+@pytest.mark.parametrize("scale_pushes", [True, False])
+def test_fused_substeps_equal_the_step_kernel_on_folded_strands_bitwise(points, scale_pushes):
+    """Folded, fast strands push at every step: the fused (16 points) and pipelined (40) substeps
+    carry the same scaled, or whole, pushes as the per-step kernel, to the bit."""
+    positions, velocities = folded_strands(3, points, SEGMENT, speed=0.7, seed=2)
+    out = []
+    for fused in (False, True):
+        model = dw.Model.from_strands(positions, [points] * 3, widths=1e-4, device="cpu")
+        solver = dw.DFTLSolver(model, gravity=(0.0, -9.81, 0.0), fused=fused, scale_pushes=scale_pushes)
+        state, control = solver.state(), model.control()
+        state.velocities.assign(model.points_to_device(velocities, relative=False))
+        for _ in range(3):
+            solver.advance(state, control, 1.0 / FPS / 8, 8)
+        out.append([a.numpy().copy() for a in (state.positions, state.velocities, state.corrections)])
+    for a, b in zip(*out):
+        assert np.array_equal(a, b)
+
+
+def test_scale_pushes_false_is_the_papers_correction():
+    """``DFTLSolver(scale_pushes=False)`` runs the numpy baseline's paper form (float64, to round-off
+    over 8 steps: the thrash amplifies round-off after that) and thrashes from the folded start as
+    it does; the default does not."""
+    from dftl_warp.solvers.numpy_baseline import pad_strands, step, unpad_strands
+
+    positions, velocities = folded_strands(STRANDS, POINTS, SEGMENT, speed=0.7, seed=1)
+    dt = 1.0 / FPS / 32
+    x, v = pad_strands(positions, [POINTS] * STRANDS), pad_strands(velocities, [POINTS] * STRANDS)
+    c = np.zeros_like(x)
+    rest = np.zeros((STRANDS, POINTS))
+    rest[:, 1:] = np.linalg.norm(np.diff(x, axis=1), axis=2)
+    for _ in range(8):
+        x, v, c = step(x, v, c, rest, np.full(STRANDS, POINTS), x[:, 0], dt=dt, gravity=(0.0, -9.81, 0.0),
+                       scale_pushes=False)
+    speeds = {}
+    for scale_pushes in (False, True):
+        model = dw.Model.from_strands(positions, [POINTS] * STRANDS, widths=1e-4, device="cpu", precision="float64")
+        solver = dw.DFTLSolver(model, gravity=(0.0, -9.81, 0.0), scale_pushes=scale_pushes)
+        state, control = solver.state(), model.control()
+        state.velocities.assign(model.points_to_device(velocities, relative=False))
+        solver.advance(state, control, dt, 8)
+        if not scale_pushes:
+            got = model.points_from_device(state.positions, relative=False)
+            assert np.abs(got - unpad_strands(x, [POINTS] * STRANDS)).max() < 1e-12
+        solver.advance(state, control, dt, 6 * 32 - 8)
+        vel = model.points_from_device(state.velocities, relative=False)
+        speeds[scale_pushes] = float(np.sqrt((vel ** 2).sum(axis=1).mean()))
+    # after 6 frames at 32 substeps: the whole pushes keep the particles near a segment per step
+    # (0.69 of one), the scaled ones have let them settle (0.06)
+    assert speeds[False] * dt / SEGMENT > 0.4 and speeds[True] * dt / SEGMENT < 0.15, speeds

@@ -43,13 +43,18 @@ class DFTLSolver(Solver):
         fused: run a frame's substeps in one launch per strand group, state kept on chip
             (:mod:`dftl_warp.kernels.solvers.fused`; identical results). ``None``: on CUDA, for the frames
             where the H200 measurements say it is faster (:func:`fused_pays`).
+        scale_pushes: a follower's correction that pushes its leader is scaled by how far short of
+            a segment the follower moved in the step (:func:`~dftl_warp.kernels.solvers.ftl.carried_func`):
+            folded, fast strands do not thrash (docs/accuracy/folded.md). False: the paper's whole
+            correction, as before 2026-11-28, whose fused substeps of 32-particle strands are about
+            a fifth faster on an H200 (docs/benchmarks.md).
     """
 
     name = "dftl"
-    options = ("damping", "correction", "fused")
+    options = ("damping", "correction", "fused", "scale_pushes")
 
     def __init__(self, model, *, damping: float = 1.0, correction: str = "prior", gravity=DEFAULT_GRAVITY,
-                 fused: bool | None = None):
+                 fused: bool | None = None, scale_pushes: bool = True):
         if correction not in CORRECTIONS:
             raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
         # a string or a bool was taken through float() / bool(): fused="no" turned fused substeps on
@@ -57,18 +62,21 @@ class DFTLSolver(Solver):
             raise ValueError(f"damping must be in [0, 1], got {damping!r}")
         if fused is not None:
             check_bool("fused", fused)
+        check_bool("scale_pushes", scale_pushes)
         super().__init__(model, gravity=gravity)
         self.damping = float(damping)
         self.correction = correction
+        self.scale_pushes = bool(scale_pushes)
         # the step specialized to the model's features; a gravity-only model gets the bare kernel
-        self._kernel = step_kernel(model.scalar, correction) if not model.feature_flags else None
+        self._kernel = (step_kernel(model.scalar, correction, scale_pushes=self.scale_pushes)
+                        if not model.feature_flags else None)
         self._features = None
         if model.feature_flags:
             from ..features.step import FeatureStep, velocity_pass_flags
 
             # hair-hair, drag and wind in their own pass; the sweep keeps the colliders (or is bare)
             pass_flags, sweep_flags = velocity_pass_flags(model.feature_flags)
-            self._kernel = step_kernel(model.scalar, correction, sweep_flags)
+            self._kernel = step_kernel(model.scalar, correction, sweep_flags, scale_pushes=self.scale_pushes)
             self._features = FeatureStep(model, self._kernel, velocity_form="velocity" if pass_flags else None)
         # the prior form fuses strands of any length (the pipelined kernel); the posterior form
         # keeps whole strands on chip
@@ -88,8 +96,8 @@ class DFTLSolver(Solver):
         self._longest = int(model.layout.strand_count.max()) if model.num_strands else 0
         # strands kept on chip, by capacity; longer ones (prior form) pipelined, by vertex count
         on_chip = ON_CHIP_PRIOR_VERTICES if correction == "prior" else MAX_FUSED_VERTICES
-        self._fused_runs = (fused_runs(model.layout.strand_count, model.scalar, correction, longest=on_chip)
-                            if self.fused else [])
+        self._fused_runs = (fused_runs(model.layout.strand_count, model.scalar, correction, longest=on_chip,
+                                       scale_pushes=self.scale_pushes) if self.fused else [])
         self._fused_block_dims = [fused_block_dim(model.scalar, fused_capacity(model.layout.strand_count[first]))
                                   for _, first, _ in self._fused_runs]
         self._pipelined_runs = pipelined_runs(model.layout, on_chip) if self.fused else []
@@ -163,7 +171,8 @@ class DFTLSolver(Solver):
         curved = control.root_path_curved
 
         def kernels():
-            pipelined = [pipelined_kernel(m.scalar, substeps, curved)] if use_fused and self._pipelined_runs else []
+            pipelined = ([self._pipelined_kernel(substeps, curved)] if use_fused and self._pipelined_runs
+                         else [])
             return self.kernels() + pipelined
 
         self.launch_frame(state, control, dt, substeps, run, kernels, variant=(curved,))
@@ -193,13 +202,21 @@ class DFTLSolver(Solver):
                     m.rest_lengths, self.gravity, dt, self.damping]
             tail = [state.positions, state.velocities, state.corrections]
             if m.device.is_cuda:
-                wp.launch(pipelined_kernel(m.scalar, substeps, control.root_path_curved), dim=run.groups * substeps,
+                wp.launch(self._pipelined_kernel(substeps, control.root_path_curved), dim=run.groups * substeps,
                           block_dim=PIPELINED_BLOCK,
                           inputs=head + tail, device=m.device)
             else:
                 vectors, scalars = self._lanes(run.groups * substeps)
-                wp.launch(pipelined_serial_kernel(m.scalar, control.root_path_curved), dim=run.groups,
+                wp.launch(pipelined_serial_kernel(m.scalar, control.root_path_curved, **self._whole), dim=run.groups,
                           inputs=head + [substeps, vectors, scalars] + tail, device=m.device)
+
+    @property
+    def _whole(self) -> dict:
+        """Keyword arguments of the kernel factories for ``scale_pushes`` (none for the default)."""
+        return {} if self.scale_pushes else {"scale_pushes": False}
+
+    def _pipelined_kernel(self, substeps, curved):
+        return pipelined_kernel(self.model.scalar, substeps, curved, **self._whole)
 
     def _lanes(self, rows: int):
         """Scratch lane states of the serial pipelined kernel (at least ``rows`` lanes)."""

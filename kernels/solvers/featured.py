@@ -45,15 +45,16 @@ CUDA_MAX_REGISTERS = None
 
 
 @functools.cache
-def featured_step_kernel(scalar, correction: str, flags: frozenset):
-    """The DFTL step for ``scalar`` precision, ``correction`` form and the non-empty ``flags``."""
+def featured_step_kernel(scalar, correction: str, flags: frozenset, scale_pushes: bool = True):
+    """The DFTL step for ``scalar`` precision, ``correction`` form and the non-empty ``flags``;
+    ``scale_pushes``: :func:`~.ftl.carried_func`."""
     flags = check_flags(flags)
     if not flags:
         raise ValueError("the empty feature set runs the bare step (kernels.ftl.step_kernel)")
     vec3 = wp.types.vector(3, scalar)
     Features = feature_struct(scalar, flags)
     follow = follow_func(scalar)
-    carried = carried_func(scalar)
+    carried = carried_func(scalar, scale_pushes)
     grid_sample = grid_sample_func(scalar)
 
     PRIOR = correction == "prior"

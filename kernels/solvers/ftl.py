@@ -92,33 +92,46 @@ def follow_func(scalar):
 
 
 @functools.cache
-def carried_func(scalar):
-    """The correction a follower hands its leader, for ``scalar`` precision (cached ``wp.func``)."""
+def carried_func(scalar, scale_pushes: bool = True):
+    """The correction a follower hands its leader, for ``scalar`` precision (cached ``wp.func``);
+    ``scale_pushes=False``: the paper's ``x - p`` whole (the kernels of before 2026-11-28, for their
+    speed: docs/accuracy/folded.md)."""
     vec3 = wp.types.vector(3, scalar)
+    if not scale_pushes:
+
+        @wp.func
+        def carried_whole(x: vec3, p: vec3, leader: vec3, x_old: vec3, rest: scalar):
+            """``x - p`` (``leader``, ``x_old`` and ``rest`` unused)."""
+            return x - p
+
+        return carried_whole
 
     @wp.func
     def carried(x: vec3, p: vec3, leader: vec3, x_old: vec3, rest: scalar):
         """``x - p`` of a follower now at ``x`` (predicted ``p``, before the step at ``x_old``)
         behind ``leader``: whole where the link pulls it toward the leader; where the link pushes it
-        away, times ``max(rest - |x - x_old|, 0) / rest`` (none once it moved a segment in the step).
-        A push has ``x`` off the leader, so ``rest`` > 0 there."""
+        away, times ``max(1 - |x - x_old| / rest, 0)`` (none once it moved a segment in the step).
+        The ratio is ``u rsqrt(u rest^2)`` with ``u = |x - x_old|^2`` (one reciprocal square root, no
+        division: the fused kernels have no registers to spare), ``u rest^2`` kept above 1e-30."""
         c = x - p
         if wp.dot(c, x - leader) > scalar(0.0):
-            moved = wp.sqrt(norm2(x - x_old))
-            c = c * (wp.max(rest - moved, scalar(0.0)) / rest)
+            moved2 = norm2(x - x_old)
+            c = c * wp.max(scalar(1.0) - moved2 * rsqrt(wp.max(moved2 * (rest * rest), scalar(1.0e-30))),
+                           scalar(0.0))
         return c
 
     return carried
 
 
 @functools.cache
-def bare_step_kernel(scalar, correction: str):
-    """The bare DFTL step kernel (gravity and roots only) for ``scalar`` precision and ``correction`` form."""
+def bare_step_kernel(scalar, correction: str, scale_pushes: bool = True):
+    """The bare DFTL step kernel (gravity and roots only) for ``scalar`` precision and ``correction``
+    form; ``scale_pushes``: :func:`carried_func`."""
     if correction not in CORRECTIONS:
         raise ValueError(f"unknown correction {correction!r}")
     vec3 = wp.types.vector(3, scalar)
     follow = follow_func(scalar)
-    carried = carried_func(scalar)
+    carried = carried_func(scalar, scale_pushes)
     bounds = STEP_LAUNCH_BOUNDS.get(scalar)
 
     if correction == "prior":

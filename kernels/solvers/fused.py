@@ -93,7 +93,7 @@ def fused_block_dim(scalar, capacity: int) -> int:
 
 
 @functools.cache
-def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = False):
+def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = False, scale_pushes: bool = True):
     """Kernel advancing strands of at most (``exact``: exactly) ``capacity`` vertices by
     ``substeps`` steps (cached). Launch with ``dim`` = number of strands in the run; thread ``t``
     advances device strand ``first_strand + t``."""
@@ -105,7 +105,7 @@ def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = Fals
     rows = wp.types.matrix(shape=(N, 3), dtype=scalar)
     column = wp.types.vector(N, dtype=scalar)
     follow = follow_func(scalar)
-    carried = carried_func(scalar)
+    carried = carried_func(scalar, scale_pushes)
     prior = correction == "prior"
     options = {**STEP_MODULE_OPTIONS, "max_unroll": 4 * N + 16}
     # rest lengths stay on chip up to REST_ON_CHIP_MAX; longer strands re-read them to save registers

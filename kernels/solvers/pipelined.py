@@ -83,7 +83,7 @@ def shuffle_from(v: wp.float64, lane: wp.int32, mask: wp.uint32, width: wp.int32
 
 
 @functools.cache
-def pipeline_funcs(scalar):
+def pipeline_funcs(scalar, scale_pushes: bool = True):
     """The per-particle functions both kernels share, for ``scalar`` precision.
 
     A run's strands are ``first + r`` for ``r`` in ``[0, strands)``; strand ``r``'s particle ``i``
@@ -92,7 +92,7 @@ def pipeline_funcs(scalar):
     apart (32 unless the layout interleaves state vectors; the host checks it)."""
     vec3 = wp.types.vector(3, scalar)
     follow = follow_func(scalar)
-    carried = carried_func(scalar)
+    carried = carried_func(scalar, scale_pushes)
 
     @wp.func
     def run_strand_base(run_base: wp.int32, r: wp.int32, strand_step: wp.int32, chunk: wp.int32):
@@ -183,7 +183,7 @@ def _shuffles(scalar):
 
 
 @functools.cache
-def pipelined_kernel(scalar, substeps: int, root_path: bool = True):
+def pipelined_kernel(scalar, substeps: int, root_path: bool = True, scale_pushes: bool = True):
     """CUDA kernel: ``substeps`` prior-form substeps of one run of ``strands`` strands of ``n``
     vertices, in ``groups`` groups (at most ``strands``) of ``substeps`` neighbouring threads.
     Launch with ``dim = groups * substeps`` and a block of a multiple of 32 threads. It takes the
@@ -194,7 +194,7 @@ def pipelined_kernel(scalar, substeps: int, root_path: bool = True):
     if K not in CUDA_LANES:
         raise ValueError(f"pipelined substeps must be one of {CUDA_LANES}, got {substeps}")
     vec3 = wp.types.vector(3, scalar)
-    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar, scale_pushes)
     vec_up, vec_from = _shuffles(scalar)
     group_mask = (1 << K) - 1 if K < 32 else 0xFFFFFFFF
     # the K sweeps of a block stay a loop: unrolled, the compiler hoists the block's independent
@@ -309,14 +309,14 @@ def pipelined_kernel(scalar, substeps: int, root_path: bool = True):
 
 
 @functools.cache
-def pipelined_serial_kernel(scalar, root_path: bool = True):
+def pipelined_serial_kernel(scalar, root_path: bool = True, scale_pushes: bool = True):
     """Any device: the pipelined substeps with one thread per group running its ``substeps``
     lanes in turn, last lane first. Launch with ``dim = groups``; ``lane_vectors``
     (``groups * substeps`` x 6) and ``lane_scalars`` (x 2) are scratch. The kernel takes the
     roots' path deviations after ``root_end`` (module docstring); ``root_path=False`` never reads
     them (the linear path), as :func:`pipelined_kernel`."""
     vec3 = wp.types.vector(3, scalar)
-    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar, scale_pushes)
     ROOT_PATH = bool(root_path)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)
