@@ -428,6 +428,17 @@ collider carries hair up however slowly it moves), and a held budget, twice the 
 check where the root or such a collider moved; both plus a floor of 1e-4 of the strand's weight
 scale. A strand above its budget has created energy. Static colliders, and moving ones out of a
 strand's reach, change no budget (`tests/test_energy_warning_colliders.py`).
+
+An elastic strand (the default solver of a prim with widths) also stores energy in its bending and
+twist, which it gives back as motion: a thick strand bent by a passing sphere springs back when it
+has gone. Its available energy is the solver's total, kinetic, gravitational and elastic (the
+quantity the scheme conserves: it never rises by more than 1e-3 of itself on a swinging strand), above
+the elastic energy of its rest shape (the bending moments inverse statics leaves in a styled strand
+hold it up and cannot be given away, so its budget at rest is as tight as a chain's), per unit of
+its mean particle mass. Its gross budget also counts the largest elastic energy seen at a check where
+its root or a collider in its reach moved: what they stored in the strand it may later release.
+Before, the check counted motion only and called 2 mm strands bent by a sphere unstable at 128
+substeps a frame (`tests/test_energy_warning_elastic.py`).
 It fired on every unstable setting of the map and
 the tests, and never on an s = 1 run of the map (largest ratio {s1_ratio:.2f}, at most half the threshold). With
 the paper's correction, DFTL with s = 1 thrashed on folded, fast strands, and the check flagged them
