@@ -207,7 +207,9 @@ def main(argv=None) -> int:
              f"every joint, velocity components of deviation {args.speed:g} m/s; one second at {FPS} fps. "
              "Cells: strands whose energy at some frame exceeded twice their true energy / median of the largest "
              "ratio / median RMS particle speed over the last half second, in segments per step / strands the "
-             "energy monitor flagged. The true energy is the reference's (RATTLE, float64, "
+             "energy monitor flagged. Rows: `dftl` and `dftl posterior` the kernels (float32, the pushes scaled), "
+             "`elastic` the elastic solver, the paper's rows the numpy baseline (float64) with the whole "
+             "correction, and with the pushes dropped. The true energy is the reference's (RATTLE, float64, "
              f"{args.reference_substeps} substeps a frame), which stays within {drift:.1e} of itself over the "
              "second.", "",
              "| run | " + " | ".join(f"{k} substeps" for k in args.substeps) + " |",
