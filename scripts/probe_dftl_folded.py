@@ -16,6 +16,7 @@ Runs, on ``--device`` (the CPU by default; the numpy runs on the host):
 - ``dftl``: DFTL, s = 1, the prior form (the default), as the kernels run it: a follower's
   correction that pushes its leader is scaled by how far short of a segment it moved in the step
   (``kernels/solvers/ftl.py``, ``carried_func``); ``dftl posterior``: the paper's velocity form;
+- ``dftl, scale_pushes=False``: the kernels with the paper's whole correction;
 - ``elastic``: the elastic solver (its rest shape is the folded start);
 - ``paper's correction`` (numpy, ``dftl_warp.solvers.numpy_baseline.step`` with
   ``scale_pushes=False``): DFTL with the whole correction ``x - p`` carried, as in the paper and in
@@ -65,6 +66,7 @@ def run_solver(kind: str, points, velocities, count: int, substeps: int, frames:
     precision = "float64" if kind == "reference" else "float32"
     model = dw.Model.from_strands(points, [POINTS] * count, widths=1e-4, device=device, precision=precision)
     name, options = {"dftl": ("dftl", {}), "dftl posterior": ("dftl", {"correction": "posterior"}),
+                     "dftl, scale_pushes=False": ("dftl", {"scale_pushes": False}),
                      "reference": ("reference", {}), "elastic": ("elastic", {})}[kind]
     solver = dw.make_solver(model, name, gravity=(0.0, -G, 0.0), **options)
     state, control = solver.state(), model.control()
@@ -150,7 +152,9 @@ def reading(rows, counts) -> str:
     return (f"**Reading.** {now} With the paper's correction carried whole, DFTL *thrashes* from these starts "
             f"at {thrash[0]} to {thrash[-1]} substeps a frame: its particles settle into moving {speeds} of a "
             "segment every step, so the energy a strand holds grows with the square of the substep count (median "
-            f"peak {ratios} the true dynamics' energy). Dropping the corrections of the links that push removes "
+            f"peak {ratios} the true dynamics' energy; the kernels with `scale_pushes=False` alike, the monitor "
+            f"flagging {', '.join(str(row('dftl, scale_pushes=False', k)['monitor_flagged']) for k in thrash)} of "
+            f"their {row(paper, thrash[0])['strands']} strands). Dropping the corrections of the links that push removes "
             f"that too (largest median ratio {pulls:.2f}): the pump is a "
             "follower's lagged push on its leader. Dropped outright, the pushes would cost the convergence to "
             "the constrained dynamics where links push (`tests/test_dftl_folded.py`: an inverted chain, whose "
@@ -175,7 +179,8 @@ def main(argv=None) -> int:
     from dftl_warp.study.scenarios import folded_strands
 
     points, velocities = folded_strands(args.strands, POINTS, SEGMENT, args.speed, args.seed)
-    kinds = ("dftl", "dftl posterior", "elastic", "paper's correction", "paper's, pulls only")
+    kinds = ("dftl", "dftl posterior", "dftl, scale_pushes=False", "elastic", "paper's correction",
+             "paper's, pulls only")
     rows, started = [], time.time()
     reference, _, _ = run_solver("reference", points, velocities, args.strands, args.reference_substeps,
                                  device=args.device)
@@ -207,7 +212,8 @@ def main(argv=None) -> int:
              f"every joint, velocity components of deviation {args.speed:g} m/s; one second at {FPS} fps. "
              "Cells: strands whose energy at some frame exceeded twice their true energy / median of the largest "
              "ratio / median RMS particle speed over the last half second, in segments per step / strands the "
-             "energy monitor flagged. Rows: `dftl` and `dftl posterior` the kernels (float32, the pushes scaled), "
+             "energy monitor flagged. Rows: `dftl` and `dftl posterior` the kernels (float32, the pushes scaled; "
+             "with `scale_pushes=False` whole), "
              "`elastic` the elastic solver, the paper's rows the numpy baseline (float64) with the whole "
              "correction, and with the pushes dropped. The true energy is the reference's (RATTLE, float64, "
              f"{args.reference_substeps} substeps a frame), which stays within {drift:.1e} of itself over the "
