@@ -6,7 +6,8 @@ A thin shape moves by its pose along +x through a patch of hanging strands (``--
 16 points ``--segments`` apart, roots staggered over one segment so that a thin shape meets some
 particles and passes between others; hair radius 50 um), from 5 mm before the first strands, 10 cm
 at each speed (whole frames: the pose is linear within a frame), then stands still for ``--rest``
-frames; 8 substeps at 24 fps, DFTL, ``Colliders(iterations=...)``. The shape sits at the strands'
+frames; 8 substeps at 24 fps, DFTL (``--solver elastic``: the elastic solver),
+``Colliders(iterations=...)``. The shape sits at the strands'
 mid height, its top 1 cm below the roots at least (a root inside a collider is not the case here).
 Shapes (``--shapes``): ``capsuleR`` a horizontal capsule of radius R mm and length 10 cm across
 the motion (a finger, a strap), ``sphereR`` a sphere of radius R mm, ``plateX``/``plateY``/
@@ -110,7 +111,7 @@ def hanging(strands, segment, span):
                                     1) for j, (x, z) in enumerate((x, z) for x in xs for z in zs)])
 
 
-def run(name, speed, segment, strands, iterations, rest, observe=None):
+def run(name, speed, segment, strands, iterations, rest, observe=None, solver_name="dftl"):
     """Measure one configuration (module docstring); ``observe(f, k, q, d)`` sees every substep."""
     half = shape_of(name, np.zeros(3))[2]
     height = -max(0.5 * segment * (POINTS - 1), half[1] + 0.01)   # at mid strand, 1 cm below the roots at least
@@ -121,7 +122,7 @@ def run(name, speed, segment, strands, iterations, rest, observe=None):
     n = strands * strands
     model = dw.Model.from_strands(pts, [POINTS] * n, widths=2 * RADIUS, device="cpu",
                                   features=[F.Colliders([shape], iterations=iterations)])
-    solver = dw.DFTLSolver(model, gravity=(0.0, -9.81, 0.0))
+    solver = dw.make_solver(model, solver_name, gravity=(0.0, -9.81, 0.0))
     state, control = solver.state(), model.control()
     monitor = EnergyMonitor(solver, name, state, control=control, frame_duration=1.0 / FPS)
     free = np.ones(POINTS * n, bool)
@@ -189,13 +190,14 @@ def main():
     ap.add_argument("--iterations", default="2", help="Colliders iterations, comma separated")
     ap.add_argument("--rest", type=int, default=24, help="frames the shape stands still after its 10 cm")
     ap.add_argument("--why", action="store_true", help="print the deepest first entries")
+    ap.add_argument("--solver", default="dftl", help="dftl (default) or elastic (strands 100 um thick)")
     a = ap.parse_args()
     np.set_printoptions(precision=2, suppress=True)
     for iterations in (int(v) for v in a.iterations.split(",")):
         for segment in (float(v) for v in a.segments.split(",")):
             for name in a.shapes.split(","):
                 for speed in (float(v) for v in a.speeds.split(",")):
-                    o = run(name, speed, segment, a.strands, iterations, a.rest)
+                    o = run(name, speed, segment, a.strands, iterations, a.rest, solver_name=a.solver)
                     print(f"it {iterations} seg {segment * 1e3:4.1f} mm {name:9s} {speed:4.2f} m/s: deepest "
                           f"{o['worst'] * 1e3:5.3f} mm ({o['worst'] / RADIUS:4.1f} radii), first entries "
                           f"{len(o['entries']):2d}, moved {o['moved'] * 1e2:4.1f} cm, straddles {o['straddles']:4d} "
