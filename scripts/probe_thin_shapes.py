@@ -111,8 +111,11 @@ def hanging(strands, segment, span):
                                     1) for j, (x, z) in enumerate((x, z) for x in xs for z in zs)])
 
 
-def run(name, speed, segment, strands, iterations, rest, observe=None, solver_name="dftl"):
-    """Measure one configuration (module docstring); ``observe(f, k, q, d)`` sees every substep."""
+def run(name, speed, segment, strands, iterations, rest, observe=None, solver_name="dftl", split=None):
+    """Measure one configuration (module docstring); ``observe(f, k, q, d)`` sees every substep;
+    ``split``: a strand whose energy is logged after every frame in ``out["split"]`` (frame, the
+    energy check's available energy, kinetic, gravitational above hanging, the rest (elastic), J/kg
+    summed over its free particles, and its sharpest joint's turn in degrees)."""
     half = shape_of(name, np.zeros(3))[2]
     height = -max(0.5 * segment * (POINTS - 1), half[1] + 0.01)   # at mid strand, 1 cm below the roots at least
     moving = int(np.ceil(TRAVEL / speed * FPS))          # it stops at a frame's end: the pose is linear in each frame
@@ -160,6 +163,16 @@ def run(name, speed, segment, strands, iterations, rest, observe=None, solver_na
                     observe(f, k, q, d)
                 d_prev = d
             monitor.check(state, f)
+            if split is not None:
+                x = model.points_from_device(state.positions, relative=False).reshape(n, POINTS, 3)[split]
+                v = model.points_from_device(state.velocities, relative=False).reshape(n, POINTS, 3)[split]
+                kinetic = 0.5 * float((v[1:] ** 2).sum())
+                gravity = 9.81 * float((x[1:, 1] - (x[0, 1] - segment * np.arange(1, POINTS))).sum())
+                u = np.diff(x, axis=0)
+                u /= np.linalg.norm(u, axis=1)[:, None]
+                turn = float(np.degrees(np.arccos(np.clip((u[1:] * u[:-1]).sum(1), -1.0, 1.0))).max())
+                available = float(monitor.verdicts()[0][split])
+                out.setdefault("split", []).append((f, available, kinetic, gravity, available - kinetic - gravity, turn))
             if f >= frames - 2:
                 v = model.points_from_device(state.velocities)
                 ke = 0.5 * (v * v).sum(1)[free].reshape(n, POINTS - 1).mean(1)
@@ -191,13 +204,14 @@ def main():
     ap.add_argument("--rest", type=int, default=24, help="frames the shape stands still after its 10 cm")
     ap.add_argument("--why", action="store_true", help="print the deepest first entries")
     ap.add_argument("--solver", default="dftl", help="dftl (default) or elastic (strands 100 um thick)")
+    ap.add_argument("--split", type=int, default=None, help="print this strand's energy, split, after every frame")
     a = ap.parse_args()
     np.set_printoptions(precision=2, suppress=True)
     for iterations in (int(v) for v in a.iterations.split(",")):
         for segment in (float(v) for v in a.segments.split(",")):
             for name in a.shapes.split(","):
                 for speed in (float(v) for v in a.speeds.split(",")):
-                    o = run(name, speed, segment, a.strands, iterations, a.rest, solver_name=a.solver)
+                    o = run(name, speed, segment, a.strands, iterations, a.rest, solver_name=a.solver, split=a.split)
                     print(f"it {iterations} seg {segment * 1e3:4.1f} mm {name:9s} {speed:4.2f} m/s: deepest "
                           f"{o['worst'] * 1e3:5.3f} mm ({o['worst'] / RADIUS:4.1f} radii), first entries "
                           f"{len(o['entries']):2d}, moved {o['moved'] * 1e2:4.1f} cm, straddles {o['straddles']:4d} "
@@ -205,6 +219,9 @@ def main():
                           f"strands {o['ke_held']:.1e}){warning(o['warned'])}", flush=True)
                     if a.why and o["warned"]:
                         print(f"    {o['warned'][3]}")
+                    for f, e, kinetic, gravity, elastic, turn in o.get("split", []):
+                        print(f"    strand {a.split} frame {f}: energy {e:.3g} J/kg = kinetic {kinetic:.3g} + gravity "
+                              f"{gravity:.3g} + elastic {elastic:.3g}; sharpest joint {turn:.0f} degrees")
                     for f, k, i, depth, q, lead, h in sorted(o["entries"], key=lambda e: -e[3])[:3] if a.why else []:
                         print(f"    frame {f} substep {k} strand {i // POINTS} point {i % POINTS}: {depth * 1e3:.3f} "
                               f"mm in at {q * 1e3} mm, leader {lead * 1e3}, leader's height above the contact "
