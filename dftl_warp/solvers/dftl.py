@@ -171,8 +171,8 @@ class DFTLSolver(Solver):
         curved = control.root_path_curved
 
         def kernels():
-            pipelined = ([self._pipelined_kernel(substeps, curved)] if use_fused and self._pipelined_runs
-                         else [])
+            pipelined = ([pipelined_kernel(m.scalar, substeps, curved, self.scale_pushes)]
+                         if use_fused and self._pipelined_runs else [])
             return self.kernels() + pipelined
 
         self.launch_frame(state, control, dt, substeps, run, kernels, variant=(curved,))
@@ -202,21 +202,14 @@ class DFTLSolver(Solver):
                     m.rest_lengths, self.gravity, dt, self.damping]
             tail = [state.positions, state.velocities, state.corrections]
             if m.device.is_cuda:
-                wp.launch(self._pipelined_kernel(substeps, control.root_path_curved), dim=run.groups * substeps,
+                wp.launch(pipelined_kernel(m.scalar, substeps, control.root_path_curved, self.scale_pushes),
+                          dim=run.groups * substeps,
                           block_dim=PIPELINED_BLOCK,
                           inputs=head + tail, device=m.device)
             else:
                 vectors, scalars = self._lanes(run.groups * substeps)
-                wp.launch(pipelined_serial_kernel(m.scalar, control.root_path_curved, **self._whole), dim=run.groups,
+                wp.launch(pipelined_serial_kernel(m.scalar, control.root_path_curved, self.scale_pushes), dim=run.groups,
                           inputs=head + [substeps, vectors, scalars] + tail, device=m.device)
-
-    @property
-    def _whole(self) -> dict:
-        """Keyword arguments of the kernel factories for ``scale_pushes`` (none for the default)."""
-        return {} if self.scale_pushes else {"scale_pushes": False}
-
-    def _pipelined_kernel(self, substeps, curved):
-        return pipelined_kernel(self.model.scalar, substeps, curved, **self._whole)
 
     def _lanes(self, rows: int):
         """Scratch lane states of the serial pipelined kernel (at least ``rows`` lanes)."""

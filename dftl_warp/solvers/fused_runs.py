@@ -52,13 +52,12 @@ def fused_runs(strand_count, scalar, correction, longest: int = MAX_FUSED_VERTIC
     strands that share a fused kernel: its capacity, and whether they fill it exactly. Strands
     of more than ``longest`` vertices are left out (pipelined, :func:`pipelined_runs`).
     ``scale_pushes``: :func:`~dftl_warp.kernels.solvers.ftl.carried_func`."""
-    whole = {} if scale_pushes else {"scale_pushes": False}
     keys = [(fused_capacity(c), bool(fused_capacity(c) == c)) if c <= longest else None for c in strand_count]
     runs, first = [], 0
     for s in range(1, len(keys) + 1):
         if s == len(keys) or keys[s] != keys[first]:
             if keys[first] is not None:
-                runs.append((fused_step_kernel(scalar, correction, *keys[first], **whole), first, s - first))
+                runs.append((fused_step_kernel(scalar, correction, *keys[first], scale_pushes), first, s - first))
             first = s
     return runs
 

@@ -26,12 +26,10 @@ Flags (:data:`FLAGS`) and where they act in the sweep of particle ``i`` (root ex
   last, so collisions never stretch a segment.
 """
 
-
-import functools
-
 import warp as wp
 
 from ..core.arith import madd
+from ..core.factory import kernel_factory
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 from ..features.collide import collide_all_func, collider_flags
@@ -44,7 +42,7 @@ from .ftl import STEP_MODULE_OPTIONS, carried_func, follow_func
 CUDA_MAX_REGISTERS = None
 
 
-@functools.cache
+@kernel_factory
 def featured_step_kernel(scalar, correction: str, flags: frozenset, scale_pushes: bool = True):
     """The DFTL step for ``scalar`` precision, ``correction`` form and the non-empty ``flags``;
     ``scale_pushes``: :func:`~.ftl.carried_func`."""

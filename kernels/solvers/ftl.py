@@ -34,6 +34,7 @@ import functools
 import warp as wp
 
 from ..core.arith import madd, norm2, rsqrt
+from ..core.factory import kernel_factory
 from ..core.layout import particle
 from ..core.root_path import root_on_path
 
@@ -123,7 +124,7 @@ def carried_func(scalar, scale_pushes: bool = True):
     return carried
 
 
-@functools.cache
+@kernel_factory
 def bare_step_kernel(scalar, correction: str, scale_pushes: bool = True):
     """The bare DFTL step kernel (gravity and roots only) for ``scalar`` precision and ``correction``
     form; ``scale_pushes``: :func:`carried_func`."""

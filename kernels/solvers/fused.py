@@ -29,6 +29,7 @@ import functools
 import warp as wp
 
 from ..core.arith import madd
+from ..core.factory import kernel_factory
 from .ftl import CORRECTIONS, STEP_MODULE_OPTIONS, carried_func, follow_func
 from ..core.layout import particle
 from ..core.root_path import root_on_path
@@ -92,7 +93,7 @@ def fused_block_dim(scalar, capacity: int) -> int:
     return bounds[0] if bounds else 256
 
 
-@functools.cache
+@kernel_factory
 def fused_step_kernel(scalar, correction: str, capacity: int, exact: bool = False, scale_pushes: bool = True):
     """Kernel advancing strands of at most (``exact``: exactly) ``capacity`` vertices by
     ``substeps`` steps (cached). Launch with ``dim`` = number of strands in the run; thread ``t``

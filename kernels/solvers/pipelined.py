@@ -43,6 +43,7 @@ import functools
 import warp as wp
 
 from ..core.arith import madd
+from ..core.factory import kernel_factory
 from .ftl import STEP_MODULE_OPTIONS, carried_func, follow_func
 from ..core.layout import particle
 from ..core.root_path import root_on_path
@@ -182,7 +183,7 @@ def _shuffles(scalar):
     return vec_up, vec_from
 
 
-@functools.cache
+@kernel_factory
 def pipelined_kernel(scalar, substeps: int, root_path: bool = True, scale_pushes: bool = True):
     """CUDA kernel: ``substeps`` prior-form substeps of one run of ``strands`` strands of ``n``
     vertices, in ``groups`` groups (at most ``strands``) of ``substeps`` neighbouring threads.
@@ -194,7 +195,8 @@ def pipelined_kernel(scalar, substeps: int, root_path: bool = True, scale_pushes
     if K not in CUDA_LANES:
         raise ValueError(f"pipelined substeps must be one of {CUDA_LANES}, got {substeps}")
     vec3 = wp.types.vector(3, scalar)
-    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar, scale_pushes)
+    funcs = pipeline_funcs(scalar, scale_pushes)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = funcs
     vec_up, vec_from = _shuffles(scalar)
     group_mask = (1 << K) - 1 if K < 32 else 0xFFFFFFFF
     # the K sweeps of a block stay a loop: unrolled, the compiler hoists the block's independent
@@ -308,7 +310,7 @@ def pipelined_kernel(scalar, substeps: int, root_path: bool = True, scale_pushes
     return dftl_pipelined
 
 
-@functools.cache
+@kernel_factory
 def pipelined_serial_kernel(scalar, root_path: bool = True, scale_pushes: bool = True):
     """Any device: the pipelined substeps with one thread per group running its ``substeps``
     lanes in turn, last lane first. Launch with ``dim = groups``; ``lane_vectors``
@@ -316,7 +318,8 @@ def pipelined_serial_kernel(scalar, root_path: bool = True, scale_pushes: bool =
     roots' path deviations after ``root_end`` (module docstring); ``root_path=False`` never reads
     them (the linear path), as :func:`pipelined_kernel`."""
     vec3 = wp.types.vector(3, scalar)
-    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = pipeline_funcs(scalar, scale_pushes)
+    funcs = pipeline_funcs(scalar, scale_pushes)
+    run_strand_base, stream_slot, as_handed, load_handed, sweep_particle, handover = funcs
     ROOT_PATH = bool(root_path)
 
     @wp.kernel(enable_backward=False, module="unique", module_options=STEP_MODULE_OPTIONS)

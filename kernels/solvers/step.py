@@ -11,13 +11,11 @@ def step_kernel(scalar, correction: str, features=frozenset(), scale_pushes: boo
     (:func:`~dftl_warp.kernels.solvers.ftl.bare_step_kernel`), the very same object whatever way
     it is asked for; a non-empty one gets a kernel specialized to exactly those features
     (:func:`~dftl_warp.kernels.solvers.featured.featured_step_kernel`). ``scale_pushes``:
-    :func:`~dftl_warp.kernels.solvers.ftl.carried_func` (passed on only when False, so that the
-    default is one cached kernel however it is asked for).
+    :func:`~dftl_warp.kernels.solvers.ftl.carried_func`.
     """
     features = frozenset(features)
-    whole = {} if scale_pushes else {"scale_pushes": False}
     if not features:
-        return bare_step_kernel(scalar, correction, **whole)
+        return bare_step_kernel(scalar, correction, scale_pushes)
     if correction not in CORRECTIONS:
         raise ValueError(f"unknown correction {correction!r}")
-    return featured_step_kernel(scalar, correction, features, **whole)
+    return featured_step_kernel(scalar, correction, features, scale_pushes)
