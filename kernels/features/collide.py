@@ -265,6 +265,24 @@ def slide_func(scalar):
 
 
 @functools.cache
+def beyond_reach_func(scalar):
+    """``beyond_reach(lead, point, n, depth, rest)``: whether the contact plane through ``point``
+    (collider-local), ``depth`` behind it along its outward normal ``n``, lies farther behind the
+    leader ``lead`` than the rest length ``rest``. No point at the rest length from the leader then
+    clears the plane, and the rest length restored from it pulls the particle back inside along the
+    segment, every round (a particle round a convex edge from its leader's face, or past a part
+    thinner than a segment): the mesh, field and analytic collisions answer such a contact by where
+    the segment from the leader enters the shape instead."""
+
+    @wp.func
+    def beyond_reach(lead: wp.types.vector(3, scalar), point: wp.types.vector(3, scalar),
+                     n: wp.types.vector(3, scalar), depth: scalar, rest: scalar):
+        return wp.dot(lead - point, n) - depth <= -rest
+
+    return beyond_reach
+
+
+@functools.cache
 def respond_func(scalar):
     """``respond(q, q_old, leader, rest, dist, n, radius, mu)``: move collider-local ``q`` out to the
     contact plane ``n . y = n . q + radius - dist``, then :func:`slide_func` on it with friction
@@ -307,6 +325,7 @@ def analytic_collide_func(scalar, sdf_factory, name: str, entry_factory=None):
     tiny = tiny_length(scalar)
     sdf = sdf_factory(scalar)
     respond = respond_func(scalar)
+    beyond_reach = beyond_reach_func(scalar)
     entry = entry_factory(scalar) if entry_factory is not None else None  # every shape has one
     ENTRY = entry is not None
 
@@ -353,10 +372,10 @@ def analytic_collide_func(scalar, sdf_factory, name: str, entry_factory=None):
         lead = wp.transform_point(inv_pose, leader)
         dist = wp.min(dist, radius)  # a stopped particle goes onto its contact plane too
         if wp.static(ENTRY):
-            if wp.dot(lead - q, n) - (radius - dist) <= -rest:
-                # the contact plane is farther behind the leader than the rest length (a face round
-                # a convex edge from the leader's, the far side of a thin part): the particle leaves
-                # by where the segment from the leader enters the shape, the side the strand rests on
+            if beyond_reach(lead, q, n, radius - dist, rest):
+                # (a face round a convex edge from the leader's, the far side of a thin part): the
+                # particle leaves by where the segment from the leader enters the shape, the side
+                # the strand rests on
                 entered, n_in, dist_in = entry(q, lead, size, axis)
                 if entered:
                     n = n_in

@@ -38,7 +38,8 @@ import functools
 
 import warp as wp
 
-from .collide import ColliderKernel, named_func, respond_func, slide_func, tiny_length, transform_type
+from .collide import (ColliderKernel, beyond_reach_func, named_func, respond_func, slide_func, tiny_length,
+                      transform_type)
 from .sdf import EXACT_FROM, TEST_SLOTS, WHY_EXACT, collide_sdf_func, sdf_fields
 
 
@@ -54,6 +55,7 @@ def collide_mesh_func(scalar):
     tiny = tiny_length(scalar)
     respond = respond_func(scalar)
     slide = slide_func(scalar)
+    beyond_reach = beyond_reach_func(scalar)
 
     @wp.func
     def entry_face(mesh: wp.uint64, q: vec3, lead: vec3):
@@ -134,13 +136,12 @@ def collide_mesh_func(scalar):
                     stop = q_old + scalar(hit.t) * direction + radius * n
                     blocked = wp.dot(stop - q, n)
                     lead = wp.transform_point(inv_pose, leader)
-                    if wp.dot(lead - stop, n) > -rest:
+                    if not beyond_reach(lead, stop, n, zero, rest):
                         return wp.transform_point(pose, slide(stop, q_old, lead, rest, n, mu * blocked)), True
-                    # a stop on a contact plane farther behind the leader than the rest length is
-                    # no answer (the rest length restored from it pulls the particle back inside
-                    # along the segment): the particle goes onto the face the segment from the
-                    # leader enters the body through, if it crosses one (a path through a thin
-                    # part), else the path cut an edge and the projection below places it
+                    # a stop beyond the leader's reach is no answer: the particle goes onto the face
+                    # the segment from the leader enters the body through, if it crosses one (a
+                    # path through a thin part), else the path cut an edge and the projection
+                    # below places it
                     entered, n_in, dist_in = entry_face(mesh, q, lead)
                     if entered:
                         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist_in, n_in, radius, mu)), True
@@ -161,12 +162,10 @@ def collide_mesh_func(scalar):
         if dist >= radius:
             return x, False
         lead = wp.transform_point(inv_pose, leader)
-        if wp.dot(lead - q, n) - (radius - dist) <= -rest:
-            # the nearest face's contact plane is farther behind the leader than the rest length:
-            # no point at the rest length clears it, and the rest length restored from that plane
-            # pulls the particle back inside along the segment, in every round (a strand sliding
-            # around an edge of a moving body, 2 mm in per round). It leaves by the face the segment
-            # from the leader enters the body through, the face the strand rests on
+        if beyond_reach(lead, q, n, radius - dist, rest):
+            # the nearest face's contact plane (a strand sliding around an edge of a moving body,
+            # 2 mm in per round before): it leaves by the face the segment from the leader enters
+            # the body through, the face the strand rests on
             entered, n_in, dist_in = entry_face(mesh, q, lead)
             if entered:
                 n = n_in

@@ -26,7 +26,7 @@ import math
 
 import warp as wp
 
-from .collide import respond_func, slide_func, tiny_length, transform_type
+from .collide import beyond_reach_func, respond_func, slide_func, tiny_length, transform_type
 
 #: cells per brick edge
 BRICK = 8
@@ -214,6 +214,7 @@ def collide_sdf_func(scalar):
     tiny = tiny_length(scalar)
     respond = respond_func(scalar)
     slide = slide_func(scalar)
+    beyond_reach = beyond_reach_func(scalar)
 
     def body(x: vec3, x_old: vec3, leader: vec3, rest: scalar, ccd: bool, radius: scalar, pose: transform,
              inv_pose: transform, inv_pose_prev: transform, grid: SdfGrid, brick_map: wp.array(dtype=wp.int32),
@@ -292,9 +293,9 @@ def collide_sdf_func(scalar):
                             # path's end lay behind the plane by `blocked`
                             nc = vec3(ns)
                             stop_at = q_old + t * direction + (radius - scalar(ds)) * nc
-                            if wp.dot(lead - stop_at, nc) <= -rest:
-                                # a plane the leader cannot reach at the rest length: the exact
-                                # query decides (the face the segment enters the body through)
+                            if beyond_reach(lead, stop_at, nc, scalar(0.0), rest):
+                                # the exact query decides (the face the segment enters the body
+                                # through)
                                 return x, False, 10, taken
                             blocked = wp.max(wp.dot(stop_at - q, nc), scalar(0.0))
                             y = slide(stop_at, q_old, lead, rest, nc, mu * blocked)
@@ -320,11 +321,9 @@ def collide_sdf_func(scalar):
                         return x, False, 9, taken
         if dist >= radius:
             return x, False, samples, taken
-        if wp.dot(lead - q, n) - (radius - dist) <= -rest:
-            # the contact plane lies farther behind the leader than the rest length (the particle
-            # round an edge from its leader's face): no point at the rest length clears it, and the
-            # rest length restored from it pulls the particle back inside along the segment; the
-            # exact query answers by the face the segment from the leader enters the body through
+        if beyond_reach(lead, q, n, radius - dist, rest):
+            # (the particle round an edge from its leader's face): the exact query answers by the
+            # face the segment from the leader enters the body through
             return x, False, 10, taken
         return wp.transform_point(pose, respond(q, q_old, lead, rest, dist, n, radius, mu)), True, samples, taken
 
