@@ -42,7 +42,8 @@ def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correctio
     x, v, corr: (S, n, 3); rest: (S, n) rest length of the segment ending at each particle;
     roots: (S, 3) root targets after the step. ``scale_pushes``: a follower's correction that
     pushes its leader is scaled by ``max(1 - m, 0)``, ``m`` its motion in the step over its rest
-    length, as the kernels do (``kernels/solvers/ftl.py``); False: the paper's ``x - p``.
+    length, as the kernels do (``kernels/solvers/ftl.py``; a push: the prediction within a rest
+    length of the new leader); False: the paper's ``x - p``.
     """
     S, n, _ = x.shape
     g = np.asarray(gravity, dtype=x.dtype) * dt * dt
@@ -54,9 +55,11 @@ def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correctio
     p = x + dt * v + g
     if correction == "prior":
         p -= damping * _of_follower(corr, counts)
+    pushes = np.zeros(x.shape[:2], dtype=bool)
     for i in range(1, n):
         d = p[:, i] - xn[:, i - 1]
         d2 = np.einsum("ij,ij->i", d, d)
+        pushes[:, i] = d2 < rest[:, i] ** 2
         tol = rest[:, i] * degenerate
         ok = (d2 > tol * tol) & (d2 > 1e-30)
         fallback = x[:, i] - x[:, i - 1]
@@ -70,7 +73,7 @@ def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correctio
         xn[:, i] = xn[:, i - 1] + rest[:, i, None] * direction
     cn[:, 1:] = xn[:, 1:] - p[:, 1:]
     if scale_pushes:
-        pushes = np.einsum("sij,sij->si", cn[:, 1:], xn[:, 1:] - xn[:, :-1]) > 0.0
+        pushes = pushes[:, 1:]
         moved = np.linalg.norm(xn[:, 1:] - x[:, 1:], axis=2)
         share = np.maximum(rest[:, 1:] - moved, 0.0) / np.where(pushes, rest[:, 1:], 1.0)
         cn[:, 1:] *= np.where(pushes, share, 1.0)[..., None]

@@ -112,10 +112,14 @@ def carried_func(scalar, scale_pushes: bool = True):
         """``x - p`` of a follower now at ``x`` (predicted ``p``, before the step at ``x_old``)
         behind ``leader``: whole where the link pulls it toward the leader; where the link pushes it
         away, times ``max(1 - |x - x_old| / rest, 0)`` (none once it moved a segment in the step).
+        A push is a prediction within ``rest`` of the leader, ``|p - leader|^2 < rest^2``: the
+        compiler shares ``|p - leader|^2`` with :func:`follow_func`'s, so a sweep without pushes
+        pays one multiply and a compare (on the H200 the test ``(x - p) . (x - leader) > 0``, the
+        same in exact arithmetic, cost the fused substeps more: docs/benchmarks.md).
         The ratio is ``u rsqrt(u rest^2)`` with ``u = |x - x_old|^2`` (one reciprocal square root, no
         division: the fused kernels have no registers to spare), ``u rest^2`` kept above 1e-30."""
         c = x - p
-        if wp.dot(c, x - leader) > scalar(0.0):
+        if norm2(p - leader) < rest * rest:
             moved2 = norm2(x - x_old)
             c = c * wp.max(scalar(1.0) - moved2 * rsqrt(wp.max(moved2 * (rest * rest), scalar(1.0e-30))),
                            scalar(0.0))
