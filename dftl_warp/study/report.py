@@ -182,6 +182,8 @@ def _table(header, rows):
 def render_markdown(results: dict, meta: dict, image_dir: str) -> str:
     """The report; images are linked as ``image_dir/NAME.png``."""
     img = (image_dir.rstrip("/") + "/") if image_dir else ""
+    # the front's page, docs/accuracy-h200/front.md, beside the study's folder (docs/accuracy)
+    front = os.path.normpath(os.path.join(image_dir or ".", "..", "accuracy-h200", "front.md"))
     conv = _by(results["convergence"], "setting")
     slope_rows = []
     for label, rows in conv.items():
@@ -399,7 +401,7 @@ s = 1, and the faithful forms are never altered.
 {_table(["preset", "solver", "substeps/frame", "dt (ms)", "precision", "error", "max stretch", "wall s per simulated s", "ms per frame"], preset_rows)}
 
 The presets are picked from the speed-accuracy front measured at scale on the GPU
-([accuracy-h200/front.md](accuracy-h200/front.md), `dftl-warp study --front`): each is the cheapest
+([accuracy-h200/front.md]({front}), `dftl-warp study --front`): each is the cheapest
 measured setting whose error meets its target there:
 
 - `draft` (target 0.25 L: the swing is there, roughly its amplitude) -- DFTL s = 1, 16 substeps;
