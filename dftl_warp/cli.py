@@ -172,9 +172,10 @@ def main(argv=None) -> int:
                 parser = build_parser()
                 args = parser.parse_args(argv)  # SystemExit(2) after one line for a bad flag
                 args.argv = list(sys.argv[1:] if argv is None else argv)  # the command line (provenance)
-                if not getattr(args, "run", None):
-                    parser.print_help()
-                    return 0
+                if not getattr(args, "run", None):   # no command: the help, and a failure for scripts
+                    parser.print_usage(sys.stderr)
+                    print("dftl-warp: error: no command given (simulate, render, info, ...)", file=sys.stderr)
+                    return 2
                 status = int(args.run(args) or 0)
                 sys.stdout.flush()
                 return status

@@ -123,7 +123,8 @@ def _check_curves(path, a_path, b_path, counts, other) -> None:
 def compare(a_path, b_path) -> dict:
     """Per prim and frame: ``max``, ``rms`` (stage units) and ``max_relative``, ``rms_relative``
     (per point, divided by its strand's length in A). ``frames_only_in_a``/``_b``: frames sampled
-    in one file only (not compared; :func:`frames_warning`)."""
+    in one file only (not compared; :func:`frames_warning`). ``not_finite``: per file and prim, the
+    first point that is not finite (its distances are NaN, beyond any tolerance)."""
     import numpy as np
     from pxr import Usd
 
@@ -133,7 +134,7 @@ def compare(a_path, b_path) -> dict:
     shared = [p for p in a if p in b]
     if not shared:
         raise UserError(f"{a_path}, {b_path}: no BasisCurves prim in common")
-    prims, only_a, only_b = {}, set(), set()
+    prims, only_a, only_b, not_finite = {}, set(), set(), {}
     for path in shared:
         pa, pb = a[path].GetPointsAttr(), b[path].GetPointsAttr()
         counts = np.asarray(a[path].GetCurveVertexCountsAttr().Get(), dtype=np.int64)
@@ -148,6 +149,11 @@ def compare(a_path, b_path) -> dict:
                     raise UserError(f"{file}: {path} has no points {when}")
             xa = np.asarray(va, dtype=np.float64).reshape(-1, 3)
             xb = np.asarray(vb, dtype=np.float64).reshape(-1, 3)
+            for x, file in ((xa, a_path), (xb, b_path)):   # named once per file and prim: compared as NaN
+                bad = np.flatnonzero(~np.isfinite(x).all(axis=1))
+                if bad.size and (file, path) not in not_finite:
+                    not_finite[(file, path)] = f"{file}: {path}: points[{bad[0]}] {when} is not finite" + (
+                        f" ({bad.size} points)" if bad.size > 1 else "")
             if xa.shape != xb.shape:
                 raise UserError(f"{path}: {xa.shape[0]} points in {a_path}, {xb.shape[0]} in {b_path} {when}")
             if not rows:   # as many points: in the same curves?
@@ -164,7 +170,8 @@ def compare(a_path, b_path) -> dict:
         prims[path] = rows
     return {"a": str(a_path), "b": str(b_path), "prims": prims,
             "only_in_a": [p for p in a if p not in b], "only_in_b": [p for p in b if p not in a],
-            "frames_only_in_a": sorted(only_a), "frames_only_in_b": sorted(only_b)}
+            "frames_only_in_a": sorted(only_a), "frames_only_in_b": sorted(only_b),
+            "not_finite": list(not_finite.values())}
 
 
 def frames_warning(result: dict) -> str | None:
@@ -207,9 +214,9 @@ def run(args) -> int:
     if not math.isfinite(args.tolerance) or args.tolerance < 0:
         raise UserError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     result = compare(args.a, args.b)
-    warning = frames_warning(result)
-    if warning:
-        print(f"dftl-warp: warning: {warning}", file=sys.stderr)
+    for warning in (frames_warning(result), *result["not_finite"]):
+        if warning:
+            print(f"dftl-warp: warning: {warning}", file=sys.stderr)
     beyond = first_beyond(result, args.tolerance, args.relative)
     result["tolerance"] = args.tolerance
     result["relative"] = args.relative

@@ -85,13 +85,13 @@ def run(args) -> int:
         notes.append(describe_quality(args.quality, given))
     try:
         summary = _simulate(args, simulate_usd, notes)
-    except QCError as exc:  # a --check gate broken: one line, exit status 3, no output left
-        print(f"dftl-warp: error: {exc}", file=sys.stderr)
+    except QCError as exc:  # a --check gate broken: one line naming the input, exit status 3, no output left
+        print(f"dftl-warp: error: {args.input}: {exc}", file=sys.stderr)
         return 3
     s = summary
     for line in _warnings(s, notes, args.quiet):
         print(line, file=sys.stderr)
-    for line in s.tolerance:   # --tolerance: what it chose
+    for line in () if args.quiet else s.tolerance:   # --tolerance: what it chose (a note; -q holds it back)
         print(f"dftl-warp: {line}", file=sys.stderr)
     total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
     print(
@@ -128,6 +128,10 @@ def _check_flags(args) -> list:
     if args.guide_method is not None and args.guides is None:
         notes.append(f"dftl-warp: warning: --guide-method {args.guide_method} does nothing without --guides (it picks the guides "
                      "--guides asks for; prims with rel dftl:guides name their own)")
+    if args.tolerance is not None and args.substeps is not None:
+        used = "only the preroll's" if args.preroll else "not used"
+        notes.append(f"dftl-warp: warning: --substeps {args.substeps} with --tolerance {args.tolerance:g}: the tolerance "
+                     f"chooses the shot's substeps per frame; --substeps is {used}")
     if args.quality and args.tolerance is not None:
         notes.append(f"dftl-warp: warning: --quality {args.quality} with --tolerance {args.tolerance:g}: the tolerance chooses the "
                      "solver and the substeps per frame; the preset gives only its precision, damping and correction")
