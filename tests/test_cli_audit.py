@@ -74,3 +74,15 @@ def test_diff_names_the_first_point_that_is_not_finite(tmp_path, capsys):
     assert code == 1 and "first difference beyond 0 stage units: frame 1, /World/Hair (nan)" in out
     assert err.strip().splitlines() == [f"dftl-warp: warning: {paths[1]}: /World/Hair: points[5] at frame 1 is not "
                                         "finite (2 points)"]
+
+
+def test_import_makes_the_output_folders_as_simulate_does_and_removes_them_on_failure(tmp_path, capsys):
+    import test_importers as ti
+
+    src = ti.write_hair(tmp_path / "g.hair", np.concatenate([chain(4, 0.5, origin=(s, 0.0, 0.0)) for s in range(3)]),
+                        [4, 4, 4], None)
+    code, out, err = run(capsys, "import", src, "-o", tmp_path / "a" / "b" / "o.usda")
+    assert code == 0 and (tmp_path / "a" / "b" / "o.usda").exists(), err
+    (tmp_path / "bad.hair").write_bytes(b"HAIR" + b"\xff" * 40)   # a header cut short: refused while reading
+    code, out, err = run(capsys, "import", tmp_path / "bad.hair", "-o", tmp_path / "c" / "d" / "o.usda")
+    assert code == 2 and not (tmp_path / "c").exists() and err.count("\n") == 1

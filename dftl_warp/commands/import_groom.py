@@ -47,10 +47,12 @@ def run(args) -> int:
     from ..errors import WarningRoute
     from ..importers import GroomImportWarning
     from ..importers.convert import import_groom
+    from ..output.paths import created_folders
 
     # the importer's notes (each names its file) and any other Python warning (numpy's, naming the
-    # input): one line each, once, when the groom is written; -q leaves out the summary line, never a warning
-    with WarningRoute(where=args.input, named=(GroomImportWarning,)) as route:
+    # input): one line each, once, when the groom is written; -q leaves out the summary line, never a
+    # warning. The output's missing folders are made as simulate makes them (and gone again on failure)
+    with created_folders(args.output), WarningRoute(where=args.input, named=(GroomImportWarning,)) as route:
         result = import_groom(
             args.input, args.output, fmt=args.fmt, units=args.units, up_axis=args.up_axis, width=args.width,
             head=args.head, head_friction=args.head_friction, max_strands=args.max_strands, every=args.every,
