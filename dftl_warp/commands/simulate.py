@@ -36,7 +36,7 @@ def add_parser(sub):
     add_arguments(p, FLAGS, choices={"solver": tuple(SOLVERS)})
     _add_output_flags(p)
     add_arguments(p, ("guides", "guide_method", "guides_output"))   # issue 22: docs/guides.md
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or notes (warnings and errors are still printed)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or notes (warnings, errors, what --tolerance chose and the summary line are still printed)")
     p.set_defaults(run=run)
 
 
@@ -91,7 +91,7 @@ def run(args) -> int:
     s = summary
     for line in _warnings(s, notes, args.quiet):
         print(line, file=sys.stderr)
-    for line in () if args.quiet else s.tolerance:   # --tolerance: what it chose (a note; -q holds it back)
+    for line in s.tolerance:   # --tolerance: what it chose, part of the run's result as the summary line is
         print(f"dftl-warp: {line}", file=sys.stderr)
     total = s.seconds_loading + s.seconds_simulating + s.seconds_writing
     print(
