@@ -72,11 +72,15 @@ def test_a_binding_cache_renders_the_curves_its_guides_carry(caches, capsys):
         np.testing.assert_allclose(got, want, atol=2e-7)
         if t == FRAMES:
             assert np.abs(want - rest).max() > 0.05
-    assert usd_scene.render_notes(b) == []
+    # the groom has no widths: drawn at a default width with a warning (tests/test_render_audit.py), and nothing else
+    widths = (f"{bound}: 2 BasisCurves prims (/World/Head/Offset/Hair, /World/Head/Guides) without widths or "
+              "primvars:widths: drawn at a default width, 1/1000 of each prim's bounding-box diagonal")
+    assert usd_scene.render_notes(b) == [widths]
     capsys.readouterr()
     out = tmp / "bound.png"
     assert render(bound, "--frame", FRAMES, "-o", out) == 0
-    assert capsys.readouterr().err == ""   # nothing is drawn at rest any more: nothing to warn about
+    # nothing is drawn at rest any more: the widths are the only thing to warn about
+    assert capsys.readouterr().err.splitlines() == [f"dftl-warp: warning: {widths}"]
 
 
 def test_a_dense_prim_bound_to_guides_picked_from_it_renders_as_its_curves(tmp_path):

@@ -91,7 +91,8 @@ def test_a_batch_job_keeps_the_clean_start_s_collider_warning(tmp_path, capfd):
 
 def _hair_stage(path):
     stage = new_stage(path, start=1, end=1)
-    add_curves(stage, "/World/Hair", chain(4, 0.05, direction=(0.0, -1.0, 0.0)), [4])
+    # widths: curves without them are drawn at a default width with a warning (tests/test_render_audit.py)
+    add_curves(stage, "/World/Hair", chain(4, 0.05, direction=(0.0, -1.0, 0.0)), [4], widths=0.005, bending=None)
     stage.Save()
     return str(path)
 

@@ -9,11 +9,14 @@
   render curves of a guide binding cache (``simulate --guides-output binding``) are deformed by
   their guides at the time rendered (:mod:`.binding`).
 - ``UsdGeom.Sphere``, ``Capsule``, ``Cube`` (analytic, with their transforms) and ``Mesh``
-  (triangulated, world space), drawn in a neutral material.
+  (triangulated, world space, the faces of ``holeIndices`` left out), drawn in a neutral material.
 - ``UsdGeom.Camera`` prims (:func:`read_camera`).
 
-Invisible prims and prims of purpose ``guide`` or ``proxy`` are skipped. Bad data raises
-:class:`~dftl_warp.errors.UserError` naming the file, the prim and the index.
+Invisible prims and prims of purpose ``guide`` or ``proxy`` are skipped. Visible prims of other
+types (NurbsCurves, Cylinder, Cone, ...) are not drawn, and curves without widths are drawn at a
+default width: :func:`render_notes` says so. Bad data (and a value of the wrong type:
+:mod:`.usd_checks`) raises :class:`~dftl_warp.errors.UserError` naming the file, the prim and the
+attribute or index.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from ..core.layout import strand_offsets
 from ..errors import UserError
 from ..usd import curves as curve_checks
 from ..usd.scene import transform_points
-from . import binding
+from . import binding, usd_checks
 from .camera import Camera
 from .scene import BOX, CAPSULE, SPHERE, RenderScene, Shape, default_width, root_to_tip, strand_colors
 
@@ -99,23 +102,55 @@ def is_empty(scene) -> bool:
 
 
 def render_notes(stage, source: str | None = None) -> list:
-    """Warnings (one line each) about what the renderer leaves out of the drawn BasisCurves prims:
-    curves of fewer than 2 vertices (no segment to draw)."""
+    """Warnings (one line each) about what the renderer leaves out or approximates: curves of fewer
+    than 2 vertices (no segment to draw), visible prims of types it does not draw (NurbsCurves,
+    Cylinder, Cone, ...: one line for all), BasisCurves drawn at the default width (no widths: one
+    line for all) and Mesh prims without faces."""
     from pxr import UsdGeom
 
     source = source or stage_source(stage)
     time = default_time(stage)
-    notes = []
+    notes, skipped, widthless, faceless = [], {}, [], []
     for prim in _drawn_prims(stage, time):
+        if prim.IsA(UsdGeom.Mesh):
+            m = UsdGeom.Mesh(prim)
+            if _faceless(m.GetPointsAttr().Get(time), m.GetFaceVertexCountsAttr().Get(time),
+                         m.GetFaceVertexIndicesAttr().Get(time)):
+                faceless.append(str(prim.GetPath()))
+        elif prim.IsA(UsdGeom.Gprim) and str(prim.GetTypeName()) not in usd_checks.DRAWN_TYPES:
+            skipped.setdefault(str(prim.GetTypeName()), []).append(str(prim.GetPath()))
         if not prim.IsA(UsdGeom.BasisCurves):
             continue
+        if not _has_widths(prim, time):
+            widthless.append(str(prim.GetPath()))
         counts = curve_checks.vertex_counts(UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get(time),
                                             f"{source}: {prim.GetPath()}")
         short = np.flatnonzero((counts >= 0) & (counts < 2))
         if len(short):
             notes.append(f"{source}: {prim.GetPath()}: {len(short)} of {len(counts)} curves have fewer than 2 "
                          f"vertices (curveVertexCounts[{short[0]}] = {counts[short[0]]}): not drawn (no segment)")
-    return notes
+    if faceless:
+        notes.append(f"{source}: {usd_checks.listed(faceless, 'Mesh prim')} without faces (no points, "
+                     f"faceVertexCounts or faceVertexIndices): not drawn")
+    return notes + [n for n in (usd_checks.skipped_note(source, skipped), usd_checks.widthless_note(source, widthless))
+                    if n]
+
+
+def _faceless(points, counts, indices) -> bool:
+    """True for a Mesh with nothing to draw: no points, face counts or indices."""
+    return points is None or counts is None or indices is None or np.size(counts) == 0
+
+
+def _has_widths(prim, time) -> bool:
+    """Whether a BasisCurves prim has widths the renderer draws (``primvars:widths`` or a
+    non-empty ``widths``), as :func:`_read_curves` reads them."""
+    from pxr import UsdGeom
+
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("widths")
+    if pv and pv.HasAuthoredValue() and pv.Get(time) is not None:
+        return True
+    w = UsdGeom.BasisCurves(prim).GetWidthsAttr().Get(time)
+    return w is not None and np.size(w) > 0
 
 
 def stage_source(stage) -> str:
@@ -233,22 +268,24 @@ def _read_render_scene(stage, time, source) -> RenderScene:
     mesh_pts, mesh_tris = [], []
     n_mesh = 0
     for prim in _drawn_prims(stage, time):
+        where = f"{source}: {prim.GetPath()}"   # a size of the wrong type ("big") is one line (usd_checks.number)
         if prim.IsA(UsdGeom.BasisCurves):
             s = _read_curves(prim, time, source)
             if s is not None:
                 strands.append(s)
         elif prim.IsA(UsdGeom.Sphere):
-            r = UsdGeom.Sphere(prim).GetRadiusAttr().Get(time)
-            shapes.append(Shape(SPHERE, _world(prim, time).T, (float(r), 0.0, 0.0), str(prim.GetPath())))
+            r = usd_checks.number(UsdGeom.Sphere(prim).GetRadiusAttr().Get(time), "radius", where)
+            shapes.append(Shape(SPHERE, _world(prim, time).T, (r, 0.0, 0.0), str(prim.GetPath())))
         elif prim.IsA(UsdGeom.Capsule):
             c = UsdGeom.Capsule(prim)
-            axis = "XYZ".index(str(c.GetAxisAttr().Get(time)))
+            axis = usd_checks.capsule_axis(c.GetAxisAttr().Get(time), where)
             shapes.append(Shape(CAPSULE, _world(prim, time).T,
-                                (float(c.GetRadiusAttr().Get(time)), 0.5 * float(c.GetHeightAttr().Get(time)), float(axis)),
+                                (usd_checks.number(c.GetRadiusAttr().Get(time), "radius", where),
+                                 0.5 * usd_checks.number(c.GetHeightAttr().Get(time), "height", where), float(axis)),
                                 str(prim.GetPath())))
         elif prim.IsA(UsdGeom.Cube):
-            h = 0.5 * float(UsdGeom.Cube(prim).GetSizeAttr().Get(time))
-            shapes.append(Shape(BOX, _world(prim, time).T, (h, h, h), str(prim.GetPath())))
+            size = usd_checks.number(UsdGeom.Cube(prim).GetSizeAttr().Get(time), "size", where)
+            shapes.append(Shape(BOX, _world(prim, time).T, (0.5 * size,) * 3, str(prim.GetPath())))
         elif prim.IsA(UsdGeom.Mesh):
             m = _read_mesh(prim, time, source)
             if m is not None:
@@ -452,30 +489,13 @@ def _read_mesh(prim, time, source):
     from pxr import UsdGeom
 
     mesh = UsdGeom.Mesh(prim)
-    path = prim.GetPath()
     pts = mesh.GetPointsAttr().Get(time)
     fvc = mesh.GetFaceVertexCountsAttr().Get(time)
     fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
-    if pts is None or fvc is None or fvi is None or len(fvc) == 0:
+    if _faceless(pts, fvc, fvi):   # said once by render_notes
         return None
-    pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
-    fvc = np.asarray(fvc, dtype=np.int64)
-    fvi = np.asarray(fvi, dtype=np.int64)
-    _finite(pts, source, prim, "points")
-    if fvc.sum() != len(fvi):
-        raise UserError(f"{source}: {path}: faceVertexIndices has {len(fvi)} entries but faceVertexCounts sums to {int(fvc.sum())}")
-    bad = (fvi < 0) | (fvi >= len(pts))
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise UserError(f"{source}: {path}: faceVertexIndices[{i}] = {int(fvi[i])} is not a point index (0..{len(pts) - 1})")
-    # fan triangulation of every polygon with 3+ corners
-    starts = np.cumsum(fvc) - fvc
-    keep = fvc >= 3
-    n_tri = np.where(keep, fvc - 2, 0)
-    face = np.repeat(np.arange(len(fvc)), n_tri)
-    k = np.arange(int(n_tri.sum())) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
-    s = starts[face]
-    tris = np.stack([fvi[s], fvi[s + k + 1], fvi[s + k + 2]], axis=1)
+    # faces of < 3 vertices and bad holeIndices are refused as the simulation refuses them; holes are not drawn
+    pts, tris = usd_checks.mesh_faces(pts, fvc, fvi, mesh.GetHoleIndicesAttr().Get(time), f"{source}: {prim.GetPath()}")
     world = _world(prim, time)
     return transform_points(world, pts), tris
 
@@ -509,12 +529,20 @@ def _read_camera(stage, path, time, source) -> Camera:
         raise UserError(f"{source}: {path}: no UsdGeom.Camera prim at this path{hint}")
     cam = UsdGeom.Camera(prim)
 
-    def get(attr, default):
-        v = attr.Get(time)
-        return float(default if v is None else v)
+    where = f"{source}: {path}"
+
+    def get(attr, default):   # a value of the wrong type ("50mm") is one line naming it
+        return usd_checks.number(attr.Get(time), attr.GetName(), where, default)
 
     clip = cam.GetClippingRangeAttr().Get(time)
-    near, far = (float(clip[0]), float(clip[1])) if clip is not None else (1.0, 1.0e6)
+    if clip is not None and (isinstance(clip, str) or np.shape(clip) != (2,)):
+        raise UserError(f"{where}: clippingRange = {usd_checks.shown(clip)}: expected two numbers (near, far)")
+    near, far = (usd_checks.number(clip[0], "clippingRange[0]", where),
+                 usd_checks.number(clip[1], "clippingRange[1]", where)) if clip is not None else (1.0, 1.0e6)
+    projection = cam.GetProjectionAttr().Get(time) or "perspective"
+    if not isinstance(projection, str) or projection not in ("perspective", "orthographic"):
+        raise UserError(f"{where}: projection = {usd_checks.shown(projection)}: expected \"perspective\" or "
+                        "\"orthographic\"")
     result = Camera(
         world_from_camera=_world(prim, time).T,
         focal_length=get(cam.GetFocalLengthAttr(), 50.0),
@@ -523,7 +551,7 @@ def _read_camera(stage, path, time, source) -> Camera:
         horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
         vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
         near=near, far=far,
-        projection=str(cam.GetProjectionAttr().Get(time) or "perspective"),
+        projection=str(projection),
         path=str(path),
     )
     if not (result.focal_length > 0 and result.horizontal_aperture > 0 and result.vertical_aperture > 0):
