@@ -17,6 +17,8 @@ import numpy as np
 
 from ..errors import UserError
 from ..usd import curves as curve_checks
+from ..usd import values
+from ..usd.values import shown
 
 #: the prim types the renderer draws (UsdGeom type names)
 DRAWN_TYPES = ("BasisCurves", "Sphere", "Capsule", "Cube", "Mesh")
@@ -25,33 +27,14 @@ DRAWN_TYPES = ("BasisCurves", "Sphere", "Capsule", "Cube", "Mesh")
 LISTED = 3
 
 
-def shown(value) -> str:
-    """An authored value as a user reads it: 'big' for a string, [1, 2] for an array, (1, 2) for a
-    Gf vector; no numpy or Vt repr."""
-    if isinstance(value, str):
-        return repr(value)
-    if isinstance(value, (bool, np.bool_)):
-        return "true" if value else "false"
-    if isinstance(value, (int, float, np.integer, np.floating)):
-        return f"{value:g}" if isinstance(value, (float, np.floating)) else str(int(value))
-    try:
-        items = list(value)
-    except TypeError:
-        return str(value)
-    text = ", ".join(shown(v) for v in items[:4])
-    text += ", ..." if len(items) > 4 else ""
-    return f"({text})" if type(value).__module__.startswith("pxr.Gf") else f"[{text}]"
-
-
 def number(value, name: str, where: str, default: float | None = None) -> float:
     """``value`` of attribute ``name`` as a float (``default`` when it is None and a default is
-    given); a string, a bool, an array or a vector is a UserError naming ``where`` and the value
-    (``string radius = "big"`` crashed the renderer with "could not convert string to float")."""
+    given); a string, a bool, an array or a vector is a UserError naming ``where`` and the value, in
+    the simulation reader's words (:func:`dftl_warp.usd.values.number`; ``string radius = "big"``
+    crashed the renderer with "could not convert string to float")."""
     if value is None and default is not None:
         return float(default)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise UserError(f"{where}: {name} = {shown(value)}: expected a number")
-    return float(value)
+    return values.number(value, name, where)
 
 
 def capsule_axis(value, where: str) -> int:

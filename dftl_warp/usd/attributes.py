@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..options import BY_USD, NAMESPACE, BadValue, unknown_message, usd_attributes, usd_message
+from ..options import BY_USD, NAMESPACE, BadValue, shown_value, unknown_message, usd_attributes, usd_message
+from .values import shown
 
 #: the namespace of the per-frame QC dftl-warp writes into its outputs (dftl_warp.output.qc)
 QC_NAMESPACE = "dftl:qc:"
@@ -57,7 +58,7 @@ def read_values(prim, where: str, scope: str, time_codes_per_second: float) -> d
                 try:
                     v = np.array(v, dtype=np.float64).reshape(3)
                 except (TypeError, ValueError):
-                    raise UserError(f"{where}: {name} = {v!r}: expected 3 numbers") from None
+                    raise UserError(f"{where}: {name} = {shown(v)}: expected 3 numbers") from None
                 if not np.isfinite(v).all():
                     raise UserError(f"{where}: {name} at time {t:g} is not finite")
                 keys.append([t / time_codes_per_second, *v])
@@ -66,12 +67,32 @@ def read_values(prim, where: str, scope: str, time_codes_per_second: float) -> d
         if option.retired:
             raise UserError(f"{where}: {name}: {option.retired}")
         value = attr.Get()
+        _refuse_time_samples(attr, value, name, where)
         try:
             option.check(value)
         except BadValue as exc:
-            raise UserError(usd_message(exc, where, attr=attr)) from None
+            message = usd_message(exc, where, attr=attr)
+            if not isinstance(value, (bool, int, float, str, np.generic)):   # a Vt array: plain values
+                message = message.replace(f"= {shown_value(exc.value, attr)}", f"= {shown(value)}", 1)
+            raise UserError(message) from None
         values[name] = value
     return values
+
+
+def _refuse_time_samples(attr, value, name: str, where: str) -> None:
+    """UserError when the one-value ``dftl:`` attribute ``attr`` has time samples that hold another
+    value than its default ``value`` (or it has no default): it is read once, not over time (only
+    ``float3`` attributes such as ``dftl:wind`` are read as keyframes)."""
+    times = attr.GetTimeSamples()
+    if not times:
+        return
+    if value is not None and all(np.array_equal(np.asarray(attr.Get(t)), np.asarray(value)) for t in times):
+        return
+    animated = ", ".join(o.usd for o in BY_USD.values() if o.type == "float3")
+    span = f"at time {times[0]:g}" if len(times) == 1 else f"at times {times[0]:g}..{times[-1]:g}"
+    raise UserError(f"{where}: {name} is time-sampled ({len(times)} sample{'s' if len(times) > 1 else ''} {span}"
+                    f"{'' if value is not None else ', no default value'}): not supported, it is read once for the "
+                    f"whole shot (only {animated} can be animated); author one value, without timeSamples")
 
 
 def authored_names(prim) -> list[str]:

@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 from .attributes import read_values
 from .curves import check_lengths
+from .material import bound_material
 from .sampling import TransformReader, points_sampler, scale_growth
 from .scene import ColliderPrim, MeshSource
+from .values import at_text, boolean, number, shown
 
 
 #: the ColliderPrim kinds this module reads itself
@@ -108,16 +110,23 @@ def remove_holes(fvc: np.ndarray, fvi: np.ndarray, holes, where: str):
     return fvc[keep], fvi[np.repeat(keep, fvc)]
 
 
-def mesh_triangles(mesh, code, where: str):
+def mesh_triangles(mesh, code, where: str, faces: bool = False):
     """(points, triangles) of a Mesh as authored: faces listed in ``holeIndices`` removed, the rest
     fan-triangulated, and wound counter-clockwise seen from the side the mesh's normals point to
-    (``orientation = "leftHanded"`` faces are reversed, so the inside stays inside)."""
+    (``orientation = "leftHanded"`` faces are reversed, so the inside stays inside). With
+    ``faces``, also the authored face index of each triangle (T,) and the number of faces kept."""
     pts, fvc, fvi = _mesh_arrays(mesh, code, where)
-    fvc, fvi = remove_holes(fvc, fvi, mesh.GetHoleIndicesAttr().Get(code), where)
-    tris = fan_triangulate(fvc, fvi)
+    holes = mesh.GetHoleIndicesAttr().Get(code)
+    kept = np.ones(fvc.size, dtype=bool)
+    kept_fvc, fvi = remove_holes(fvc, fvi, holes, where)
+    if kept_fvc.size != fvc.size:
+        kept[np.asarray(holes, dtype=np.int64).reshape(-1)] = False
+    tris = fan_triangulate(kept_fvc, fvi)
     if str(mesh.GetOrientationAttr().Get(code) or "rightHanded") == "leftHanded":
         tris = tris[:, ::-1].copy()
-    return pts, tris
+    if not faces:
+        return pts, tris
+    return pts, tris, np.repeat(np.flatnonzero(kept), kept_fvc - 2), int(kept_fvc.size)
 
 
 def _mesh_arrays(mesh, code, where: str):
@@ -179,13 +188,13 @@ def read_root_mesh(prim, where: str, file: str, time, transforms: TransformReade
     return MeshSource(str(target.GetPath()), triangles, points, transform, bool(deforming or moving))
 
 
-def _friction(prim, where: str):
-    from pxr import UsdPhysics, UsdShade
+def _friction(prim, where: str, warnings: list):
+    from pxr import UsdPhysics
 
     value = read_values(prim, where, "collider", 24.0).get("dftl:friction")
     if value is not None:
         return float(value)
-    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial("physics")
+    material = bound_material(prim, where, warnings, "the collider's friction is dftl-warp's default")
     if material and material.GetPrim().HasAPI(UsdPhysics.MaterialAPI):
         value = UsdPhysics.MaterialAPI(material.GetPrim()).GetDynamicFrictionAttr().Get()
         if value is not None:
@@ -193,39 +202,95 @@ def _friction(prim, where: str):
     return None
 
 
+def _enabled(api, code, where: str, warnings: list) -> bool:
+    """``physics:collisionEnabled`` at ``code`` (the start frame): a value that is not a bool is an
+    error; one that changes over time gets one warning (the value at ``code`` holds for the shot)."""
+    attr = api.GetCollisionEnabledAttr()
+    value = attr.Get(code)
+    enabled = True if value is None else boolean(value, "physics:collisionEnabled", where)
+    seen = {enabled} | {boolean(attr.Get(t), "physics:collisionEnabled", where) for t in attr.GetTimeSamples()}
+    if len(seen) > 1:
+        warnings.append(f"{where}: physics:collisionEnabled is time-sampled and changes over time: the value at "
+                        f"{at_text(code)} ({'true' if enabled else 'false'}) holds for the whole shot "
+                        f"(a collider cannot be switched on or off during it)")
+    return enabled
+
+
+def _axis(value, where: str) -> str:
+    """A Capsule's ``axis`` token: "X", "Y" or "Z" (UsdGeomCapsule's tokens); anything else is an error."""
+    axis = "Z" if value is None else value
+    if not isinstance(axis, str) or axis not in ("X", "Y", "Z"):
+        raise UserError(f"{where}: axis = {shown(axis)}: must be \"X\", \"Y\" or \"Z\" (UsdGeomCapsule's axis tokens)")
+    return axis
+
+
+def _has_area(pts: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Whether each triangle (T, 3) has an area: one whose corners are collinear to float32's
+    precision (its doubled area at most :data:`DEGENERATE` of its longest edge squared) has none."""
+    corners = pts[tris]
+    cross = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+    return cross > DEGENERATE * edges * edges
+
+
+#: a triangle whose doubled area is at most this fraction of its longest edge squared has no area
+DEGENERATE = 1.0e-7
+
+
+def _check_areas(pts, tris, faces, n_faces: int, where: str, warnings: list) -> None:
+    """UserError when no face of a collider mesh has an area (all its faces are points or lines);
+    one warning naming the first such faces (authored face indices) when some have none. ``faces``
+    (T,): the authored face of each triangle ``tris`` (T, 3); ``n_faces``: the faces left after
+    ``holeIndices``."""
+    area = np.zeros(int(faces.max()) + 1 if faces.size else 0, dtype=bool)
+    np.logical_or.at(area, faces, _has_area(pts, tris))
+    flat = np.setdiff1d(np.unique(faces), np.flatnonzero(area))
+    if not flat.size:
+        return
+    if flat.size == n_faces:
+        raise UserError(f"{where}: no face of non-zero area ({'its face has' if n_faces == 1 else f'all {n_faces} faces have'} "
+                        f"collinear or coincident corners): not a collider")
+    first = ", ".join(str(int(i)) for i in flat[:5]) + (", ..." if flat.size > 5 else "")
+    one = flat.size == 1
+    warnings.append(f"{where}: {flat.size} of {plural(n_faces, 'face')} {'has' if one else 'have'} zero area "
+                    f"(face{'' if one else 's'} {first}: collinear or coincident corners): "
+                    f"{'it stops' if one else 'they stop'} no hair and can mislead which side is inside; remove "
+                    f"{'it' if one else 'them'}")
+
+
 def read_collider_prim(prim, file: str, time, warnings: list, transforms: TransformReader) -> ColliderPrim | None:
     """One prim with UsdPhysics.CollisionAPI -> ColliderPrim (None: disabled or unsupported)."""
     from pxr import UsdGeom, UsdPhysics
 
     where = f"{file}: {prim.GetPath()}"
-    api = UsdPhysics.CollisionAPI(prim)
-    enabled = api.GetCollisionEnabledAttr().Get()
-    if enabled is False:
-        return None
     code = _code(time)
+    if not _enabled(UsdPhysics.CollisionAPI(prim), code, where, warnings):
+        return None
 
-    def positive(name, value):
-        if value is None or not np.isfinite(value) or value < 0:
-            raise UserError(f"{where}: {name} = {value}: expected a finite number >= 0")
+    def size(name, attr, low_open=True):
+        """A size attribute at ``code``: a finite number > 0 (``low_open``) or >= 0, and not too large."""
+        value = number(attr.Get(code), name, where)
+        if not np.isfinite(value) or value < 0 or (low_open and value == 0):
+            raise UserError(f"{where}: {name} = {shown(value)}: must be a finite number {'>' if low_open else '>='} 0")
         check_lengths([value], name, where, indexed=False)
-        return float(value)
+        return value
 
     if prim.IsA(UsdGeom.Sphere):
-        c = ColliderPrim(str(prim.GetPath()), "sphere", radius=positive("radius", UsdGeom.Sphere(prim).GetRadiusAttr().Get(code)))
+        c = ColliderPrim(str(prim.GetPath()), "sphere", radius=size("radius", UsdGeom.Sphere(prim).GetRadiusAttr()))
     elif prim.IsA(UsdGeom.Capsule):
         cap = UsdGeom.Capsule(prim)
         c = ColliderPrim(
             str(prim.GetPath()), "capsule",
-            radius=positive("radius", cap.GetRadiusAttr().Get(code)),
-            height=positive("height", cap.GetHeightAttr().Get(code)),
-            axis=str(cap.GetAxisAttr().Get(code) or "Z"),
+            radius=size("radius", cap.GetRadiusAttr()),
+            height=size("height", cap.GetHeightAttr(), low_open=False),
+            axis=_axis(cap.GetAxisAttr().Get(code), where),
         )
     elif prim.IsA(UsdGeom.Cube):
-        size = positive("size", UsdGeom.Cube(prim).GetSizeAttr().Get(code))
-        c = ColliderPrim(str(prim.GetPath()), "box", half_extents=np.full(3, 0.5 * size))
+        c = ColliderPrim(str(prim.GetPath()), "box", half_extents=np.full(3, 0.5 * size("size", UsdGeom.Cube(prim).GetSizeAttr())))
     elif prim.IsA(UsdGeom.Mesh):
         mesh = UsdGeom.Mesh(prim)
-        pts, tris = mesh_triangles(mesh, code, where)
+        pts, tris, faces, n_faces = mesh_triangles(mesh, code, where, faces=True)
+        _check_areas(pts, tris, faces, n_faces, where, warnings)
         c = ColliderPrim(str(prim.GetPath()), "mesh", mesh_points=pts, triangles=tris)
         sampler, deforming = points_sampler(mesh.GetPointsAttr(), pts.shape[0], where, time, pts)
         if deforming:
@@ -235,7 +300,7 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
     else:
         warnings.append(f"{where}: collider of type {prim.GetTypeName() or 'untyped'} is not supported; ignored")
         return None
-    c.friction = _friction(prim, where)
+    c.friction = _friction(prim, where, warnings)
     if c.kind == "mesh":  # the collider-scope dftl: attributes its shape reads (dftl:collisionSdf, ...)
         c.attributes.update({k: v for k, v in read_values(prim, where, "collider", 24.0).items() if k != "dftl:friction"})
     c.transform, c.animated = transforms.sampler(prim, time)

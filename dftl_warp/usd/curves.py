@@ -7,7 +7,8 @@ no USD objects.
 - :func:`curve_spans` and :func:`primvar_count`: how many values each primvar interpolation needs;
 - :func:`check_primvar`: a primvar's (e.g. ``widths``) value count for its interpolation, finite
   values and, for widths, no negative one and none too large (:func:`check_lengths`);
-- :func:`check_lengths`: lengths (sizes, positions, widths) whose square fits float32.
+- :func:`check_lengths`: lengths (sizes, positions, widths) whose square fits float32;
+- :func:`note_single_vertex`: one warning naming the curves of a single vertex.
 
 Messages name the file, the prim and the index: ``FILE: PRIM: widths: 3 values for 'vertex'
 interpolation, expected 5``.
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, plural
 
 #: the largest float32, USD's point3f and float widths
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -48,6 +49,21 @@ def check_lengths(values, name: str, where: str, indexed: bool = True, world: st
 
 #: control points from one cubic span to the next
 CUBIC_VSTEP = {"bezier": 3, "bspline": 1, "catmullRom": 1}
+
+
+def note_single_vertex(counts, where: str, warnings: list) -> None:
+    """One warning naming the curves of a single vertex (a root without a segment: nothing to
+    simulate or draw)."""
+    counts = np.asarray(counts, dtype=np.int64)
+    single = np.flatnonzero(counts == 1)
+    if not single.size:
+        return
+    one = single.size == 1
+    first = ", ".join(str(int(i)) for i in single[:5]) + (", ..." if single.size > 5 else "")
+    warnings.append(f"{where}: {single.size} of {plural(counts.size, 'curve')} {'has' if one else 'have'} a single "
+                    f"vertex (curve{'' if one else 's'} {first}: curveVertexCounts = 1): no segment to simulate; "
+                    f"{'it stays a root' if one else 'each stays a root'} that follows the prim's transform (and is "
+                    f"not drawn)")
 
 
 def curve_spans(counts: np.ndarray, curve_type: str, basis: str, wrap: str) -> np.ndarray:

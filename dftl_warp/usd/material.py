@@ -28,6 +28,7 @@ import numpy as np
 from ..errors import UserError
 from . import curves as curve_checks
 from .scene import CurveMaterial
+from .values import shown
 
 #: the applied schema that marks a curve-deformable physics material
 CURVES_MATERIAL_API = "PhysicsCurvesDeformableMaterialAPI"
@@ -56,12 +57,37 @@ def _applied_schemas(prim) -> list[str]:
     return [str(s) for s in prim.GetPrimTypeInfo().GetAppliedAPISchemas()]
 
 
+def bound_material(prim, where: str, warnings: list, fallback: str):
+    """The material bound to ``prim`` for purpose ``physics`` (UsdShade's resolution: the
+    all-purpose binding when there is no physics one), a UsdShade.Material, invalid when none.
+    A direct binding of ``prim`` (``material:binding:physics``, else ``material:binding``) whose
+    target is missing or not a Material gets one warning naming the prim and the target (USD skips
+    such a binding); ``fallback`` says what is used instead when no material is bound."""
+    from pxr import UsdShade
+
+    api = UsdShade.MaterialBindingAPI(prim)
+    material, _ = api.ComputeBoundMaterial("physics")
+    for purpose in ("physics", UsdShade.Tokens.allPurpose):
+        rel = api.GetDirectBindingRel(purpose)
+        targets = rel.GetTargets() if rel else []
+        if not targets:
+            continue
+        target = prim.GetStage().GetPrimAtPath(targets[0])
+        if target and target.IsA(UsdShade.Material):
+            break
+        problem = "no such prim" if not target else f"a {target.GetTypeName() or 'typeless'} prim, not a Material"
+        instead = f"{material.GetPath()} is used" if material else fallback
+        message = f"{where}: {rel.GetName()} -> {targets[0]}: {problem}: the binding is skipped ({instead})"
+        if message not in warnings:
+            warnings.append(message)
+        break
+    return material
+
+
 def read_curve_material(prim, where: str, file: str, warnings: list, seen: set) -> CurveMaterial | None:
     """The curve-deformable physics material bound to ``prim`` (None when none). ``seen`` holds the
     materials already warned about, so each warning appears once per material."""
-    from pxr import UsdShade
-
-    material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial("physics")
+    material = bound_material(prim, where, warnings, "the hair has human hair's material")
     if not material:
         return None
     mprim = material.GetPrim()
@@ -83,7 +109,7 @@ def read_curve_material(prim, where: str, file: str, warnings: list, seen: set) 
             field, low, low_open, high = READ[name]
             value = attr.Get()
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise UserError(f"{mwhere}: {name} = {value!r}: expected a number")
+                raise UserError(f"{mwhere}: {name} = {shown(value)}: expected a number")
             value = float(value)
             bad = not math.isfinite(value) or value < low or (low_open and value == low) or value > high
             if bad:
@@ -135,7 +161,7 @@ def read_bend_scale(prim, code, counts, n_points: int, ctype, basis, wrap, where
     interp = str(pv.GetInterpolation())
     raw = curve_checks.flattened(pv, code, where)
     if raw is None or isinstance(raw, (str, bool)):
-        raise UserError(f"{where}: primvars:{BEND_SCALE_PRIMVAR} = {raw!r}: expected numbers")
+        raise UserError(f"{where}: primvars:{BEND_SCALE_PRIMVAR} = {shown(raw)}: expected numbers")
     try:
         values = np.asarray(raw, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):

@@ -39,6 +39,7 @@ from .material import read_bend_scale, read_curve_material, read_rest_points
 from .sampling import TransformReader, scale_growth
 from .scene import CurveSettings, CurvesPrim, Scene
 from .stage import STANDARD_GRAVITY, layer_unit_warnings, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
+from .stage import diagnostic_text, utf8_problem
 
 #: old private name of :func:`dftl_warp.usd.stage.tf_message`
 _tf_message = tf_message
@@ -75,6 +76,11 @@ def open_stage(path: str):
         stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
     except Tf.ErrorException as exc:
         message = tf_message(exc)
+        if "\ufffd" in message:   # USD read bytes that are not UTF-8 (a Latin-1 character in a .usda)
+            problem = utf8_problem(path)
+            if problem is not None:
+                raise UserError(f"{path}: cannot open as a USD stage: {problem}: USD text files are UTF-8 "
+                                f"(save the file as UTF-8)") from None
         prefix = os.path.abspath(path) + ":"
         if message.startswith(prefix):  # parser messages start with the file name
             message = message[len(prefix):].lstrip()
@@ -90,7 +96,7 @@ def open_stage(path: str):
         raise UserError(f"{path}: cannot open as a USD stage")
     warnings = []
     for d in diagnostics:
-        text = re.sub(r"\s*\(instantiating stage on stage @[^)]*\)\s*$", "", d.commentary)
+        text = re.sub(r"\s*\(instantiating stage on stage @[^)]*\)\s*$", "", diagnostic_text(d))
         warnings.append(f"{path}: {' '.join(text.split())}")
     return stage, warnings
 
@@ -229,6 +235,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
             f"{where}: curveVertexCounts sum to {total} but points has {points.shape[0]} entries"
         )
     curve_checks.check_vertex_counts(counts, ctype, basis, wrap, where)
+    curve_checks.note_single_vertex(counts, where, warnings)
     bad = _first_bad_row(points)
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite")
@@ -507,7 +514,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
         del delegate
     seen = set()
     for d in diagnostics:
-        text = " ".join(d.commentary.split())
+        text = " ".join(diagnostic_text(d).split())
         if text not in seen:
             seen.add(text)
             scene.warnings.append(f"{file}: {text}")
@@ -518,6 +525,10 @@ def _read_scene(stage, file: str, warnings: list, prims, time, frames) -> Scene:
     from pxr import UsdPhysics
 
     info = read_stage_info(stage, file)
+    if "metersPerUnit" not in info.authored:
+        warnings.append(f"{file}: the stage does not author metersPerUnit: USD's fallback, {info.meters_per_unit:g} m "
+                        f"per unit (centimetres), is used, so gravity is {STANDARD_GRAVITY / info.meters_per_unit:g} "
+                        f"units/s^2; author metersPerUnit (1 for a scene in metres)")
     warnings += layer_unit_warnings(stage, info, file)
     if time is None and info.start_time_code is not None:
         time = info.start_time_code

@@ -6,7 +6,8 @@
 - :func:`layer_unit_warnings`: composed layers authored in other units or another up axis;
 - :func:`read_gravity`: from the first ``UsdPhysics.Scene`` prim, else 9.81 m/s^2 along -upAxis;
 - :func:`tf_message`: the first message of a ``Tf.ErrorException`` on one line (the reader's and
-  the writer's error messages).
+  the writer's error messages), also when it holds bytes that are not UTF-8 (:func:`utf8_problem`
+  says where a text file has them).
 """
 
 from __future__ import annotations
@@ -18,14 +19,60 @@ import numpy as np
 
 from ..errors import UserError
 from .scene import StageInfo
+from .values import number, numbers3, shown
 
 #: standard gravity, m/s^2
 STANDARD_GRAVITY = 9.81
 
 
+def exception_text(exc: Exception) -> str:
+    """``str(exc)``, also when a message of a Tf.ErrorException holds bytes that are not UTF-8 (a
+    Latin-1 character in a .usda file: Python's ``str`` of the Tf.Error raises UnicodeDecodeError);
+    those bytes become U+FFFD."""
+    try:
+        return str(exc)
+    except UnicodeDecodeError:
+        pass
+    parts = []
+    for item in getattr(exc, "args", ()):
+        try:
+            parts.append(str(item))
+        except UnicodeDecodeError as bad:
+            parts.append(bytes(bad.object).decode("utf-8", errors="replace"))
+    return "\n\t" + "\n\t".join(parts) if parts else type(exc).__name__
+
+
+def diagnostic_text(diagnostic) -> str:
+    """The commentary of a USD diagnostic (a warning collected while composing), bytes that are not
+    UTF-8 shown as U+FFFD."""
+    try:
+        return diagnostic.commentary
+    except UnicodeDecodeError as bad:
+        return bytes(bad.object).decode("utf-8", errors="replace")
+
+
+def utf8_problem(path: str) -> str | None:
+    """Where the text file ``path`` is not valid UTF-8: ``not valid UTF-8 (byte 0xe9 at line 11,
+    column 6)``; None when it is (or cannot be read)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError:
+        return None
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as bad:
+        at = bad.start
+        line = data.count(b"\n", 0, at) + 1
+        column = at - (data.rfind(b"\n", 0, at) + 1) + 1
+        return f"not valid UTF-8 (byte 0x{data[at]:02x} at line {line}, column {column})"
+    return None
+
+
 def tf_message(exc: Exception) -> str:
-    """The first message of a Tf.ErrorException, on one line, without C++ decorations."""
-    text = str(exc)
+    """The first message of a Tf.ErrorException, on one line, without C++ decorations (bytes that
+    are not UTF-8 shown as U+FFFD)."""
+    text = exception_text(exc)
     found = re.findall(r"Error in '[^']*' at line \d+ in file [^:]+ : '(.*?)'\s*(?=\n\tError in|$)", text, re.S)
     message = found[0] if found else text.strip()
     message = re.sub(r"pxrInternal_v[0-9_]+?__pxrReserved__(_?)::", "", message)
@@ -126,13 +173,14 @@ def read_gravity(stage, info: StageInfo, file: str, warnings: list) -> np.ndarra
         warnings.append(f"{file}: {len(scenes)} UsdPhysics.Scene prims; using {scenes[0].GetPath()}")
     phys = UsdPhysics.Scene(scenes[0])
     where = f"{file}: {scenes[0].GetPath()}"
-    direction = np.array(phys.GetGravityDirectionAttr().Get() or (0.0, 0.0, 0.0), dtype=np.float64)
+    direction = phys.GetGravityDirectionAttr().Get()
+    direction = np.zeros(3) if direction is None else numbers3(direction, "physics:gravityDirection", where)
     magnitude = phys.GetGravityMagnitudeAttr().Get()
-    magnitude = float("-inf") if magnitude is None else float(magnitude)
+    magnitude = float("-inf") if magnitude is None else number(magnitude, "physics:gravityMagnitude", where)
     if not np.all(np.isfinite(direction)):
-        raise UserError(f"{where}: gravityDirection {tuple(direction)} is not finite")
+        raise UserError(f"{where}: gravityDirection {shown(tuple(direction))} is not finite")
     if np.isnan(magnitude) or magnitude == float("inf"):
-        raise UserError(f"{where}: gravityMagnitude {magnitude} is not finite")
+        raise UserError(f"{where}: gravityMagnitude {shown(magnitude)} is not finite")
     norm = float(np.linalg.norm(direction))
     unit = -up_vector(info.up_axis) if norm == 0.0 else direction / norm
     return unit * (earth if magnitude < 0.0 else magnitude) + 0.0

@@ -24,7 +24,7 @@ from ...core.precision import numpy_type
 from ...kernels.features.mesh import MESH, mesh_substep_kernel
 from ..base import finite_rows, nonnegative
 from .base import ColliderShape
-from .sdf import MeshFields, bounds, estimated_bytes, field_band, field_settings
+from .sdf import MeshFields, bounds, check_field_size, estimated_bytes, field_band, field_settings
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,8 +99,10 @@ class TriangleMesh(ColliderShape):
         if np.prod(np.sign(scale)) < 0:
             tris = tris[:, ::-1]  # a mirror turns the faces inside out; turn them back
         attrs = prim.attributes
-        return cls(points=np.asarray(prim.mesh_points) * scale, indices=tris, sdf=attrs.get("dftl:collisionSdf"),
-                   sdf_cell=attrs.get("dftl:collisionSdfCellSize"), **common)
+        shape = cls(points=np.asarray(prim.mesh_points) * scale, indices=tris, sdf=attrs.get("dftl:collisionSdf"),
+                    sdf_cell=attrs.get("dftl:collisionSdfCellSize"), **common)
+        check_field_size(shape, "dftl:collisionSdfCellSize")   # FieldTooLarge: shape_from_prim names the file
+        return shape
 
     @classmethod
     def make_device_data(cls, model, shapes, num_colliders):

@@ -76,6 +76,36 @@ def field_band(depth_band: float, max_radius: float, cell: float) -> float:
     return float(depth_band) + float(max_radius) + (SQRT3 + BAND_MARGIN) * float(cell)
 
 
+def field_bricks(points: np.ndarray, cell: float, band: float) -> np.ndarray:
+    """Bricks (3,) along each axis of the grid of a field of ``cell`` and half-width ``band`` (m)
+    around the mesh ``points``: its rest bounds and band, grown by :data:`GROWTH` (whole numbers as
+    floats: a tiny cell's count does not overflow)."""
+    lo, hi = bounds(points)
+    extent = hi - lo + 2.0 * band
+    return np.ceil(extent * (1.0 + GROWTH) / (BRICK * cell)) + 2.0
+
+
+class FieldTooLarge(ValueError):
+    """A signed distance field of more than :data:`MAX_BRICKS` bricks (its cell too small for the mesh)."""
+
+
+def check_field_size(shape, cell_name: str) -> None:
+    """:class:`FieldTooLarge` when the field of the :class:`~.mesh.TriangleMesh` ``shape`` needs more
+    than :data:`MAX_BRICKS` bricks for hair of radius 0 (a lower bound: the hair's radius widens the
+    band), naming the cell as ``cell_name`` (``dftl:collisionSdfCellSize``); nothing when the shape
+    has no field."""
+    uses, cell, _ = field_settings(shape)
+    if not uses:
+        return
+    n = float(np.prod(field_bricks(shape.points, cell, field_band(shape.depth_band, 0.0, cell))))
+    if n > MAX_BRICKS:
+        which = f"{cell_name} = {cell:g}" if shape.sdf_cell is not None else \
+            f"the default cell ({cell:g}, the mean edge length; {cell_name} is not authored)"
+        lo, hi = bounds(shape.points)
+        raise FieldTooLarge(f"{which}: the signed distance field of a mesh {float(np.max(hi - lo)):g} units across "
+                            f"needs {n:.4g} bricks of 8^3 cells (at most {MAX_BRICKS}): author a larger {cell_name}")
+
+
 def estimated_bytes(points: np.ndarray, indices: np.ndarray, cell: float, band: float) -> int:
     """Rough device bytes of a field (before it is built): the pool of twice the bricks a band of
     half-width ``band`` around the surface's area needs, and the brick map."""
@@ -152,12 +182,11 @@ class MeshFields:
         for c, shape, mesh in entries:
             _, cell, tolerance = field_settings(shape)
             band = field_band(shape.depth_band, max_radius, cell)
-            lo, hi = bounds(shape.points)
-            extent = hi - lo + 2.0 * band
-            bricks = np.ceil(extent * (1.0 + GROWTH) / (BRICK * cell)).astype(np.int64) + 2
-            if int(np.prod(bricks)) > MAX_BRICKS:
-                raise ValueError(f"{shape._label()}: a signed distance field of {cell:.3g} m cells needs "
-                                 f"{int(np.prod(bricks))} bricks (at most {MAX_BRICKS}); give a larger sdf_cell")
+            bricks = field_bricks(shape.points, cell, band)
+            if float(np.prod(bricks)) > MAX_BRICKS:
+                raise FieldTooLarge(f"{shape._label()}: a signed distance field of {cell:.3g} m cells needs "
+                                    f"{float(np.prod(bricks)):.4g} bricks (at most {MAX_BRICKS}); give a larger sdf_cell")
+            bricks = bricks.astype(np.int64)
             field = _Field(c, shape.name, cell, band, tolerance, bricks, map_size)
             map_size += field.num_bricks
             plans.append((field, shape, mesh))

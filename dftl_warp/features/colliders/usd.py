@@ -13,6 +13,7 @@ import numpy as np
 
 from ...errors import UserError
 from .base import SHAPES, ColliderApproximationWarning, Colliders, warn_approximation
+from .sdf import FieldTooLarge
 
 #: a transform whose normalized axes are further than this from orthogonal has shear
 SHEAR = 1.0e-6
@@ -68,7 +69,10 @@ def shape_from_prim(prim, matrix, where: str):
     common = dict(position=position, rotation=rotation, friction=friction, name=prim.path)
     for cls in SHAPES.values():
         if cls.usd_kind == prim.kind:
-            return cls.from_prim(prim, position, rotation, scale, common)
+            try:
+                return cls.from_prim(prim, position, rotation, scale, common)
+            except FieldTooLarge as exc:   # a signed distance field's cell too small for the mesh
+                raise UserError(f"{where}: {exc}") from None
     raise UserError(f"{where}: collider kind {prim.kind!r} is not supported")
 
 
