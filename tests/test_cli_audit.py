@@ -85,3 +85,12 @@ def test_import_makes_the_output_folders_as_simulate_does_and_removes_them_on_fa
     (tmp_path / "bad.hair").write_bytes(b"HAIR" + b"\xff" * 40)   # a header cut short: refused while reading
     code, out, err = run(capsys, "import", tmp_path / "bad.hair", "-o", tmp_path / "c" / "d" / "o.usda")
     assert code == 2 and not (tmp_path / "c").exists() and err.count("\n") == 1
+
+
+def test_diff_gives_the_reason_a_stage_cannot_open(tmp_path, capsys):
+    a = hair(tmp_path / "a.usda")
+    b = tmp_path / "b.usda"
+    b.write_bytes(open(a, "rb").read().replace(b"def Xform", b"# caf\xe9\ndef Xform", 1))
+    code, out, err = run(capsys, "diff", a, b)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith(f"dftl-warp: error: {b}: cannot open as a USD stage: not valid UTF-8 (byte 0xe9 at line ")

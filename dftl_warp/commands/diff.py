@@ -45,6 +45,7 @@ def _open(path):
     from pxr import Tf, Usd, UsdGeom
 
     from ..errors import UserError
+    from ..usd.stage import open_failure
 
     if not os.path.exists(path):
         raise UserError(f"{path}: no such file")
@@ -52,8 +53,8 @@ def _open(path):
         raise UserError(f"{path}: is a folder, not a USD file")
     try:
         stage = Usd.Stage.Open(str(path))
-    except Tf.ErrorException:
-        stage = None
+    except Tf.ErrorException as exc:   # the reason, as simulate gives it (a parse error, bytes not UTF-8)
+        raise open_failure(str(path), exc) from None
     if stage is None:
         raise UserError(f"{path}: cannot open as a USD stage")
     return stage, {str(p.GetPath()): UsdGeom.BasisCurves(p) for p in stage.Traverse() if p.IsA(UsdGeom.BasisCurves)}

@@ -39,7 +39,7 @@ from .material import read_bend_scale, read_curve_material, read_rest_points
 from .sampling import TransformReader, scale_growth
 from .scene import CurveSettings, CurvesPrim, Scene
 from .stage import STANDARD_GRAVITY, layer_unit_warnings, read_gravity, read_stage_info, tf_message, up_vector  # noqa: F401
-from .stage import diagnostic_text, utf8_problem
+from .stage import diagnostic_text, open_failure
 
 #: old private name of :func:`dftl_warp.usd.stage.tf_message`
 _tf_message = tf_message
@@ -75,20 +75,7 @@ def open_stage(path: str):
     try:
         stage = Usd.Stage.Open(path, Usd.Stage.LoadAll)
     except Tf.ErrorException as exc:
-        message = tf_message(exc)
-        if "\ufffd" in message:   # USD read bytes that are not UTF-8 (a Latin-1 character in a .usda)
-            problem = utf8_problem(path)
-            if problem is not None:
-                raise UserError(f"{path}: cannot open as a USD stage: {problem}: USD text files are UTF-8 "
-                                f"(save the file as UTF-8)") from None
-        prefix = os.path.abspath(path) + ":"
-        if message.startswith(prefix):  # parser messages start with the file name
-            message = message[len(prefix):].lstrip()
-            where = re.match(r"(\d+:\d+):\s*(.*)", message, re.S)
-            if where:
-                raise UserError(f"{path}:{where.group(1)}: syntax error: {where.group(2)}") from None
-            raise UserError(f"{path}: {message}") from None
-        raise UserError(f"{path}: cannot open as a USD stage: {message}") from None
+        raise open_failure(path, exc) from None
     finally:
         diagnostics = delegate.TakeUncoalescedDiagnostics()
         del delegate

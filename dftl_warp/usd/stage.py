@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import math
+import os
 import re
 
 import numpy as np
@@ -78,6 +79,28 @@ def tf_message(exc: Exception) -> str:
     message = re.sub(r"pxrInternal_v[0-9_]+?__pxrReserved__(_?)::", "", message)
     message = re.sub(r"\bSdf_\w+::|\b_pegtl::", "", message)
     return " ".join(message.split())
+
+
+def open_failure(path: str, exc: Exception) -> UserError:
+    """The one-line error for a stage USD could not open (``exc``, a Tf.ErrorException): bytes that
+    are not UTF-8 named by line and column, a parse error as ``FILE:LINE:COLUMN: syntax error: ...``,
+    else ``FILE: cannot open as a USD stage: REASON``."""
+    message = tf_message(exc)
+    # USD read bytes that are not UTF-8 (a Latin-1 character in a .usda): its message holds U+FFFD or,
+    # opened without a diagnostic delegate, says only that the layer is not valid usda
+    if "\ufffd" in message or os.fspath(path).lower().endswith(".usda"):
+        problem = utf8_problem(path)
+        if problem is not None:
+            return UserError(f"{path}: cannot open as a USD stage: {problem}: USD text files are UTF-8 "
+                             f"(save the file as UTF-8)")
+    prefix = os.path.abspath(path) + ":"
+    if message.startswith(prefix):  # parser messages start with the file name
+        message = message[len(prefix):].lstrip()
+        where = re.match(r"(\d+:\d+):\s*(.*)", message, re.S)
+        if where:
+            return UserError(f"{path}:{where.group(1)}: syntax error: {where.group(2)}")
+        return UserError(f"{path}: {message}")
+    return UserError(f"{path}: cannot open as a USD stage: {message}")
 
 
 def read_stage_info(stage, file: str | None = None) -> StageInfo:
