@@ -269,3 +269,16 @@ def test_a_mesh_without_faces_is_said_not_drawn(tmp_path, capsys):
         f"{src}: 1 Mesh prim (/World/Empty) without faces (no points, faceVertexCounts or faceVertexIndices): "
         "not drawn"]
 
+
+
+def test_a_camera_its_own_checks_refuse_is_named_with_the_file(tmp_path, capsys):
+    """The camera's checks (render/camera.py) run as it is built; from a stage their line names the file."""
+    src = write(tmp_path, CAMERA.format(attribute="float focalLength = 0"))
+    line = refused(capsys, src, tmp_path, "--camera", "/World/Cam")
+    assert line.startswith(f"{src}: ") and "focal_length = 0: must be > 0" in line
+
+
+def test_an_up_axis_other_than_y_or_z_is_one_line_naming_the_file(tmp_path, capsys):
+    src = tmp_path / "in.usda"
+    src.write_text(write(tmp_path, "").read_text().replace('upAxis = "Y"', 'upAxis = "W"'))
+    assert refused(capsys, src, tmp_path) == f"{src}: upAxis = 'W': must be \"Y\" or \"Z\""

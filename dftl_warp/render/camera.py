@@ -9,6 +9,11 @@ tenths of a stage unit. ``world_from_camera`` is a 4x4 matrix for column vectors
 When the image aspect (width / height) differs from the aperture aspect, the window is
 conformed as the UsdRender ``aspectRatioConformPolicy`` says (default ``expandAperture``: the
 whole authored aperture stays visible and the other direction grows).
+
+A :class:`Camera` is checked when it is built (and again by the renderer, which sees fields set
+later): a 4x4 matrix of finite numbers, a finite focal length and apertures > 0, finite aperture
+offsets, 0 <= near < far, a projection the renderer draws. A bad value raises
+:class:`~dftl_warp.options.OptionError` (a ValueError) naming the field and the value.
 """
 
 from __future__ import annotations
@@ -18,11 +23,42 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..options import OptionError
+
 #: UsdRender.Settings aspectRatioConformPolicy values this renderer honours
 CONFORM_POLICIES = ("expandAperture", "cropAperture", "adjustApertureWidth", "adjustApertureHeight")
 
 #: tenths of a stage unit: the unit of focal length and aperture
 APERTURE_UNIT = 0.1
+
+#: the projections of UsdGeom.Camera (anything else was drawn as a perspective one)
+PROJECTIONS = ("perspective", "orthographic")
+#: the stage up axes: framing and turntables turn about Y or Z
+UP_AXES = ("Y", "Z")
+
+
+def checked_up_axis(up_axis) -> str:
+    """``up_axis`` ("Y" or "Z", either case) in capitals; OptionError (a ValueError, one line for
+    ``dftl-warp render``) naming anything else ("W" was framed and orbited as if it were "Y")."""
+    if not isinstance(up_axis, str) or up_axis.upper() not in UP_AXES:
+        raise OptionError(f"up_axis {up_axis!r}: must be 'Y' or 'Z'")
+    return up_axis.upper()
+
+
+def _shown(value) -> str:
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)):
+        return f"{float(value):g}"
+    return repr(value)
+
+
+def _number(where: str, name: str, value) -> float:
+    """``value`` as a float; OptionError naming ``name`` for a string, a bool, an array or NaN."""
+    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not numeric:
+        raise OptionError(f"{where}{name} = {_shown(value)}: expected a number")
+    if math.isnan(value):
+        raise OptionError(f"{where}{name} = nan: not a number")
+    return float(value)
 
 
 @dataclass
@@ -39,6 +75,44 @@ class Camera:
     far: float = 1.0e6
     projection: str = "perspective"
     path: str = ""
+
+    def __post_init__(self):
+        self.check()
+
+    def check(self) -> None:
+        """OptionError (a ValueError) naming the first bad field: ``world_from_camera`` not a 4x4
+        matrix of finite numbers, a focal length or aperture not finite and > 0, an aperture offset
+        not finite, not 0 <= near < far (far may be infinite), an unknown projection. (Such
+        cameras drew a blank or NaN image, or a perspective one, without a word.)"""
+        where = f"camera {self.path}: " if self.path else "camera "
+        try:
+            m = np.asarray(self.world_from_camera, dtype=np.float64)
+        except (TypeError, ValueError):
+            m = None
+        if m is None or m.shape != (4, 4):
+            what = _shown(self.world_from_camera) if m is None else f"of shape {m.shape}"
+            raise OptionError(f"{where}world_from_camera {what}: expected a 4x4 matrix of numbers")
+        bad = np.argwhere(~np.isfinite(m))
+        if len(bad):
+            i, j = (int(k) for k in bad[0])
+            raise OptionError(f"{where}world_from_camera[{i}][{j}] = {m[i, j]:g}: not finite")
+        for name in ("focal_length", "horizontal_aperture", "vertical_aperture"):
+            value = _number(where, name, getattr(self, name))
+            if not math.isfinite(value):
+                raise OptionError(f"{where}{name} = {value:g}: must be finite")
+            if value <= 0:
+                raise OptionError(f"{where}{name} = {value:g}: must be > 0")
+        for name in ("horizontal_aperture_offset", "vertical_aperture_offset"):
+            value = _number(where, name, getattr(self, name))
+            if not math.isfinite(value):
+                raise OptionError(f"{where}{name} = {value:g}: must be finite")
+        near, far = _number(where, "near", self.near), _number(where, "far", self.far)
+        if not (math.isfinite(near) and near >= 0):
+            raise OptionError(f"{where}near = {near:g}: must be finite and >= 0")
+        if not far > near:
+            raise OptionError(f"{where}near = {near:g}, far = {far:g}: must have near < far")
+        if not isinstance(self.projection, str) or self.projection not in PROJECTIONS:
+            raise OptionError(f"{where}projection {self.projection!r}: must be 'perspective' or 'orthographic'")
 
     def aperture_window(self):
         """(left, right, bottom, top) of the authored aperture, in aperture units."""
@@ -105,7 +179,7 @@ class Camera:
 
 def rotation_about_up(angle: float, up_axis: str = "Y") -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
-    if up_axis.upper() == "Z":
+    if checked_up_axis(up_axis) == "Z":
         return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
@@ -135,10 +209,11 @@ def auto_frame(bounds, width: int, height: int, up_axis: str = "Y",
         lo, hi = -np.full(3, 0.5), np.full(3, 0.5)
     else:
         lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+    up_axis = checked_up_axis(up_axis)
     center = 0.5 * (lo + hi)
     radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)
-    up = np.array([0.0, 0.0, 1.0]) if up_axis.upper() == "Z" else np.array([0.0, 1.0, 0.0])
-    front = np.array([0.0, -1.0, 0.0]) if up_axis.upper() == "Z" else np.array([0.0, 0.0, 1.0])
+    up = np.array([0.0, 0.0, 1.0]) if up_axis == "Z" else np.array([0.0, 1.0, 0.0])
+    front = np.array([0.0, -1.0, 0.0]) if up_axis == "Z" else np.array([0.0, 0.0, 1.0])
     az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
     view = rotation_about_up(az, up_axis) @ front
     view = math.cos(el) * view + math.sin(el) * up

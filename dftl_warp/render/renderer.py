@@ -8,7 +8,8 @@ strands as drawn for the camera: widened to ``min_pixel_width`` pixels at their 
 opacity true / drawn width (:mod:`dftl_warp.kernels.render.pixel`).
 
 Bad arguments (a resolution of 8.5 or 0 pixels, a fractional ``spp``, a negative
-``min_pixel_width``, an unknown shading or conform policy) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
+``min_pixel_width``, an unknown shading or conform policy, a bad :class:`Camera` or
+:class:`Lighting` field) raise :class:`~dftl_warp.options.OptionError`: a ValueError for scripts, one
 line for ``dftl-warp render``; nothing is truncated to an integer.
 """
 
@@ -55,6 +56,51 @@ class Lighting:
     hair_shadow_transmittance: float = 0.6
     roughness: float = 0.25
     geometry_albedo: tuple = (0.45, 0.45, 0.45)
+
+    def __post_init__(self):
+        self.check()
+
+    def check(self) -> None:
+        """OptionError (a ValueError) naming the first bad field: a direction that is not 3 finite
+        numbers or is zero (its pixels came out NaN), a colour or albedo that is not 3 finite,
+        non-negative numbers, a transmittance outside 0..1, a negative or non-finite roughness."""
+        for name in ("key_dir", "fill_dir"):
+            v = _vector3(name, getattr(self, name))
+            if not np.any(v):
+                raise OptionError(f"lighting {name} {_shown3(v)}: must be a nonzero vector")
+        for name in ("key_color", "fill_color", "ambient", "geometry_albedo"):
+            v = _vector3(name, getattr(self, name))
+            if (v < 0).any():
+                raise OptionError(f"lighting {name} {_shown3(v)}: must not be negative")
+        t = _finite_number("hair_shadow_transmittance", self.hair_shadow_transmittance)
+        if not 0 <= t <= 1:
+            raise OptionError(f"lighting hair_shadow_transmittance = {t:g}: must be from 0 to 1")
+        if _finite_number("roughness", self.roughness) < 0:
+            raise OptionError(f"lighting roughness = {self.roughness:g}: must be >= 0")
+
+
+def _shown3(v) -> str:
+    return "(" + ", ".join(f"{x:g}" for x in v) + ")"
+
+
+def _vector3(name: str, value) -> np.ndarray:
+    """``value`` as 3 finite floats; OptionError naming the lighting field ``name`` otherwise."""
+    try:
+        v = None if isinstance(value, (str, bytes)) else np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (3,) or np.asarray(value).dtype == np.bool_:
+        raise OptionError(f"lighting {name} {value!r}: expected 3 numbers")
+    if not np.isfinite(v).all():
+        raise OptionError(f"lighting {name} {_shown3(v)}: must be finite")
+    return v
+
+
+def _finite_number(name: str, value) -> float:
+    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not numeric or not math.isfinite(value):
+        raise OptionError(f"lighting {name} = {value!r}: expected a finite number")
+    return float(value)
 
 
 def parse_device(name: str) -> str:
@@ -263,7 +309,8 @@ class Renderer:
 
     def render(self, scene: RenderScene, camera: Camera | None = None) -> np.ndarray:
         """(height, width, 4) float32: linear straight colour and alpha = coverage. ValueError
-        (:meth:`RenderScene.check`) when the scene's strand arrays do not fit together."""
+        (:meth:`RenderScene.check`) when the scene's arrays do not fit together; OptionError (a
+        ValueError) for a bad camera (:meth:`Camera.check`) or lighting (:meth:`Lighting.check`)."""
         if not isinstance(scene, RenderScene):
             raise TypeError(f"scene must be a RenderScene, got {type(scene).__name__}")
         if camera is not None and not isinstance(camera, Camera):
@@ -271,6 +318,8 @@ class Renderer:
         scene.check()
         if camera is None:
             camera = self.default_camera(scene)
+        camera.check()   # again: its fields may have been set since it was built
+        self.lighting.check()
         bounds = scene.bounds()
         origin = np.zeros(3) if bounds is None else 0.5 * (bounds[0] + bounds[1])
         cam, world_from_camera = self._camera(camera, origin)

@@ -15,6 +15,8 @@ from ..core.bounds import box
 from ..errors import plural
 from ..core.layout import strand_offsets
 from ..core.model import check_strand_arrays
+from .camera import checked_up_axis
+
 #: default linear hair colour at the root and at the tip (a mid brown)
 DEFAULT_ROOT_COLOR = (0.045, 0.022, 0.010)
 DEFAULT_TIP_COLOR = (0.30, 0.17, 0.085)
@@ -22,6 +24,7 @@ DEFAULT_TIP_COLOR = (0.30, 0.17, 0.085)
 ROOT_DARKENING = 0.55
 
 SPHERE, CAPSULE, BOX = 0, 1, 2
+SHAPE_KINDS = {SPHERE: "sphere", CAPSULE: "capsule", BOX: "box"}
 
 
 @dataclass
@@ -79,7 +82,9 @@ class RenderScene:
         scalar, (S,) per strand or (N,) per vertex; ``colors``: None (default ramp), an RGB, (S, 3)
         or (N, 3). Bad arrays (counts that do not sum to N, a negative count, a non-finite point,
         a negative or non-finite width, widths or colours of another length) raise ValueError
-        naming the first bad index, with the messages of :meth:`dftl_warp.Model.from_strands`."""
+        naming the first bad index, with the messages of :meth:`dftl_warp.Model.from_strands`;
+        so do bad ``shapes``, ``mesh_points``, ``mesh_triangles`` or ``up_axis``
+        (:meth:`check_geometry`)."""
         points, counts = check_strands(points, counts)
         n = len(points)
         if widths is None:
@@ -98,13 +103,16 @@ class RenderScene:
             if c.size % 3:
                 raise ValueError(f"colors of shape {c.shape}: expected an RGB, (S, 3) or (N, 3)")
             _check_values(c.reshape(-1, 3), "colors")
-        return cls(points=points, curve_vertex_counts=counts, radii=0.5 * w,
-                   colors=strand_colors(counts, colors), **kw)
+        scene = cls(points=points, curve_vertex_counts=counts, radii=0.5 * w,
+                    colors=strand_colors(counts, colors), **kw)
+        scene.check_geometry()
+        return scene
 
     def check(self) -> None:
         """ValueError unless the strand arrays fit together (the renderer's kernels index them
         by ``curve_vertex_counts``): counts not negative and summing to the points, finite points,
-        one finite, non-negative radius and one finite colour per point."""
+        one finite, non-negative radius and one finite colour per point; and
+        :meth:`check_geometry`."""
         check_strands(self.points, self.curve_vertex_counts)
         n = len(np.asarray(self.points).reshape(-1, 3))
         radii = np.asarray(self.radii, dtype=np.float64).reshape(-1)
@@ -115,6 +123,15 @@ class RenderScene:
             raise ValueError(f"colors of shape {colors.shape} for {n} points: expected ({n}, 3)")
         _check_values(radii, "radii", nonnegative=True)
         _check_values(colors.reshape(-1, 3), "colors")
+        self.check_geometry()
+
+    def check_geometry(self) -> None:
+        """ValueError naming the first bad index unless ``shapes``, the mesh and ``up_axis`` are
+        fit to draw (:func:`check_shapes`, :func:`check_mesh`, "Y" or "Z"). A mesh index out of
+        range crashed the renderer or read other memory; a NaN point or size blanked the image."""
+        checked_up_axis(self.up_axis)
+        check_shapes(self.shapes)
+        check_mesh(self.mesh_points, self.mesh_triangles)
 
     @property
     def strand_count(self) -> int:
@@ -158,6 +175,64 @@ def check_strands(points, counts) -> tuple[np.ndarray, np.ndarray]:
                          or (np.issubdtype(raw.dtype, np.floating) and np.all(np.mod(raw, 1) == 0))):
         raise ValueError("counts must be a 1-D array of integers (vertices per strand)")
     return check_strand_arrays(points, raw, least=0)
+
+
+def check_shapes(shapes) -> None:
+    """ValueError naming ``shapes[i]`` unless each is a :class:`Shape` of a known kind with a 4x4
+    matrix of finite numbers and 3 finite params: a non-negative sphere radius, a non-negative
+    capsule radius and an axis 0, 1 or 2, non-negative box half extents."""
+    if not isinstance(shapes, (list, tuple)):
+        raise ValueError(f"shapes must be a list of Shape, got {type(shapes).__name__}")
+    for i, shape in enumerate(shapes):
+        where = f"shapes[{i}]"
+        if not isinstance(shape, Shape):
+            raise ValueError(f"{where} must be a Shape, got {type(shape).__name__}")
+        kind = shape.kind
+        if isinstance(kind, (bool, np.bool_)) or not isinstance(kind, (int, np.integer)) or int(kind) not in SHAPE_KINDS:
+            raise ValueError(f"{where} kind {kind!r}: must be 0 (sphere), 1 (capsule) or 2 (box)")
+        m = _float_array(shape.world_from_local, f"{where} world_from_local")
+        if m.shape != (4, 4):
+            raise ValueError(f"{where} world_from_local of shape {m.shape}: expected a 4x4 matrix")
+        bad = np.argwhere(~np.isfinite(m))
+        if len(bad):
+            r, c = (int(k) for k in bad[0])
+            raise ValueError(f"{where} world_from_local[{r}][{c}] = {m[r, c]:g}: not finite")
+        p = _float_array(shape.params, f"{where} params").reshape(-1)
+        if p.size != 3:
+            raise ValueError(f"{where} params of {p.size} numbers: expected 3")
+        for j in range(3):
+            if not np.isfinite(p[j]):
+                raise ValueError(f"{where} params[{j}] = {p[j]:g}: not finite")
+        # a capsule's half height is not checked: the USD reader passes a negative height on
+        sizes = 3 if kind == BOX else 1
+        for j in range(sizes):
+            if p[j] < 0:
+                raise ValueError(f"{where} params[{j}] = {p[j]:g}: a {SHAPE_KINDS[int(kind)]} size must be >= 0")
+        if kind == CAPSULE and p[2] not in (0.0, 1.0, 2.0):
+            raise ValueError(f"{where} params[2] = {p[2]:g}: a capsule axis must be 0, 1 or 2 (X, Y, Z)")
+
+
+def check_mesh(mesh_points, mesh_triangles) -> None:
+    """ValueError unless ``mesh_points`` are (M, 3) finite numbers and ``mesh_triangles`` (K, 3)
+    whole numbers in 0..M-1, naming the first bad row or index."""
+    pts = _float_array(mesh_points, "mesh_points")
+    if pts.size % 3 or (pts.size and pts.ndim != 2):
+        raise ValueError(f"mesh_points of shape {pts.shape}: expected (M, 3)")
+    pts = pts.reshape(-1, 3)
+    _check_values(pts, "mesh_points")
+    tris = np.asarray(mesh_triangles)
+    if tris.size == 0:
+        return
+    if not (np.issubdtype(tris.dtype, np.integer)
+            or (np.issubdtype(tris.dtype, np.floating) and np.all(np.mod(tris, 1) == 0))):
+        raise ValueError("mesh_triangles must be whole numbers (indices into mesh_points)")
+    if tris.ndim != 2 or tris.shape[1] != 3:
+        raise ValueError(f"mesh_triangles of shape {tris.shape}: expected (K, 3)")
+    bad = np.argwhere((tris < 0) | (tris >= len(pts)))
+    if len(bad):
+        k, j = (int(v) for v in bad[0])
+        raise ValueError(f"mesh_triangles[{k}][{j}] = {int(tris[k, j])}: out of range for "
+                         f"{plural(len(pts), 'mesh_point')}")
 
 
 def _float_array(values, name: str) -> np.ndarray:

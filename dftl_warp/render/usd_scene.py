@@ -159,9 +159,14 @@ def stage_source(stage) -> str:
 
 
 def up_axis(stage) -> str:
+    """The stage's up axis, ``"Y"`` or ``"Z"``; any other token is a UserError naming the file, as
+    the simulation's reader refuses it."""
     from pxr import UsdGeom
 
-    return str(UsdGeom.GetStageUpAxis(stage)).upper()
+    axis = str(UsdGeom.GetStageUpAxis(stage))
+    if axis.upper() not in ("Y", "Z"):
+        raise UserError(f"{stage_source(stage)}: upAxis = {axis!r}: must be \"Y\" or \"Z\"")
+    return axis.upper()
 
 
 def time_range(stage):
@@ -543,17 +548,20 @@ def _read_camera(stage, path, time, source) -> Camera:
     if not isinstance(projection, str) or projection not in ("perspective", "orthographic"):
         raise UserError(f"{where}: projection = {usd_checks.shown(projection)}: expected \"perspective\" or "
                         "\"orthographic\"")
-    result = Camera(
-        world_from_camera=_world(prim, time).T,
-        focal_length=get(cam.GetFocalLengthAttr(), 50.0),
-        horizontal_aperture=get(cam.GetHorizontalApertureAttr(), 20.955),
-        vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
-        horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
-        vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
-        near=near, far=far,
-        projection=str(projection),
-        path=str(path),
-    )
+    try:   # the camera's own checks (dftl_warp/render/camera.py), named with the file
+        result = Camera(
+            world_from_camera=_world(prim, time).T,
+            focal_length=get(cam.GetFocalLengthAttr(), 50.0),
+            horizontal_aperture=get(cam.GetHorizontalApertureAttr(), 20.955),
+            vertical_aperture=get(cam.GetVerticalApertureAttr(), 15.2908),
+            horizontal_aperture_offset=get(cam.GetHorizontalApertureOffsetAttr(), 0.0),
+            vertical_aperture_offset=get(cam.GetVerticalApertureOffsetAttr(), 0.0),
+            near=near, far=far,
+            projection=str(projection),
+            path=str(path),
+        )
+    except ValueError as exc:
+        raise UserError(f"{source}: {exc}") from None
     if not (result.focal_length > 0 and result.horizontal_aperture > 0 and result.vertical_aperture > 0):
         raise UserError(f"{source}: {path}: focal length and apertures must be positive")
     if not (0 <= near < far) or not np.isfinite(result.world_from_camera).all():
