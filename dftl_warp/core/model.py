@@ -17,6 +17,7 @@ from numbers import Integral
 import numpy as np
 import warp as wp
 
+from ..usd.curves import check_lengths
 from .bounds import box
 from .devices import DeviceNotFound, lookup_device
 from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets
@@ -134,6 +135,8 @@ class Model:
         """
         points, counts = check_strand_arrays(points, counts)
         widths = _checked_widths(widths, points.shape[0])
+        if not isinstance(corrections, (bool, np.bool_)):   # "no" was taken as True
+            raise ValueError(f"corrections must be True or False, got {corrections!r}")
         if interleave is not None and (isinstance(interleave, (bool, np.bool_))
                                        or not isinstance(interleave, Integral)):
             raise ValueError(f"interleave must be a whole number of state vectors, got {interleave!r}")
@@ -151,7 +154,9 @@ class Model:
         lay = make_layout(counts, layout_name, interleave, roots=first)
         if default and lay.storage_length > MAX_SLOTS:
             lay = make_layout(counts, layout_name, 1, roots=first)
-        origin = _world_origin(points) if origin is None else _checked_origin(origin)
+        if precision == "float32":   # finite in float64, inf (or its square inf) in the float32 model
+            check_lengths(points, "points", "", error=ValueError)
+        origin = _world_origin(points) if origin is None else _checked_origin(origin, precision)
         local = points - origin
 
         starts = strand_offsets(counts)
@@ -221,6 +226,8 @@ class Model:
         bad = ~np.isfinite(roots).all(axis=1)
         if bad.any():
             raise ValueError(f"{what}: row {int(np.argmax(bad))} is not finite")
+        if self.precision == "float32":
+            check_lengths(roots, what, "", error=ValueError)
         return (roots[self.layout.strand_order] - self.origin).astype(numpy_type(self.precision))
 
     # -- factories ---------------------------------------------------------------------------------
@@ -280,15 +287,17 @@ def _checked_counts(counts) -> np.ndarray:
     return c.astype(np.int64)
 
 
-def _checked_origin(origin) -> np.ndarray:
+def _checked_origin(origin, precision: str = "float64") -> np.ndarray:
     """``origin`` as a (3,) float64 array; ValueError naming it unless it is 3 finite numbers (a NaN
-    origin made every device position NaN)."""
+    origin made every device position NaN), each small enough for a float32 ``precision``."""
     try:
         o = np.asarray(origin, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"origin must be 3 finite numbers (m), got {origin!r}") from None
     if o.size != 3 or not np.isfinite(o).all():
         raise ValueError(f"origin must be 3 finite numbers (m), got {origin!r}")
+    if precision == "float32":   # the points, stored relative to it, collapsed
+        check_lengths(o.reshape(1, 3), "origin", "", indexed=False, error=ValueError)
     return o.reshape(3)
 
 

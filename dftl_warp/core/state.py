@@ -60,9 +60,15 @@ class State:
     corrections: wp.array | None
     #: the buffer the fields are views of (interleaved layouts), else None
     storage: wp.array | None = None
+    #: the layout of the model that made it (None: unknown), checked against a solver's model
+    layout: object = field(default=None, repr=False)
 
     def __post_init__(self):
         if self.storage is None:
+            for name in FIELDS:
+                view = getattr(self, name)
+                if view is not None:   # a short array filled the first rows, the rest kept their values
+                    view.assign = functools.partial(self.write, name)
             return
         for name in FIELDS:
             view = getattr(self, name)
@@ -90,6 +96,7 @@ class State:
             positions=wp.array(model.rest_positions, dtype=model.vec3, device=model.device),
             velocities=zeros(),
             corrections=zeros() if with_corrections else None,
+            layout=lay,
         )
 
     @classmethod
@@ -98,21 +105,22 @@ class State:
         fields = 3 if with_corrections else 2
         if layout.interleave < fields:
             raise ValueError(f"the layout interleaves {layout.interleave} state vectors; this State needs {fields}")
-        return cls._views(storage, layout.num_slots, with_corrections)
+        return cls._views(storage, layout.num_slots, with_corrections, layout)
 
     @classmethod
-    def _views(cls, storage: wp.array, n: int, with_corrections: bool) -> State:
+    def _views(cls, storage: wp.array, n: int, with_corrections: bool, layout=None) -> State:
         """Fields as ``n``-slot views of ``storage``, 32 slots apart."""
         views = [storage[32 * f: 32 * f + n] for f in range(3 if with_corrections else 2)]
         return cls(positions=views[0], velocities=views[1], corrections=views[2] if with_corrections else None,
-                   storage=storage)
+                   storage=storage, layout=layout)
 
     def clone(self) -> State:
         """A copy of this state in new device arrays."""
         if self.storage is not None:
-            return State._views(wp.clone(self.storage), self.positions.shape[0], self.corrections is not None)
+            return State._views(wp.clone(self.storage), self.positions.shape[0], self.corrections is not None,
+                                self.layout)
         return State(positions=wp.clone(self.positions), velocities=wp.clone(self.velocities),
-                     corrections=None if self.corrections is None else wp.clone(self.corrections))
+                     corrections=None if self.corrections is None else wp.clone(self.corrections), layout=self.layout)
 
     def assign(self, other: State) -> None:
         """Copy ``other`` into this state (same model)."""
@@ -142,8 +150,13 @@ class State:
         target = getattr(self, field)
         if target is None:
             raise ValueError(f"this State has no {field}")
+        n = target.shape[0]
+        shape = values.shape if isinstance(values, wp.array) else np.shape(values)
+        if not zero and (shape[:1] != (n,) if isinstance(values, wp.array) else int(np.prod(shape)) != 3 * n):
+            raise ValueError(f"{field} must have shape ({n}, 3) (num_slots, in the layout's slot order: "
+                             f"Model.points_to_device), got {tuple(shape)}")
         if self.storage is None:
-            target.zero_() if zero else target.assign(values)
+            target.zero_() if zero else type(target).assign(target, values)
             return
         if not zero:
             values = values.numpy() if isinstance(values, wp.array) else np.asarray(values)

@@ -37,7 +37,10 @@ class Drag:
     rate: object = 1.0
 
     def __post_init__(self):
-        r = np.asarray(self.rate, dtype=np.float64)
+        r = np.asarray(self.rate)
+        if r.dtype.kind not in "iuf":   # "1" and True were taken through float()
+            raise ValueError(f"drag rate must be a number or one per strand (1/s), got {self.rate!r}")
+        r = r.astype(np.float64)
         if not np.isfinite(r).all() or np.any(r < 0):
             raise ValueError("drag rate must be finite and >= 0 (1/s)")
         object.__setattr__(self, "rate", r)

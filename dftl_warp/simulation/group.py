@@ -19,7 +19,7 @@ from ..core.model import Model, _world_origin
 from ..errors import UserError
 from ..features import HairHair, Wind, find, group_features, hair_hair_extent
 from ..features.hair_hair import with_rest_density
-from ..solvers import carries_corrections, make_solver
+from ..solvers import build_solver, carries_corrections
 from ..usd.scene import transform_points
 from .multi_device import (
     SplitControl,
@@ -102,8 +102,8 @@ class Group:
                 except ValueError as exc:
                     raise UserError(f"{scene.source}: {exc}") from None
                 try:
-                    solver = make_solver(model, settings.solver, damping=settings.damping,
-                                         correction=settings.correction, gravity=scene.gravity, **options_here)
+                    solver = build_solver(model, settings.solver, damping=settings.damping,
+                                          correction=settings.correction, gravity=scene.gravity, **options_here)
                 except ValueError as exc:
                     hint = (" (remove them from the scene or use --solver dftl)"
                             if elastic and "features" in str(exc) else "")

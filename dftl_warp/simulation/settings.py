@@ -16,6 +16,7 @@ import numpy as np
 from ..core.bounds import box
 from ..errors import UserError
 from ..options import MAX_FRAME, MAX_FRAMES, check_api, default
+from ..solvers.base import SOLVER_OPTION_TEXT, unused_solver_options  # noqa: F401  (simulate's, strands')
 from ..usd.scene import Scene
 
 #: values used where neither the command line nor a prim's ``dftl:`` attribute says otherwise (the
@@ -177,30 +178,6 @@ def group_settings(scene: Scene, options: SimulationOptions, index: int) -> Grou
         substeps=int(pick(options.substeps, s.substeps, DEFAULT_SUBSTEPS)),
         inverse_statics=bool(pick(None, s.inverse_statics, default("inverse_statics"))),
     )
-
-
-#: the solver options a run may be given, and what each sets (:func:`unused_solver_options`)
-SOLVER_OPTION_TEXT = {"iterations": "Gauss-Seidel iterations", "damping": "damping (DFTL's s)",
-                      "correction": "correction form"}
-
-
-def unused_solver_options(options: dict, solvers, flag=str, subject: str = "no prim runs") -> list[str]:
-    """One warning per solver option in ``options`` that no solver in ``solvers`` takes (``--damping
-    0.5`` with ``--solver pbd`` did nothing without a word): ``iterations`` whenever given,
-    ``damping`` and ``correction`` where they differ from the default (which a quality preset fills
-    in). ``flag(name)`` spells the option as the caller's user wrote it."""
-    from ..solvers import SOLVERS
-
-    out = []
-    for name, what in SOLVER_OPTION_TEXT.items():
-        value = options.get(name)
-        takers = [n for n, c in SOLVERS.items() if name in c.options]
-        if value is None or set(solvers) & set(takers) or (name != "iterations" and value == default(name)):
-            continue
-        names = " or ".join([", ".join(takers[:-1]), takers[-1]] if len(takers) > 2 else takers)
-        out.append(f"{flag(name)} {value} does nothing here: {subject} the {names} solver, whose {what} it sets "
-                   f"({', '.join(sorted(solvers))})")
-    return out
 
 
 def unused_prim_settings(scene: Scene, index: int, settings: GroupSettings, options) -> list[str]:

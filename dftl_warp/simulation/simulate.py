@@ -69,6 +69,11 @@ class Simulation:
                  guides: dict | None = None, device_option: str = "--device", resuming: bool = False):
         import warp as wp
 
+        # None or a dict failed later with an AttributeError that named neither
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be a dftl_warp Scene (read_scene), got {type(scene).__name__}")
+        if not isinstance(options, SimulationOptions):
+            raise TypeError(f"options must be a dftl_warp SimulationOptions, got {type(options).__name__}")
         #: what is written (:meth:`samples` gives one pair per prim of it); ``scene`` is what is simulated
         self.output_scene = scene
         #: guides and render curves (issue 22, :mod:`dftl_warp.guides.scene`): render prims (``rel

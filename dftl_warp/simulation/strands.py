@@ -11,8 +11,9 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..core.model import Model, check_strand_arrays
 from ..options import check_api
-from ..solvers import DEFAULT_GRAVITY, carries_corrections, make_solver
+from ..solvers import DEFAULT_GRAVITY, build_solver, carries_corrections
 from ..solvers.base import check_gravity, check_step
+from ..usd.curves import check_lengths
 from .settings import unused_solver_options
 
 
@@ -82,13 +83,15 @@ def simulate_strands(
         velocities = _checked_rows("velocities", velocities, (points.shape[0], 3), "one (3,) row per point, m/s")
     if roots is not None:
         roots = _checked_rows("roots", roots, (steps + 1, counts.shape[0], 3), "(steps + 1, S, 3), m")
+        if precision == "float32":   # finite here, inf in the float32 model
+            check_lengths(roots.reshape(-1, 3), "roots (flattened rows)", "", error=ValueError)
         starts = strand_offsets(counts)
         points = points.copy()
         points[starts] = roots[0]
     with wp.ScopedDevice(device):
         model = Model.from_strands(points, counts, device=device, precision=precision, layout=layout,
                                    corrections=carries_corrections(solver, correction))
-        sim = make_solver(model, solver, damping=damping, correction=correction, gravity=gravity)
+        sim = build_solver(model, solver, damping=damping, correction=correction, gravity=gravity)
         state = sim.state()
         control = model.control()
         if velocities is not None:

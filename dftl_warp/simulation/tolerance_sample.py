@@ -143,7 +143,7 @@ class Lane:
 
         from ..core.model import Model
         from ..features import group_features
-        from ..solvers import carries_corrections, make_solver
+        from ..solvers import build_solver, carries_corrections
         from ..usd.scene import transform_points
 
         settings = group.settings
@@ -160,8 +160,8 @@ class Lane:
                 widths=None if widths is None else widths[points_idx],
                 features=sample_features(features, idx, len(counts)),
                 corrections=carries_corrections(solver, settings.correction))
-            self.solver = make_solver(self.model, solver, damping=settings.damping, correction=settings.correction,
-                                      gravity=scene.gravity, **extra)
+            self.solver = build_solver(self.model, solver, damping=settings.damping, correction=settings.correction,
+                                       gravity=scene.gravity, **extra)
             self.control = self.model.control()
         #: the frame the control was last set to reach (:meth:`SampleRun.set_frame`)
         self.reached = None

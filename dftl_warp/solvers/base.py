@@ -29,12 +29,14 @@ from __future__ import annotations
 import functools
 import math
 import numbers
+import warnings
 
 import numpy as np
 import warp as wp
 
 from ..kernels.solvers.diagnostics import strand_diagnostics_kernel
-from ..options import add_choice, did_you_mean
+from ..options import add_choice, default, did_you_mean
+from ..usd.curves import check_lengths
 
 #: standard gravity, m/s^2, along -Y (the default up axis)
 DEFAULT_GRAVITY = (0.0, -9.81, 0.0)
@@ -82,6 +84,11 @@ def check_bound(model, state, control=_UNSET, name: str = "state") -> None:
                 f"{name}.{field} is not this model's ({a.shape[0]} slots of {wp.types.type_repr(a.dtype)} on "
                 f"{a.device}; the model has {model.num_slots} of {wp.types.type_repr(model.vec3)} on "
                 f"{model.device}): make States with this solver's state()")
+    made_for = state.layout
+    if made_for is not None and made_for is not model.layout and not _same_layout(made_for, model.layout):
+        # as many slots, other strands: the points were cut into this model's strands without a word
+        raise ValueError(f"{name} was made by another model (other strands in as many slots): make States with "
+                         f"this solver's state()")
     if control is _UNSET:
         return
     if not isinstance(control, Control):
@@ -90,15 +97,35 @@ def check_bound(model, state, control=_UNSET, name: str = "state") -> None:
         raise ValueError("control was made by another model: make it with this solver's model.control()")
 
 
-def check_gravity(gravity) -> np.ndarray:
-    """``gravity`` as a (3,) float64 array; ValueError naming it unless it is 3 finite numbers."""
+def _same_layout(a, b) -> bool:
+    """Whether layouts ``a`` and ``b`` put the same strands in the same slots (models rebuilt from
+    the same strands share States)."""
+    return all(np.array_equal(getattr(a, k), getattr(b, k))
+               for k in ("strand_order", "strand_base", "strand_stride", "strand_count"))
+
+
+def check_gravity(gravity, precision: str = "float64") -> np.ndarray:
+    """``gravity`` as a (3,) float64 array; ValueError naming it unless it is 3 finite numbers,
+    each small enough for a float32 ``precision`` (1e39 became inf in the model, the positions NaN)."""
     try:
         g = np.asarray(gravity, dtype=np.float64).reshape(3)
     except (TypeError, ValueError):
         raise ValueError(f"gravity must be 3 finite numbers (an acceleration), got {gravity!r}") from None
     if not np.isfinite(g).all():
         raise ValueError(f"gravity must be 3 finite numbers (an acceleration), got {tuple(g.tolist())}")
+    if precision == "float32":
+        check_lengths(g, "gravity", "", error=ValueError)
     return g
+
+
+def check_model(model, name: str = "model") -> None:
+    """TypeError naming ``name`` unless ``model`` is a dftl_warp Model (None, an array of points
+    or a Scene failed later with an AttributeError that named none of them)."""
+    from ..core.model import Model
+
+    if not isinstance(model, Model):
+        raise TypeError(f"{name} must be a dftl_warp Model (Model.from_strands, simulate's scene), "
+                        f"got {'None' if model is None else type(model).__name__}")
 
 
 def check_no_features(model, solver: str) -> None:
@@ -119,6 +146,14 @@ def check_real(name: str, value, *, minimum: float = 0.0, inclusive: bool = Fals
     return float(value)
 
 
+def check_damping(damping) -> float:
+    """``damping`` as a float; ValueError unless it is a number in [0, 1] (a string or a bool was
+    taken through float() by some solvers)."""
+    if isinstance(damping, (bool, np.bool_)) or not isinstance(damping, numbers.Real) or not 0 <= damping <= 1:
+        raise ValueError(f"damping must be in [0, 1], got {damping!r}")
+    return float(damping)
+
+
 def check_integer(name: str, value, *, minimum: int = 1) -> int:
     """``value`` as an int; ValueError naming ``name`` unless it is an integer >= ``minimum``."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
@@ -131,6 +166,16 @@ def check_bool(name: str, value) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name} must be True or False, got {value!r}")
     return bool(value)
+
+
+def _checked_init(init):
+    @functools.wraps(init)
+    def checked(self, model, *args, **kwargs):
+        check_model(model)
+        return init(self, model, *args, **kwargs)
+
+    checked._checked = True
+    return checked
 
 
 def _checked_step(step):
@@ -190,19 +235,29 @@ class Solver:
     options: tuple[str, ...] = ()
 
     def __init_subclass__(cls, **kwargs):
-        """Wrap the subclass's own ``step``, ``advance`` and ``diagnostics`` with the checks
-        (:func:`check_step`, :func:`check_root_alpha`, :func:`check_bound`)."""
+        """Wrap the subclass's own ``__init__`` (:func:`check_model`), ``step``, ``advance`` and
+        ``diagnostics`` with the checks (:func:`check_step`, :func:`check_root_alpha`, :func:`check_bound`)."""
         super().__init_subclass__(**kwargs)
-        for name, wrap in (("step", _checked_step), ("advance", _checked_advance),
+        for name, wrap in (("__init__", _checked_init), ("step", _checked_step), ("advance", _checked_advance),
                            ("diagnostics", _checked_diagnostics)):
             method = cls.__dict__.get(name)
             if method is not None and not getattr(method, "_checked", False):
                 setattr(cls, name, wrap(method))
 
     def __init__(self, model, *, gravity=DEFAULT_GRAVITY):
-        self.model = model
-        self.gravity = model.vec3(*check_gravity(gravity))
+        check_model(model)
+        self._model = model
+        self.gravity = model.vec3(*check_gravity(gravity, model.precision))
         self._graphs: dict = {}
+
+    @property
+    def model(self):
+        """The Model this solver was built for; fixed (its arrays were cached per model)."""
+        return self._model
+
+    @model.setter
+    def model(self, value):
+        raise AttributeError("a solver's model is fixed at construction: make a new solver for another model")
 
     @staticmethod
     def carries(correction: str) -> bool:
@@ -298,6 +353,28 @@ class Solver:
         }
 
 
+#: the solver options a run may be given, and what each sets (:func:`unused_solver_options`)
+SOLVER_OPTION_TEXT = {"iterations": "Gauss-Seidel iterations", "damping": "damping (DFTL's s)",
+                      "correction": "correction form"}
+
+
+def unused_solver_options(options: dict, solvers, flag=str, subject: str = "no prim runs") -> list[str]:
+    """One warning per solver option in ``options`` that no solver in ``solvers`` takes (``--damping
+    0.5`` with ``--solver pbd`` did nothing without a word): ``iterations`` whenever given,
+    ``damping`` and ``correction`` where they differ from the default (which a quality preset fills
+    in). ``flag(name)`` spells the option as the caller's user wrote it."""
+    out = []
+    for name, what in SOLVER_OPTION_TEXT.items():
+        value = options.get(name)
+        takers = [n for n, c in SOLVERS.items() if name in c.options]
+        if value is None or set(solvers) & set(takers) or (name != "iterations" and value == default(name)):
+            continue
+        names = " or ".join([", ".join(takers[:-1]), takers[-1]] if len(takers) > 2 else takers)
+        out.append(f"{flag(name)} {value} does nothing here: {subject} the {names} solver, whose {what} it sets "
+                   f"({', '.join(sorted(solvers))})")
+    return out
+
+
 def solver_class(solver: str):
     """The class registered as ``solver``; ValueError naming the choices otherwise."""
     try:
@@ -314,8 +391,32 @@ def carries_corrections(solver: str, correction: str) -> bool:
 def make_solver(model, solver: str = "dftl", **options):
     """A solver by registry name (:data:`SOLVERS`), given the options its class lists
     (``gravity`` always); options that do not apply to it (``damping`` and ``correction`` for pbd
-    and reference, ``iterations`` for all but pbd) are dropped. A name that no registered solver
-    knows (a typo such as ``dampnig``) raises TypeError with the closest known name."""
+    and reference, ``iterations`` for all but pbd) are dropped with a UserWarning each (as
+    :func:`~dftl_warp.simulation.strands.simulate_strands` warns; a default damping or correction
+    stays quiet). A name that no registered solver knows (a typo such as ``dampnig``) raises
+    TypeError with the closest known name."""
+    cls = _solver_for(model, solver, options)
+    dropped = {k: v for k, v in options.items() if k != "gravity" and k not in cls.options}
+    lines = unused_solver_options(dropped, {solver}, subject="this solver is not")
+    for k, v in dropped.items():
+        if k not in SOLVER_OPTION_TEXT and v is not None:
+            takers = [n for n, c in SOLVERS.items() if k in c.options]
+            lines.append(f"{k} {v!r} does nothing here: the {solver} solver does not take it (only {', '.join(takers)})")
+    for line in lines:
+        warnings.warn(line, UserWarning, stacklevel=2)
+    return build_solver(model, solver, **options)
+
+
+def build_solver(model, solver: str = "dftl", **options):
+    """:func:`make_solver` without its warnings, for callers that warn about the dropped options
+    themselves (simulate_strands, simulate: one warning per run, not per group)."""
+    cls = _solver_for(model, solver, options)
+    kept = {k: v for k, v in options.items() if k == "gravity" or k in cls.options}
+    return cls(model, **kept)
+
+
+def _solver_for(model, solver: str, options: dict):
+    """The class of ``solver``, after make_solver's checks of ``model`` and the option names."""
     from ..core.model import Model
 
     if not isinstance(model, Model):
@@ -326,5 +427,4 @@ def make_solver(model, solver: str = "dftl", **options):
     for k in options:
         if k not in known:
             raise TypeError(f"make_solver: unknown keyword {k!r} for any solver{did_you_mean(k, sorted(known))}")
-    kept = {k: v for k, v in options.items() if k == "gravity" or k in cls.options}
-    return cls(model, **kept)
+    return cls

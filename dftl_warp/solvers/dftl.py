@@ -8,17 +8,15 @@ velocities are physical). ``solver="ftl"`` is the same sweep without correction 
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass
 
-import numpy as np
 import warp as wp
 
 from ..kernels.solvers.ftl import CORRECTIONS
 from ..kernels.solvers.fused import fused_block_dim
 from ..kernels.solvers.pipelined import CUDA_LANES, pipelined_kernel, pipelined_serial_kernel
 from ..kernels.solvers.step import step_kernel
-from .base import DEFAULT_GRAVITY, Solver, check_bool, register
+from .base import DEFAULT_GRAVITY, Solver, check_bool, check_damping, register
 from .fused_runs import (  # noqa: F401  (re-exported: the fused launch geometry)
     MAX_FUSED_VERTICES,
     ON_CHIP_PRIOR_VERTICES,
@@ -58,8 +56,7 @@ class DFTLSolver(Solver):
         if correction not in CORRECTIONS:
             raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
         # a string or a bool was taken through float() / bool(): fused="no" turned fused substeps on
-        if isinstance(damping, (bool, np.bool_)) or not isinstance(damping, numbers.Real) or not 0 <= damping <= 1:
-            raise ValueError(f"damping must be in [0, 1], got {damping!r}")
+        check_damping(damping)
         if fused is not None:
             check_bool("fused", fused)
         check_bool("scale_pushes", scale_pushes)

@@ -72,7 +72,7 @@ from ..core.state import State
 from ..kernels.solvers.elastic import NoFeatures, elastic_flags, elastic_step_kernels
 from . import elastic_rest
 from .elastic_energy import ElasticEnergy
-from .base import DEFAULT_GRAVITY, Solver, check_bool, check_gravity, register
+from .base import DEFAULT_GRAVITY, Solver, check_bool, check_damping, check_gravity, check_real, register
 
 #: human hair: Young's modulus (Pa), shear modulus (Pa), density (kg/m^3) (Robbins 2002)
 HAIR_E = 3.89e9
@@ -117,8 +117,8 @@ class ElasticState(State):
     def clone(self) -> ElasticState:
         base = State.clone(self)
         return ElasticState(positions=base.positions, velocities=base.velocities, corrections=base.corrections,
-                            storage=base.storage, tensions=wp.clone(self.tensions), frames=wp.clone(self.frames),
-                            clamps=wp.clone(self.clamps))
+                            storage=base.storage, layout=base.layout, tensions=wp.clone(self.tensions),
+                            frames=wp.clone(self.frames), clamps=wp.clone(self.clamps))
 
     def assign(self, other: State) -> None:
         State.assign(self, other)
@@ -126,6 +126,14 @@ class ElasticState(State):
             wp.copy(self.tensions, other.tensions)
             wp.copy(self.frames, other.frames)
             wp.copy(self.clamps, other.clamps)
+
+
+def _rest_rows(rest_shape, npts: int) -> np.ndarray:
+    """``rest_shape`` as float64 rows of 3; ValueError naming it for what is not numbers in rows of 3."""
+    try:
+        return np.asarray(rest_shape, dtype=np.float64).reshape(-1, 3)
+    except (TypeError, ValueError):
+        raise ValueError(f"rest_shape must be {npts} finite points (one per model point), got {rest_shape!r}") from None
 
 
 def _per_point(name: str, value, npts: int) -> np.ndarray:
@@ -187,14 +195,11 @@ class ElasticSolver(ElasticEnergy, Solver):
         inverse_statics = check_bool("inverse_statics", inverse_statics)
         if correction not in ("prior", "posterior"):
             raise ValueError(f"unknown correction {correction!r}; choose prior or posterior")
-        if not (0.0 <= float(damping) <= 1.0):
-            raise ValueError(f"damping must be in [0, 1], got {damping}")
+        check_damping(damping)   # "0.5" and True were taken through float()
         for label, value in (("youngs_modulus", youngs_modulus), ("density", density),
                              ("twist_modulus", twist_modulus)):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{label} must be a finite number > 0, got {value!r}")
-        if not (np.isfinite(drag) and drag >= 0):
-            raise ValueError(f"drag must be a finite number >= 0 (1/s), got {drag!r}")
+            check_real(label, value)
+        check_real("drag", drag, inclusive=True)
         if model.layout.slot_of_point is None or model.rest_positions is None:
             raise ValueError("the elastic solver needs a model with host rest positions")
         super().__init__(model, gravity=gravity)
@@ -236,7 +241,7 @@ class ElasticSolver(ElasticEnergy, Solver):
         self.stiffness_scale = scale
         points = model.rest_positions[lay.slot_of_point].astype(np.float64)   # device coordinates
         if rest_shape is not None:
-            rest = np.asarray(rest_shape, dtype=np.float64).reshape(-1, 3)
+            rest = _rest_rows(rest_shape, npts)
             if rest.shape[0] != npts or not np.isfinite(rest).all():
                 raise ValueError(f"rest_shape must be {npts} finite points (one per model point)")
             starts = elastic_rest.strand_offsets(model.counts)
@@ -404,7 +409,7 @@ class ElasticSolver(ElasticEnergy, Solver):
         frames[:, 3] = 1.0
         return ElasticState(
             positions=base.positions, velocities=base.velocities, corrections=base.corrections, storage=base.storage,
-            tensions=wp.array(self._rest_tension, dtype=m.scalar, device=m.device),
+            layout=base.layout, tensions=wp.array(self._rest_tension, dtype=m.scalar, device=m.device),
             frames=wp.array(frames, dtype=wp.types.quaternion(m.scalar), device=m.device),
             clamps=wp.array(self._rest_ghost.astype(numpy_type(m.precision)), dtype=m.vec3, device=m.device))
 

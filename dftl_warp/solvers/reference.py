@@ -31,6 +31,8 @@ wind or hair-hair is refused (:func:`~dftl_warp.solvers.base.check_no_features`)
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import warp as wp
 
@@ -97,10 +99,12 @@ class ReferenceSolver(Solver):
         self._residual = wp.zeros(model.num_strands, dtype=wp.float64, device=dev)
         #: the elastic option's rest data, kernel and energy (None: chains of unit masses)
         self.elastic = None
+        if not (elastic is None or isinstance(elastic, (bool, Mapping))):   # "yes": dict("yes") failed
+            raise ValueError(f"elastic must be True, False, None or a dict of elastic options, got {elastic!r}")
         if elastic is not None and elastic is not False:
             from .reference_elastic import ElasticReference
 
-            self.elastic = ElasticReference(model, self._gravity64, elastic, drag=float(drag),
+            self.elastic = ElasticReference(model, self._gravity64, elastic, drag=drag,
                                             frame_tolerance=frame_tolerance, frame_iterations=frame_iterations)
         elif drag:
             raise ValueError(f"drag = {drag!r} needs elastic strands (elastic=...); the chain of unit masses has none")

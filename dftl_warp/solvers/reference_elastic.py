@@ -36,7 +36,8 @@ import warp as wp
 from ..core.layout import strand_offsets
 from ..kernels.solvers.reference_elastic import rattle_elastic_kernel
 from . import elastic_rest
-from .elastic import DEFAULT_RADIUS, HAIR_DENSITY, HAIR_E, TWIST_G
+from .base import check_bool, check_real
+from .elastic import DEFAULT_RADIUS, HAIR_DENSITY, HAIR_E, TWIST_G, _rest_rows
 
 #: the elastic solver's material options the ``elastic`` keyword takes (same names and defaults)
 ELASTIC_OPTIONS = ("youngs_modulus", "density", "radius", "twist_modulus", "inverse_statics", "stiffness_scale",
@@ -65,7 +66,7 @@ def rest_points(model, rest_shape=None) -> np.ndarray:
     points = model.rest_positions[model.layout.slot_of_point].astype(np.float64)
     if rest_shape is None:
         return points
-    rest = np.asarray(rest_shape, dtype=np.float64).reshape(-1, 3)
+    rest = _rest_rows(rest_shape, model.num_points)
     if rest.shape[0] != model.num_points or not np.isfinite(rest).all():
         raise ValueError(f"rest_shape must be {model.num_points} finite points (one per model point)")
     starts = strand_offsets(model.counts)
@@ -107,16 +108,12 @@ class ElasticReference:
         unknown = sorted(set(options) - set(ELASTIC_OPTIONS))
         if unknown:
             raise ValueError(f"elastic: unknown option(s) {', '.join(unknown)}; choose from {', '.join(ELASTIC_OPTIONS)}")
-        self.youngs_modulus = float(options.get("youngs_modulus", HAIR_E))
-        self.density = float(options.get("density", HAIR_DENSITY))
-        self.twist_modulus = float(options.get("twist_modulus", TWIST_G))
-        self.inverse_statics = bool(options.get("inverse_statics", True))
-        for label, value in (("youngs_modulus", self.youngs_modulus), ("density", self.density),
-                             ("twist_modulus", self.twist_modulus)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"elastic: {label} must be a finite number > 0, got {value!r}")
-        if not (math.isfinite(drag) and drag >= 0):
-            raise ValueError(f"drag must be a finite number >= 0 (1/s), got {drag!r}")
+        # strings, None and bools were taken through float() / bool()
+        self.youngs_modulus = check_real("elastic: youngs_modulus", options.get("youngs_modulus", HAIR_E))
+        self.density = check_real("elastic: density", options.get("density", HAIR_DENSITY))
+        self.twist_modulus = check_real("elastic: twist_modulus", options.get("twist_modulus", TWIST_G))
+        self.inverse_statics = check_bool("elastic: inverse_statics", options.get("inverse_statics", True))
+        check_real("drag", drag, inclusive=True)
         if model.layout.slot_of_point is None or model.rest_positions is None:
             raise ValueError("the elastic reference needs a model with host rest positions")
         npts = model.num_points

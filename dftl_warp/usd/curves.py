@@ -28,10 +28,12 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 MAX_LENGTH = float(np.sqrt(FLOAT32_MAX))
 
 
-def check_lengths(values, name: str, where: str, indexed: bool = True, world: str = "") -> None:
-    """UserError naming the first value (a row of a (K, n) array; ``name[i]`` when ``indexed``)
-    beyond :data:`MAX_LENGTH`: one that does not fit float32 at all, or whose square does not.
-    ``world`` says how the value was reached (e.g. " in world space")."""
+def check_lengths(values, name: str, where: str, indexed: bool = True, world: str = "",
+                  error: type = UserError) -> None:
+    """UserError (or ``error``: the Python API's ValueError) naming the first value (a row of a
+    (K, n) array; ``name[i]`` when ``indexed``) beyond :data:`MAX_LENGTH`: one that does not fit
+    float32 at all, or whose square does not. ``world`` says how the value was reached (e.g. " in
+    world space"); an empty ``where`` leaves the message's prefix out."""
     rows = np.abs(np.asarray(values, dtype=np.float64).reshape(len(np.atleast_1d(values)), -1))
     big = np.flatnonzero(~(rows.max(axis=1, initial=0.0) <= MAX_LENGTH))
     if not big.size:
@@ -44,7 +46,7 @@ def check_lengths(values, name: str, where: str, indexed: bool = True, world: st
         why = f"does not fit float32 (at most {FLOAT32_MAX:.4g})"
     else:
         why = f"is too large: its square does not fit float32 (lengths at most {MAX_LENGTH:.4g})"
-    raise UserError(f"{where}: {label} = {shown}{world} {why}: is the unit right?")
+    raise error(f"{where + ': ' if where else ''}{label} = {shown}{world} {why}: is the unit right?")
 
 
 #: control points from one cubic span to the next

@@ -30,6 +30,8 @@ UNIFORM = 1.0e-6
 
 def _length(value, what: str, positive: bool = True) -> float:
     """``value`` as a finite float > 0 (``positive``) or >= 0; ValueError naming ``what``."""
+    if isinstance(value, (str, bytes, bool, np.bool_)):   # "1" was kept as a string, True taken as 1
+        raise ValueError(f"{what} must be a finite number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):

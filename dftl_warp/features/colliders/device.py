@@ -13,6 +13,7 @@ import warp as wp
 
 from ...core.precision import numpy_type
 from ...kernels.features.collide import collider_pose_kernel, transform_type
+from ...usd.curves import check_lengths
 from ..base import finite_rows, quat_rotate, quaternion_rows
 from .base import SHAPES, Colliders
 
@@ -70,6 +71,10 @@ def build(colliders: Colliders, ctx, widths=None) -> ColliderData:
     order[device_order] = np.arange(len(shapes))
     ordered = [shapes[i] for i in device_order]
     sizes, axes = zip(*(s.size_axis() for s in ordered))
+    if ctx["precision"] == "float32":   # finite in float64, inf (or its square inf) in the model
+        for i, s in enumerate(shapes):
+            check_lengths([s.size_axis()[0]], f"collider {i} ({s.kind}) size", "", indexed=False, error=ValueError)
+            check_lengths([s.position], f"collider {i} ({s.kind}) position", "", indexed=False, error=ValueError)
     arrays = {
         "particle_radius": arr(radius, scalar),
         "size": arr(np.array(sizes, dtype=ftype), vec3),

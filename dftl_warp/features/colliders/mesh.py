@@ -22,6 +22,7 @@ import warp as wp
 
 from ...core.precision import numpy_type
 from ...kernels.features.mesh import MESH, mesh_substep_kernel
+from ...usd.curves import check_lengths
 from ..base import finite_rows, nonnegative
 from .base import ColliderShape
 from .sdf import MeshFields, bounds, check_field_size, estimated_bytes, field_band, field_settings
@@ -255,7 +256,9 @@ class MeshColliders:
         self.upper.assign(self._upper_host)
 
     def _checked(self, index, points, what, mesh) -> np.ndarray:
-        pts = finite_rows(points, 3, f"mesh collider {index} {what}").astype(np.float32)
+        pts = finite_rows(points, 3, f"mesh collider {index} {what}")
+        check_lengths(pts, f"mesh collider {index} {what}", "", error=ValueError)   # Warp meshes are float32
+        pts = pts.astype(np.float32)
         if pts.shape[0] != mesh.points.shape[0]:
             raise ValueError(f"mesh collider {index}: expected {mesh.points.shape[0]} {what}, got {pts.shape[0]}")
         return pts
