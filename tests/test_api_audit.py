@@ -192,3 +192,26 @@ def test_make_solver_warns_about_dropped_options(m32):
         with pytest.warns(UserWarning) as caught:
             dw.simulate_strands(*_two(), steps=1, dt=0.01, solver="pbd", damping=0.5)
     assert len(caught) == 1
+
+
+def _unread_scene():
+    """A Scene object and options for the checks Simulation makes before it reads the scene."""
+    from dftl_warp.simulation.simulate import SimulationOptions
+
+    return object.__new__(dw.Scene), SimulationOptions()
+
+
+@pytest.mark.parametrize("frame", [1.5, "1", True])
+def test_a_simulation_frame_must_be_a_whole_frame_number(frame):
+    from dftl_warp.simulation.simulate import Simulation
+
+    with pytest.raises(ValueError, match="frame must be a whole frame number"):   # 1.5 was truncated to 1
+        Simulation(*_unread_scene(), frame)
+
+
+@pytest.mark.parametrize("tolerance", [-1.0, float("nan"), 0.0])
+def test_a_simulation_tolerance_is_checked_as_simulate_usd_checks_it(tolerance):
+    from dftl_warp.simulation.simulate import Simulation
+
+    with pytest.raises(ValueError, match="tolerance"):   # -1 and NaN were accepted
+        Simulation(*_unread_scene(), 1, tolerance=tolerance)

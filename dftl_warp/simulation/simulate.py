@@ -25,6 +25,7 @@ The first frame is the input at rest: zero velocities.
 
 from __future__ import annotations
 
+import numbers
 import sys
 import time
 import warnings
@@ -74,6 +75,12 @@ class Simulation:
             raise TypeError(f"scene must be a dftl_warp Scene (read_scene), got {type(scene).__name__}")
         if not isinstance(options, SimulationOptions):
             raise TypeError(f"options must be a dftl_warp SimulationOptions, got {type(options).__name__}")
+        # a frame of 1.5 was truncated to 1, "1" taken as 1; a tolerance of -1 or NaN accepted
+        if isinstance(frame, (bool, np.bool_)) or not isinstance(frame, numbers.Real) or not float(frame).is_integer():
+            raise ValueError(f"frame must be a whole frame number, got {frame!r}")
+        from ..options import check_api
+
+        tolerance = check_api("tolerance", tolerance)
         #: what is written (:meth:`samples` gives one pair per prim of it); ``scene`` is what is simulated
         self.output_scene = scene
         #: guides and render curves (issue 22, :mod:`dftl_warp.guides.scene`): render prims (``rel
