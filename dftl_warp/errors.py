@@ -11,6 +11,16 @@ class UserError(Exception):
     """Bad input or settings. The message names the file, prim and index where it can."""
 
 
+def check_path(name: str, value) -> None:
+    """TypeError naming ``name`` unless ``value`` is a file path (a str or os.PathLike): None gave
+    os.fspath's "expected str, bytes or os.PathLike object", which named no argument."""
+    import os
+
+    if not isinstance(value, (str, os.PathLike)):
+        raise TypeError(f"{name} must be a file path (str or os.PathLike), got "
+                        f"{'None' if value is None else type(value).__name__}")
+
+
 def plural(n: int, noun: str, nouns: str | None = None) -> str:
     """``n`` and the noun that fits it: ``plural(1, "strand")`` is "1 strand", ``plural(3,
     "strand")`` "3 strands", ``plural(2, "vertex", "vertices")`` "2 vertices"."""

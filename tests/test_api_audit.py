@@ -215,3 +215,27 @@ def test_a_simulation_tolerance_is_checked_as_simulate_usd_checks_it(tolerance):
 
     with pytest.raises(ValueError, match="tolerance"):   # -1 and NaN were accepted
         Simulation(*_unread_scene(), 1, tolerance=tolerance)
+
+
+def test_one_feature_or_shape_given_alone_says_it_wants_a_list():
+    pts = np.array([[0.0, 0.0, 0.0], [0.0, -0.1, 0.0], [0.0, -0.2, 0.0]])
+    with pytest.raises(TypeError, match=r"features must be a list of feature objects .* got one Drag: "
+                                        r"features=\[Drag\(\.\.\.\)\]"):
+        dw.Model.from_strands(pts, [3], device="cpu", features=F.Drag(1.0))
+    with pytest.raises(TypeError, match=r"shapes must be a list of shapes, got one Sphere: Colliders\(\[Sphere"):
+        F.Colliders(F.Sphere(radius=1.0))
+
+
+@pytest.mark.parametrize("call", ["simulate_usd", "read_scene", "read_groom", "import_groom"])
+def test_a_path_of_none_names_the_argument(tmp_path, call):
+    from dftl_warp.importers import import_groom, read_groom
+    from dftl_warp.simulation.simulate import simulate_usd
+    from dftl_warp.usd.read import read_scene
+
+    run = {"simulate_usd": lambda: simulate_usd(None, str(tmp_path / "o.usdc")),
+           "read_scene": lambda: read_scene(None), "read_groom": lambda: read_groom(None),
+           "import_groom": lambda: import_groom(None, str(tmp_path / "o.usda"))}[call]
+    name = {"simulate_usd": "input", "read_scene": "source", "read_groom": "path", "import_groom": "source"}[call]
+    with pytest.raises(TypeError, match=rf"^{name} must be a file path \(str or os.PathLike\), got None$"):
+        run()
+    assert not list(tmp_path.iterdir())

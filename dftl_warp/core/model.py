@@ -137,6 +137,7 @@ class Model:
         widths = _checked_widths(widths, points.shape[0])
         if not isinstance(corrections, (bool, np.bool_)):   # "no" was taken as True
             raise ValueError(f"corrections must be True or False, got {corrections!r}")
+        features = _feature_tuple(features)
         if interleave is not None and (isinstance(interleave, (bool, np.bool_))
                                        or not isinstance(interleave, Integral)):
             raise ValueError(f"interleave must be a whole number of state vectors, got {interleave!r}")
@@ -191,7 +192,7 @@ class Model:
             rest_lengths=wp.array(rest, dtype=scalar_type(precision), device=device),
             rest_positions=pos,
             root_rest=wp.array(roots, dtype=vec3, device=device),
-            features=tuple(features or ()),
+            features=features,
             feature_data=feature_data,
             widths=None if widths is None else np.asarray(widths, dtype=np.float64),
         )
@@ -318,3 +319,15 @@ def _checked_widths(widths, num_points: int):
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"widths[{i}] = {float(flat[i])!r} must be finite and >= 0 (m)")
     return w
+
+
+def _feature_tuple(features) -> tuple:
+    """``features`` (None, or a list of feature objects) as a tuple; one feature object given alone
+    is a TypeError saying so ("'Drag' object is not iterable" named neither)."""
+    if features is None:
+        return ()
+    try:
+        return tuple(features)
+    except TypeError:
+        raise TypeError(f"features must be a list of feature objects (dftl_warp.features), got one "
+                        f"{type(features).__name__}: features=[{type(features).__name__}(...)]") from None

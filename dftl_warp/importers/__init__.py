@@ -97,7 +97,10 @@ def reader_for(path, fmt: str | None = None) -> Reader:
 
 def read_groom(path, fmt: str | None = None) -> Groom:
     """Read a hair file into a :class:`Groom` (file units and axes; nothing resampled)."""
+    from ..errors import check_path
     from ._binary import read_bytes
+
+    check_path("path", path)
 
     path = os.fspath(path)
     reader = reader_for(path, fmt)

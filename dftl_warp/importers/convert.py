@@ -229,9 +229,12 @@ def import_groom(source, output, *, fmt: str | None = None, units=None, up_axis:
     Approximations and skipped data are reported with :class:`GroomImportWarning` (one per kind,
     with a count) and listed in the result's ``warnings``.
     """
+    from ..errors import check_path
     from .meshes import read_mesh
     from .to_usd import build_stage, check_output, write_stage
 
+    check_path("source", source)
+    check_path("output", output)
     source = os.fspath(source)
     output = check_output(output)
     if os.path.abspath(output) == os.path.abspath(source):

@@ -34,7 +34,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from ..core.devices import DeviceNotFound, lookup_device, parse_devices, resolve_device
-from ..errors import UserError, WarningRoute, once, plural
+from ..errors import UserError, WarningRoute, check_path, once, plural
 from .monitor import EnergyGrowthWarning
 from ..usd.scene import Scene, transform_points
 from . import root_paths, saved_state, transform_roots
@@ -468,6 +468,8 @@ def simulate_usd(input, output, *, progress: bool = False, notes=(), quality: st
     any frame, numpy's RuntimeWarnings) are warnings of the run naming the input (``errors.WarningRoute``):
     the input's until the frames run, the run's from then on.
     """
+    check_path("input", input)
+    check_path("output", output)
     with WarningRoute(where=str(input)) as route:
         return _simulate_usd(route, input, output, progress, notes, quality, command, options)
 

@@ -26,7 +26,7 @@ import re
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, check_path
 from ..options import OPTIONS
 from . import curves as curve_checks
 from .attributes import read_values, unknown_attributes
@@ -489,6 +489,7 @@ def read_scene(source, *, prims=None, time=None, frames=None) -> Scene:
         stage, warnings = source, []
         file = source.GetRootLayer().identifier
     else:
+        check_path("source", source)   # a path, or the open Usd.Stage above
         file = os.fspath(source)
         stage, warnings = open_stage(file)
     # USD's own warnings while reading (an xformOp in xformOpOrder that is not authored) become one

@@ -137,6 +137,9 @@ class Colliders:
     iterations: int = 2
 
     def __post_init__(self):
+        if isinstance(self.shapes, tuple(SHAPES.values())):   # one shape: "'Sphere' object is not iterable"
+            raise TypeError(f"shapes must be a list of shapes, got one {type(self.shapes).__name__}: "
+                            f"Colliders([{type(self.shapes).__name__}(...)])")
         shapes = tuple(self.shapes)
         for i, s in enumerate(shapes):
             if not isinstance(s, tuple(SHAPES.values())):
