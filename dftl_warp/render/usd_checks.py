@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..usd import curves as curve_checks
+from ..usd.colliders import fan_triangulate, remove_holes
 from ..usd import values
 from ..usd.values import shown
 
@@ -73,25 +74,9 @@ def mesh_faces(points, counts, indices, holes, where: str):
     if bad.any():
         i = int(np.argmax(bad))
         raise UserError(f"{where}: faceVertexIndices[{i}] = {int(fvi[i])} is not a point index (0..{len(pts) - 1})")
-    if holes is not None and np.size(holes):
-        # the simulation reader's rule and words (dftl_warp.usd.colliders.remove_holes)
-        holes = curve_checks.whole_numbers(holes, "holeIndices", where)
-        out = np.flatnonzero((holes < 0) | (holes >= len(fvc)))
-        if out.size:
-            i = int(out[0])
-            raise UserError(f"{where}: holeIndices[{i}] = {int(holes[i])} is out of range (0..{len(fvc) - 1})")
-        keep = np.ones(len(fvc), dtype=bool)
-        keep[holes] = False
-        if not keep.any():
-            raise UserError(f"{where}: holeIndices remove every face of the mesh")
-        fvc, fvi = fvc[keep], fvi[np.repeat(keep, fvc)]
-    # fan triangulation of every polygon
-    starts = np.cumsum(fvc) - fvc
-    n_tri = fvc - 2
-    face = np.repeat(np.arange(len(fvc)), n_tri)
-    k = np.arange(int(n_tri.sum())) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
-    s = starts[face]
-    return pts, np.stack([fvi[s], fvi[s + k + 1], fvi[s + k + 2]], axis=1)
+    if holes is not None and np.size(holes):   # the simulation reader's rule and words
+        fvc, fvi = remove_holes(fvc, fvi, curve_checks.whole_numbers(holes, "holeIndices", where), where)
+    return pts, fan_triangulate(fvc, fvi)
 
 
 def listed(paths, noun: str) -> str:
