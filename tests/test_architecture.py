@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parent.parent
 #: the layers, first to last; a package prefix belongs to the layer of its longest listed prefix
 LAYERS = [
     ("foundation", ["dftl_warp.errors", "dftl_warp.version", "dftl_warp.options", "dftl_warp.durable",
-                    "dftl_warp.kernels"]),
+                    "dftl_warp.checks", "dftl_warp.kernels"]),
     ("usd", ["dftl_warp.usd", "dftl_warp.importers"]),
     ("core", ["dftl_warp.core", "dftl_warp.kernels.core"]),
     ("features", ["dftl_warp.features", "dftl_warp.kernels.features"]),
@@ -117,6 +117,20 @@ def test_no_import_cycle(graph):
         tuple(graphlib.TopologicalSorter(edges).static_order())
     except graphlib.CycleError as exc:
         pytest.fail(f"import cycle: {' -> '.join(exc.args[1])}")
+
+
+def test_core_and_solvers_do_not_import_the_usd_reader(graph):
+    """The Model, the State and the solvers work on arrays, not stages: the float-precision check
+    they share with the USD reader (``check_lengths``) lives in the foundation (dftl_warp.checks),
+    not in dftl_warp.usd.curves, which the core and the solvers imported for it."""
+    from dftl_warp.checks import check_lengths
+
+    assert layer_of(check_lengths.__module__) == 0
+    usd = [i for i, (name, _) in enumerate(LAYERS) if name == "usd"][0]
+    lower = {"core", "solvers"}
+    found = [f"{m} imports {t}" for m, targets in sorted(graph.items()) if LAYERS[layer_of(m)][0] in lower
+             for t in sorted(targets) if layer_of(t) == usd]
+    assert not found, "\n".join(found)
 
 
 def test_no_module_is_over_600_lines():

@@ -17,7 +17,7 @@ from numbers import Integral
 import numpy as np
 import warp as wp
 
-from ..usd.curves import check_lengths
+from ..checks import check_lengths
 from .bounds import box
 from .devices import DeviceNotFound, lookup_device
 from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets

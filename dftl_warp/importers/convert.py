@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..usd.curves import FLOAT32_MAX
+from ..checks import FLOAT32_MAX
 from ..errors import UserError, plural
 from ..options import OPTIONS, BadValue, OptionError
 from . import Groom, GroomImportWarning, read_groom, reader_for

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.layout import strand_offsets
+from ..checks import check_lengths
 from ..errors import UserError
 from ..usd import curves as curve_checks
 from ..usd.scene import transform_points
@@ -241,18 +242,18 @@ _SIZE = {SPHERE: ("radius", 1.0), CAPSULE: ("radius", 1.0), BOX: ("size", 2.0)}
 
 def _check_float32(shape, source) -> None:
     """UserError naming the prim and attribute where a shape's size or position, in world space, is
-    beyond what the float32 ray tracer squares (:data:`~dftl_warp.usd.curves.MAX_LENGTH`): before,
+    beyond what the float32 ray tracer squares (:data:`~dftl_warp.checks.MAX_LENGTH`): before,
     a Sphere of radius 1e300 rendered with numpy's overflow warning."""
     name, factor = _SIZE[shape.kind]
     where = f"{source}: {shape.path}"
     linear = shape.world_from_local[:3, :3]
     stretch = max(float(np.linalg.norm(linear, axis=0).max()), 1.0)
-    curve_checks.check_lengths([factor * shape.params[0] * stretch], name, where, indexed=False,
-                               world=" in world space" if stretch > 1.0 else "")
+    check_lengths([factor * shape.params[0] * stretch], name, where, indexed=False,
+                  world=" in world space" if stretch > 1.0 else "")
     if shape.kind == CAPSULE:
-        curve_checks.check_lengths([2.0 * shape.params[1] * stretch], "height", where, indexed=False)
-    curve_checks.check_lengths([shape.world_from_local[:3, 3]], "its position", where, indexed=False,
-                               world=" in world space")
+        check_lengths([2.0 * shape.params[1] * stretch], "height", where, indexed=False)
+    check_lengths([shape.world_from_local[:3, 3]], "its position", where, indexed=False,
+                  world=" in world space")
 
 
 def _usd_message(exc) -> str:

@@ -13,7 +13,7 @@ from ..core.model import Model, check_strand_arrays
 from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, build_solver, carries_corrections
 from ..solvers.base import check_gravity, check_step
-from ..usd.curves import check_lengths
+from ..checks import check_lengths
 from .settings import unused_solver_options
 
 

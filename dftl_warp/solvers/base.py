@@ -36,7 +36,7 @@ import warp as wp
 
 from ..kernels.solvers.diagnostics import strand_diagnostics_kernel
 from ..options import add_choice, default, did_you_mean
-from ..usd.curves import check_lengths
+from ..checks import check_lengths
 
 #: standard gravity, m/s^2, along -Y (the default up axis)
 DEFAULT_GRAVITY = (0.0, -9.81, 0.0)

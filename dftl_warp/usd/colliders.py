@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import UserError, plural
 from .attributes import read_values
-from .curves import check_lengths
+from ..checks import check_lengths
 from .material import bound_material
 from .sampling import TransformReader, points_sampler, scale_growth
 from .scene import ColliderPrim, MeshSource
@@ -312,7 +312,7 @@ def read_collider_prim(prim, file: str, time, warnings: list, transforms: Transf
 def _check_world_size(c: ColliderPrim, where: str) -> None:
     """UserError when the collider's position (the translation of its local-to-world transform, at
     any sample) or, under its scale, its size or mesh points are too large for float32
-    (:func:`~dftl_warp.usd.curves.check_lengths`)."""
+    (:func:`~dftl_warp.checks.check_lengths`)."""
     samples = getattr(c.transform, "values", None)
     matrices = np.asarray(c.transform(None) if samples is None else samples, dtype=np.float64).reshape(-1, 4, 4)
     check_lengths(matrices[:, 3, :3], "translate", where, indexed=False, world=" (its position in world space)")

@@ -6,8 +6,7 @@ no USD objects.
   when pinned);
 - :func:`curve_spans` and :func:`primvar_count`: how many values each primvar interpolation needs;
 - :func:`check_primvar`: a primvar's (e.g. ``widths``) value count for its interpolation, finite
-  values and, for widths, no negative one and none too large (:func:`check_lengths`);
-- :func:`check_lengths`: lengths (sizes, positions, widths) whose square fits float32;
+  values and, for widths, no negative one and none too large (:func:`~dftl_warp.checks.check_lengths`);
 - :func:`note_single_vertex`: one warning naming the curves of a single vertex.
 
 Messages name the file, the prim and the index: ``FILE: PRIM: widths: 3 values for 'vertex'
@@ -18,36 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_lengths
 from ..errors import UserError, plural
-
-#: the largest float32, USD's point3f and float widths
-FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-#: the largest length (stage units) whose square fits float32: distances and depths past it
-#: overflow to inf in the float32 collider and clean-start arithmetic
-MAX_LENGTH = float(np.sqrt(FLOAT32_MAX))
-
-
-def check_lengths(values, name: str, where: str, indexed: bool = True, world: str = "",
-                  error: type = UserError) -> None:
-    """UserError (or ``error``: the Python API's ValueError) naming the first value (a row of a
-    (K, n) array; ``name[i]`` when ``indexed``) beyond :data:`MAX_LENGTH`: one that does not fit
-    float32 at all, or whose square does not. ``world`` says how the value was reached (e.g. " in
-    world space"); an empty ``where`` leaves the message's prefix out."""
-    rows = np.abs(np.asarray(values, dtype=np.float64).reshape(len(np.atleast_1d(values)), -1))
-    big = np.flatnonzero(~(rows.max(axis=1, initial=0.0) <= MAX_LENGTH))
-    if not big.size:
-        return
-    i = int(big[0])
-    row = np.asarray(values, dtype=np.float64).reshape(rows.shape)[i]
-    shown = f"{row[0]:g}" if row.size == 1 else "(" + ", ".join(f"{v:g}" for v in row) + ")"
-    label = f"{name}[{i}]" if indexed else name
-    if rows[i].max() > FLOAT32_MAX:
-        why = f"does not fit float32 (at most {FLOAT32_MAX:.4g})"
-    else:
-        why = f"is too large: its square does not fit float32 (lengths at most {MAX_LENGTH:.4g})"
-    raise error(f"{where + ': ' if where else ''}{label} = {shown}{world} {why}: is the unit right?")
-
 
 #: control points from one cubic span to the next
 CUBIC_VSTEP = {"bezier": 3, "bspline": 1, "catmullRom": 1}
@@ -150,7 +121,7 @@ def check_primvar(values, interpolation: str, counts, num_points: int, curve_typ
                   name: str, where: str, width: int = 1, nonnegative: bool = False, length: bool = False) -> np.ndarray:
     """``values`` reshaped to (K, width) after checking their count for ``interpolation``, that
     they are finite, (``nonnegative``, for widths) not negative and (``length``, for widths) not too
-    large (:func:`check_lengths`); UserError otherwise."""
+    large (:func:`~dftl_warp.checks.check_lengths`); UserError otherwise."""
     values = np.asarray(values, dtype=np.float64).reshape(-1, width)
     expected = primvar_count(interpolation, counts, num_points, curve_type, basis, wrap)
     if expected is None:

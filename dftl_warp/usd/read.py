@@ -26,6 +26,7 @@ import re
 
 import numpy as np
 
+from ..checks import check_lengths
 from ..errors import UserError, check_path
 from ..options import OPTIONS
 from . import curves as curve_checks
@@ -249,7 +250,7 @@ def read_curves_prim(prim, file: str, time=None, time_codes_per_second: float = 
     bad = _first_bad_row(world)
     if bad is not None:
         raise UserError(f"{where}: points[{bad}] = {_fmt_point(points[bad])} is not finite in world space")
-    curve_checks.check_lengths(world, "points", where, world=" in world space")
+    check_lengths(world, "points", where, world=" in world space")
 
     widths, widths_interpolation = _read_widths(prim, curves, code, counts, points.shape[0], ctype, basis, wrap, where,
                                                 warnings)

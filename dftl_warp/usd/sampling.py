@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from ..errors import UserError
-from .curves import check_lengths
+from ..checks import check_lengths
 from .scene import Constant, Samples
 
 #: most integer frames read densely per animated transform (beyond: the authored time samples and
@@ -137,7 +137,7 @@ def scale_growth(sampler, read_time) -> float:
 def points_sampler(attr, count: int, where: str, read_time, static_points: np.ndarray):
     """``(sampler, animated)`` for a mesh's local points: every authored time sample when they
     change over time (each checked: ``count`` finite points, none too large for float32:
-    :func:`~dftl_warp.usd.curves.check_lengths`), else the points read at ``read_time``."""
+    :func:`~dftl_warp.checks.check_lengths`), else the points read at ``read_time``."""
     if not attr.ValueMightBeTimeVarying():
         return Constant(static_points), False
     times = list(attr.GetTimeSamples())

@@ -13,7 +13,7 @@ import warp as wp
 
 from ...core.precision import numpy_type
 from ...kernels.features.collide import collider_pose_kernel, transform_type
-from ...usd.curves import check_lengths
+from ...checks import check_lengths
 from ..base import finite_rows, quat_rotate, quaternion_rows
 from .base import SHAPES, Colliders
 

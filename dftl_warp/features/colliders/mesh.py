@@ -22,7 +22,7 @@ import warp as wp
 
 from ...core.precision import numpy_type
 from ...kernels.features.mesh import MESH, mesh_substep_kernel
-from ...usd.curves import check_lengths
+from ...checks import check_lengths
 from ..base import finite_rows, nonnegative
 from .base import ColliderShape
 from .sdf import MeshFields, bounds, check_field_size, estimated_bytes, field_band, field_settings
