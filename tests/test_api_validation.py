@@ -276,3 +276,12 @@ def test_a_device_warp_does_not_have_is_a_value_error_naming_the_device(device):
     """Warp's bare 'Invalid device identifier' named neither the argument nor what is there."""
     with pytest.raises(ValueError, match=rf"device '{device}' is not available here \(.*cpu.*\)"):
         dw.Model.from_strands(np.zeros((2, 3)), [2], device=device)
+
+
+@pytest.mark.parametrize("device", ["gpu", "cuda:7"])
+def test_simulate_strands_names_a_device_warp_does_not_have(device):
+    """simulate_strands entered wp.ScopedDevice(device) first: Warp's bare 'Invalid device
+    identifier: gpu' named neither the argument nor the devices there are."""
+    with pytest.raises(ValueError, match=rf"^device '{device}' is not available here \(.*cpu.*\)"):
+        dw.simulate_strands(np.c_[np.arange(3) * 0.01, np.zeros(3), np.zeros(3)], [3], steps=1, dt=0.01,
+                            device=device)

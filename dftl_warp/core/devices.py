@@ -7,7 +7,8 @@
   machine with a GPU on the CPU).
 - :func:`parse_devices` is the one parser of device lists (``cuda:0,cuda:1``).
 - :func:`lookup_device` is Warp's device of a name, or one :class:`DeviceNotFound` listing the
-  devices there are (each caller names the option or argument in its own words).
+  devices there are (each caller names the option or argument in its own words);
+  :func:`device_argument` is the Python API's words: "device 'gpu' is not available here (cpu): ...".
 """
 
 from __future__ import annotations
@@ -36,6 +37,16 @@ def lookup_device(name):
     except (ValueError, RuntimeError, KeyError, TypeError) as exc:
         available = ", ".join(d.alias for d in wp.get_devices())
         raise DeviceNotFound(f"not available here ({available}): {exc}") from None
+
+
+def device_argument(name, error: type = ValueError):
+    """Warp's device ``name`` given as a ``device`` argument of the Python API; ``error`` (default
+    ValueError) "device 'gpu' is not available here (cpu): ..." for one Warp does not have here
+    (Warp's own "Invalid device identifier: gpu" named neither the argument nor the devices there are)."""
+    try:
+        return lookup_device(name)
+    except DeviceNotFound as exc:
+        raise error(f"device {name!r} is {exc}") from None
 
 
 def init_warp() -> None:

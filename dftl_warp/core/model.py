@@ -19,7 +19,7 @@ import warp as wp
 
 from ..checks import check_lengths
 from .bounds import box
-from .devices import DeviceNotFound, lookup_device
+from .devices import device_argument
 from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets
 from .precision import numpy_type, scalar_type, vec3_type
 from .state import feature_hook
@@ -141,10 +141,7 @@ class Model:
         if interleave is not None and (isinstance(interleave, (bool, np.bool_))
                                        or not isinstance(interleave, Integral)):
             raise ValueError(f"interleave must be a whole number of state vectors, got {interleave!r}")
-        try:
-            device = lookup_device(device)
-        except DeviceNotFound as exc:
-            raise ValueError(f"device {device!r} is {exc}") from None
+        device = device_argument(device)
         layout_name = layout or default_layout(str(device))
         if layout_name not in LAYOUTS:
             raise ValueError(f"unknown layout {layout_name!r}; choose one of {', '.join(LAYOUTS)}")

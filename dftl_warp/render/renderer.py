@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from ..core.devices import DeviceNotFound, lookup_device
+from ..core.devices import device_argument
 from ..core.layout import strand_offsets
 from ..kernels.render import pixel
 from ..kernels.render import tracer as rk
@@ -105,10 +105,7 @@ def _finite_number(name: str, value) -> float:
 
 def parse_device(name: str) -> str:
     """A Warp device name, checked; raises OptionError (a UserError) for one this machine lacks."""
-    try:
-        return str(lookup_device(name))
-    except DeviceNotFound as exc:
-        raise OptionError(f"device {name!r} is {exc}") from None
+    return str(device_argument(name, OptionError))
 
 
 def pixel_width(name: str, value) -> float:

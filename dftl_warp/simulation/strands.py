@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
+from ..core.devices import device_argument
 from ..core.layout import strand_offsets
 from ..core.model import Model, check_strand_arrays
 from ..options import check_api
@@ -62,8 +63,9 @@ def simulate_strands(
         ValueError naming the argument: ``dt`` not a finite number > 0, ``gravity`` not 3 finite
         numbers, ``steps`` not an integer >= 0, ``record_every`` not an integer >= 1, a
         ``damping``, ``correction``, ``precision`` or ``solver`` the options table refuses,
-        ``points`` and ``counts`` as :meth:`~dftl_warp.core.model.Model.from_strands` refuses them, or
-        ``velocities`` / ``roots`` of another shape or not finite.
+        ``points`` and ``counts`` as :meth:`~dftl_warp.core.model.Model.from_strands` refuses them,
+        ``velocities`` / ``roots`` of another shape or not finite, or a ``device`` Warp does not
+        have here ("device 'gpu' is not available here (cpu): ...").
     """
     for name, value, least in (("steps", steps, 0), ("record_every", record_every, 1)):
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < least:
@@ -88,6 +90,7 @@ def simulate_strands(
         starts = strand_offsets(counts)
         points = points.copy()
         points[starts] = roots[0]
+    device = device_argument(device)   # before ScopedDevice, whose message was Warp's bare "Invalid device identifier"
     with wp.ScopedDevice(device):
         model = Model.from_strands(points, counts, device=device, precision=precision, layout=layout,
                                    corrections=carries_corrections(solver, correction))
