@@ -96,9 +96,20 @@ def default_interleave(layout: str, device: str, features: bool = False, correct
     return 3 if corrections else 2
 
 
+def read_only(array):
+    """A read-only view of the numpy ``array`` (no copy; the array itself stays as it was), or
+    ``array`` itself when it is not a numpy array (None). The host arrays of a Model and its Layout
+    are these: an edit in place (``model.origin[0] = nan``) was taken without a word."""
+    if not isinstance(array, np.ndarray):
+        return array
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
 @dataclass(frozen=True)
 class Layout:
-    """Host-side description of a particle layout (all arrays are numpy int64)."""
+    """Host-side description of a particle layout (all arrays are numpy int64, read-only)."""
 
     name: str
     #: input strand index of each device strand (device order -> input order)
@@ -117,6 +128,10 @@ class Layout:
     interleave: int = 1
     #: length of every per-particle device array (None: one slot per point)
     slot_space: int | None = None
+
+    def __post_init__(self):
+        for name in ("strand_order", "strand_base", "strand_stride", "strand_count", "slot_of_point"):
+            object.__setattr__(self, name, read_only(getattr(self, name)))
 
     @property
     def num_points(self) -> int:

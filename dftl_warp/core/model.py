@@ -20,7 +20,8 @@ import warp as wp
 from ..checks import check_lengths
 from .bounds import box
 from .devices import device_argument
-from .layout import LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, strand_offsets
+from .layout import (LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, read_only,
+                     strand_offsets)
 from .precision import numpy_type, scalar_type, vec3_type
 from .state import feature_hook
 
@@ -47,7 +48,12 @@ def _world_origin(points: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Model:
-    """Immutable strand model on a device. Construct with :meth:`from_strands`."""
+    """Immutable strand model on a device. Construct with :meth:`from_strands`.
+
+    Its host numpy arrays (``counts``, ``origin``, ``rest_positions``, ``widths`` and the
+    layout's) are read-only views. ``dataclasses.replace`` keeps the device arrays, so it cannot
+    change the precision or the device (ValueError): build another model with :meth:`from_strands`.
+    """
 
     device: wp.Device
     precision: str
@@ -73,6 +79,18 @@ class Model:
     #: order; stage units), None when not given: the colliders' contact distance and the elastic
     #: solver's default radius
     widths: np.ndarray | None = None
+
+    def __post_init__(self):
+        for name in ("counts", "origin", "rest_positions", "widths"):   # edits in place were taken silently
+            object.__setattr__(self, name, read_only(getattr(self, name)))
+        # dataclasses.replace(model, precision="float64") kept the float32 arrays: Warp's launch failed
+        # with "expects an array with dtype=vec_t but passed array has dtype=vec_t"
+        arrays = self.rest_lengths
+        if arrays.dtype is not scalar_type(self.precision) or str(arrays.device) != str(self.device):
+            raise ValueError(f"Model: precision {self.precision!r} on {self.device} does not match its arrays "
+                             f"({wp.types.type_repr(arrays.dtype)} on {arrays.device}): a model's precision and "
+                             f"device are fixed when it is built; build another with Model.from_strands(..., "
+                             f"precision={self.precision!r}, device={str(self.device)!r})")
 
     @property
     def num_strands(self) -> int:
@@ -191,7 +209,7 @@ class Model:
             root_rest=wp.array(roots, dtype=vec3, device=device),
             features=features,
             feature_data=feature_data,
-            widths=None if widths is None else np.asarray(widths, dtype=np.float64),
+            widths=None if widths is None else np.array(widths, dtype=np.float64),   # a copy: the caller's may change
         )
 
     # -- conversions between the caller's order/world space and the device layout ---------------
@@ -289,7 +307,7 @@ def _checked_origin(origin, precision: str = "float64") -> np.ndarray:
     """``origin`` as a (3,) float64 array; ValueError naming it unless it is 3 finite numbers (a NaN
     origin made every device position NaN), each small enough for a float32 ``precision``."""
     try:
-        o = np.asarray(origin, dtype=np.float64)
+        o = np.array(origin, dtype=np.float64)   # a copy: the caller's may change
     except (TypeError, ValueError):
         raise ValueError(f"origin must be 3 finite numbers (m), got {origin!r}") from None
     if o.size != 3 or not np.isfinite(o).all():
