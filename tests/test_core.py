@@ -205,7 +205,7 @@ def test_interleaved_states_are_views_of_one_buffer(correction, rng):
     assert model.num_points == counts.sum() < model.num_slots
     assert np.array_equal(model.points_from_device(state.positions), pts)
     v = rng.normal(size=pts.shape)
-    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
+    state.write("velocities", model.points_to_device(v, relative=False))
     assert np.array_equal(model.points_from_device(state.positions), pts)  # untouched by the write
     assert np.array_equal(model.points_from_device(state.velocities, relative=False), v)
     copy = state.clone()
@@ -219,7 +219,7 @@ def test_interleaved_states_are_views_of_one_buffer(correction, rng):
     plain = dw.Model.from_strands(pts, counts, precision="float64", layout="particle-major", interleave=1)
     psolver = dw.DFTLSolver(plain, gravity=G, correction=correction)
     pstate = psolver.state()
-    pstate.write("velocities", plain.points_to_device(v, relative=False), layout=plain.layout)
+    pstate.write("velocities", plain.points_to_device(v, relative=False))
     psolver.advance(pstate, plain.control(), 1 / 240, 3)
     assert np.array_equal(plain.points_from_device(pstate.positions), model.points_from_device(state.positions))
     assert np.array_equal(plain.points_from_device(pstate.velocities), model.points_from_device(state.velocities))

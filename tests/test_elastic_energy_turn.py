@@ -28,7 +28,7 @@ def test_a_strand_turned_rigidly_with_its_clamp_stores_no_energy(angle):
     ghost = state.clamps.numpy()[0].astype(np.float64)
     axis = (x[0] - ghost) / np.linalg.norm(x[0] - ghost)             # the first segment's direction
     Q = Rotation.from_rotvec(angle * axis).as_matrix()
-    state.write("positions", model.points_to_device(x[0] + (x - x[0]) @ Q.T, relative=False), layout=model.layout)
+    state.write("positions", model.points_to_device(x[0] + (x - x[0]) @ Q.T, relative=False))
     state.clamps.assign((x[0] + Q @ (ghost - x[0]))[None])
     frames = state.frames.numpy().astype(np.float64)
     state.frames.assign(mat_to_quat(Q @ quat_to_mat(frames)))

@@ -53,7 +53,7 @@ def test_friction_damps_opposed_strands_at_its_rate_and_never_adds_energy(correc
                                       features=[F.HairHair(cell_size=0.01, friction=friction, repulsion=0.0)])
         solver = dw.make_solver(model, "elastic", radius=R, gravity=(0.0, 0.0, 0.0), correction=correction)
         state, control = solver.state(), model.control()
-        state.write("velocities", model.points_to_device(v0, relative=False), layout=model.layout)
+        state.write("velocities", model.points_to_device(v0, relative=False))
         series = [solver.energy(state)]
         for _ in range(frames):
             for _ in range(substeps):

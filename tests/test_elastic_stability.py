@@ -66,7 +66,7 @@ def test_the_solver_holds_a_column_below_it_and_drops_one_above_it():
         state, control = solver.state(), model.control()
         push = np.zeros((N + 1, 3))
         push[:, 0] = 1e-4 * pts[:, 1] / pts[-1, 1]
-        state.write("velocities", model.points_to_device(push, relative=False), layout=model.layout)
+        state.write("velocities", model.points_to_device(push, relative=False))
         flagged, _, tested, total = solver.unstable_strands()
         assert tested == total == 1 and flagged.tolist() == ([0] if ratio > GREENHILL else [])
         for _ in range(48):
@@ -151,7 +151,7 @@ def test_a_horizontal_strand_twists_over_beyond_what_its_twist_holds():
         state, control = solver.state(), model.control()
         push = np.zeros((N + 1, 3))
         push[:, 2] = 1e-4 * s / s[-1]
-        state.write("velocities", model.points_to_device(push, relative=False), layout=model.layout)
+        state.write("velocities", model.points_to_device(push, relative=False))
         flagged, _, tested, total = solver.unstable_strands()
         assert tested == total == 1 and flagged.tolist() == ([0] if ratio > 3 else [])
         for _ in range(96):

@@ -110,7 +110,7 @@ def test_a_styled_strand_at_rest_has_only_its_potential_energy_above_hanging():
         assert not monitor.check(state, frame)
     v = state.velocities.numpy()
     v[model.layout.slot_of_point[1:]] += (0.0, 0.0, 2.0)   # 2 m/s out of nowhere: 2 J/kg a particle
-    state.write("velocities", v, layout=model.layout)
+    state.write("velocities", v)
     with pytest.warns(EnergyGrowthWarning, match="energy grew"):
         monitor.check(state, 3)
 

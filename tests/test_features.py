@@ -149,7 +149,7 @@ def throw_down(slab, height, n=20, width=0.002):
     state, control = solver.state(), model.control()
     v = np.zeros_like(pts)
     v[1:, 1] = -10.0
-    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
+    state.write("velocities", model.points_to_device(v, relative=False))
     lowest = np.inf
     for _ in range(FPS):
         solver.step(state, state, control, 1.0 / FPS)

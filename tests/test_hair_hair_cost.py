@@ -107,7 +107,7 @@ def test_strand_splat_is_the_particle_splat_and_conserves_particles_and_momentum
         model = dw.Model.from_strands(pts, counts, precision="float64", features=[hh])
         solver = dw.DFTLSolver(model, gravity=G)
         state = solver.state()
-        state.write("velocities", model.points_to_device(velocities, relative=False), layout=model.layout)
+        state.write("velocities", model.points_to_device(velocities, relative=False))
         grid = solver._features._grid
         grid.bounds(state.positions)
         grid.splat(state.positions, state.velocities)

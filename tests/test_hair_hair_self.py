@@ -27,7 +27,7 @@ def swing(features, frames=24, substeps=10, precision="float64"):
     state, control = solver.state(), model.control()
     v = np.zeros((8, 3))
     v[1::2, 0] = 1.0
-    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
+    state.write("velocities", model.points_to_device(v, relative=False))
     for _ in range(frames):
         solver.advance(state, control, 1.0 / (24 * substeps), substeps)
     return model.points_from_device(state.positions, relative=False)
@@ -59,7 +59,7 @@ def test_the_repulsion_reads_the_particles_present_density_at_every_substep(inte
     state, control = solver.state(), model.control()
     v = np.zeros((240, 3))
     v[:, 0] = rng.uniform(-1.0, 1.0, 240)
-    state.write("velocities", model.points_to_device(v, relative=False), layout=model.layout)
+    state.write("velocities", model.points_to_device(v, relative=False))
     dt = 1.0 / 240
     solver.step(state, state, control, dt, 1.0 / 3)   # a rebuild (the frame's first substep) ...
     solver.step(state, state, control, dt, 2.0 / 3)   # ... then substeps without one (interval 5)

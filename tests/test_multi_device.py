@@ -212,8 +212,8 @@ def test_split_hair_hair_grid_equals_single_device_grid(tmp_path):
     positions = one.model.points_from_device(one.state.positions, relative=False)
     velocities = one.model.points_from_device(one.state.velocities, relative=False)
     for model, s, (p0, p1) in zip(group.model.parts, group.state.parts, group.point_ranges):
-        s.write("positions", model.points_to_device(positions[p0:p1], relative=False), layout=model.layout)
-        s.write("velocities", model.points_to_device(velocities[p0:p1], relative=False), layout=model.layout)
+        s.write("positions", model.points_to_device(positions[p0:p1], relative=False))
+        s.write("velocities", model.points_to_device(velocities[p0:p1], relative=False))
     solver = group.solver
     steps = [s._features for s in solver.parts]
     assert len(steps) == 3 and {tuple(s.model.feature_data.grid_shape) for s in steps} == {

@@ -95,7 +95,7 @@ def test_penetration_of_every_shape_against_its_closed_form_distance():
     k = sum(len(s) for _, s, _ in CASES[:box]) + 1
     local = points[k] - SHAPES[3].position
     moved[k] = SHAPES[3].position + shift + np.array([-local[1], local[0], local[2]])   # rotated 90 degrees about z
-    state.write("positions", model.points_to_device(moved), layout=model.layout)
+    state.write("positions", model.points_to_device(moved))
     got = measure(model, state, control)
     for (name, _, _), g, e in zip(CASES, got, expected):
         assert g == pytest.approx(e, rel=2e-4, abs=1e-4), f"moved: {name}"

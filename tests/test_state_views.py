@@ -59,3 +59,28 @@ def test_velocities_set_through_a_view_move_the_hair_as_on_a_plain_layout():
         out.append(model.points_from_device(state.positions, relative=False))
     assert np.abs(out[0] - pts).max() > 0.01          # it moved
     assert np.allclose(out[0], out[1], atol=1e-5), np.abs(out[0] - out[1]).max()
+
+
+def test_write_needs_no_layout_and_ignores_one_given():
+    """``State.write`` finds a field's slots from its storage: the ``layout`` argument callers still
+    passed is ignored (accepted for older scripts), and the package's own calls leave it out."""
+    import ast
+    from pathlib import Path
+
+    pts, counts = _hanging()
+    model = dw.Model.from_strands(pts, counts, layout="particle-major", interleave=3)
+    other = dw.Model.from_strands(pts[:10], [5, 5], layout="strand-major")
+    v = np.random.default_rng(2).normal(size=pts.shape)
+    for layout in ({}, {"layout": other.layout}):
+        state = model.state()
+        state.write("velocities", model.points_to_device(v, relative=False), **layout)
+        assert np.allclose(model.points_from_device(state.velocities, relative=False), v, atol=1e-6)
+        assert np.allclose(model.points_from_device(state.positions), pts, atol=1e-7)
+    package = Path(dw.__file__).parent
+    passing = []
+    for path in sorted(package.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "write"
+                    and any(k.arg == "layout" for k in node.keywords)):
+                passing.append(f"{path.relative_to(package)}:{node.lineno}")
+    assert not passing, f"State.write(..., layout=) needs no layout: {passing}"

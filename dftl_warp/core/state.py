@@ -145,8 +145,8 @@ class State:
         array of that shape, or to zero.
 
         Plain States assign the array; interleaved ones write only the field's own slots, leaving
-        the other fields untouched (``layout`` is accepted and not needed: the slots follow from
-        the storage)."""
+        the other fields untouched: the slots follow from the storage. ``layout`` is ignored; it is
+        accepted for callers written when it was needed (scripts/bench_features.py)."""
         target = getattr(self, field)
         if target is None:
             raise ValueError(f"this State has no {field}")

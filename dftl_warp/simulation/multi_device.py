@@ -71,7 +71,7 @@ class SplitArray:
         host = values.numpy() if isinstance(values, wp.array) else np.asarray(values)
         start = 0
         for state, model, p in zip(self.states, self.models, self.parts):
-            state.write(self.name, host[start:start + p.shape[0]], layout=model.layout)
+            state.write(self.name, host[start:start + p.shape[0]])
             start += p.shape[0]
         if start != host.shape[0]:
             raise ValueError(f"expected {start} values, got {host.shape[0]}")

@@ -98,7 +98,7 @@ def simulate_strands(
         state = sim.state()
         control = model.control()
         if velocities is not None:
-            state.write("velocities", model.points_to_device(velocities, relative=False), layout=model.layout)
+            state.write("velocities", model.points_to_device(velocities, relative=False))
 
         def record():
             positions.append(model.points_from_device(state.positions))

@@ -79,7 +79,7 @@ def copy_state(src, src_model, dst, dst_model, points=None, strands=None) -> Non
             continue
         host = src_model.points_from_device(values, relative=relative)
         host = host if points is None else host[points]
-        dst.write(name, dst_model.points_to_device(host, relative=relative), layout=dst_model.layout)
+        dst.write(name, dst_model.points_to_device(host, relative=relative))
     if getattr(dst, "frames", None) is None or getattr(src, "frames", None) is None:
         return
     src_lay, dst_lay = src_model.layout, dst_model.layout
@@ -129,7 +129,7 @@ def same_rest(src, dst, frame: int) -> None:
     strands = np.unique(np.repeat(np.arange(dst.num_strands), dst.model.counts)[away])
     if strands.size == 0:
         return
-    dst.state.write("positions", dst.model.points_to_device(rest), layout=dst.model.layout)
+    dst.state.write("positions", dst.model.points_to_device(rest))
     b.adopt_rest_shape(dst.state, strands=strands)
     dst.clamps = ClampDriver(dst, frame)
 

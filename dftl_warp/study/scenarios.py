@@ -185,7 +185,7 @@ def record(solver, frames: int, frame_dt: float, substeps: int, *, roots=None, v
     state = solver.state() if state is None else state
     control = model.control() if control is None else control
     if velocities is not None:
-        state.write("velocities", model.points_to_device(velocities, relative=False), layout=model.layout)
+        state.write("velocities", model.points_to_device(velocities, relative=False))
     dt = frame_dt / substeps
     spent = []
     pos = [model.points_from_device(state.positions)]
