@@ -186,3 +186,24 @@ def test_a_nonzero_light_direction_of_any_length_renders_finite_pixels():
     r = renderer(lighting=Lighting(key_dir=(0, 5, 0), fill_dir=(1e-3, 0, 0)))
     image = r.render(RenderScene.from_strands(PTS, [3], 0.02), camera())
     assert np.isfinite(image).all() and image[..., 3].sum() > 0
+
+
+# -- one number check, one matrix check ------------------------------------------------------------
+
+@pytest.mark.parametrize("make, message", [
+    # numpy scalars and arrays were shown as Python's repr: 'np.float64(nan)', 'array([50.])'
+    (lambda: Lighting(roughness=np.float64(NAN)), "lighting roughness = nan: expected a finite number"),
+    (lambda: Lighting(hair_shadow_transmittance="x"), "lighting hair_shadow_transmittance = 'x': expected a finite number"),
+    (lambda: camera(focal_length=np.array([50.0])), r"camera focal_length = \[50\]: expected a number"),
+    (lambda: camera(near=np.float32(NAN)), "camera near = nan: not a number"),
+    # a shape's matrix of strings said 'world_from_local must be numbers', a camera's named the value
+    (lambda: RenderScene(shapes=[Shape(SPHERE, "x", (0.1, 0, 0))]).check(),
+     r"shapes\[0\] world_from_local 'x': expected a 4x4 matrix of numbers"),
+    (lambda: RenderScene(shapes=[Shape(SPHERE, np.eye(3), (0.1, 0, 0))]).check(),
+     r"shapes\[0\] world_from_local of shape \(3, 3\): expected a 4x4 matrix of numbers"),
+])
+def test_renderer_fields_are_checked_in_the_usd_readers_words(make, message):
+    """The camera's and the lighting's number checks are the USD reader's (usd/values.py number:
+    plain values, one line); a camera's and a shape's 4x4 matrix go through one check."""
+    with pytest.raises(ValueError, match=f"^{message}$"):
+        make()

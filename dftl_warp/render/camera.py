@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..options import OptionError
+from ..usd.values import number, shown
 
 #: UsdRender.Settings aspectRatioConformPolicy values this renderer honours
 CONFORM_POLICIES = ("expandAperture", "cropAperture", "adjustApertureWidth", "adjustApertureHeight")
@@ -45,20 +46,31 @@ def checked_up_axis(up_axis) -> str:
     return up_axis.upper()
 
 
-def _shown(value) -> str:
-    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_)):
-        return f"{float(value):g}"
-    return repr(value)
-
-
 def _number(where: str, name: str, value) -> float:
     """``value`` as a float; OptionError naming ``name`` for a string, a bool, an array or NaN."""
-    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not numeric:
-        raise OptionError(f"{where}{name} = {_shown(value)}: expected a number")
+    value = number(value, f"{where}{name}", error=OptionError)
     if math.isnan(value):
         raise OptionError(f"{where}{name} = nan: not a number")
-    return float(value)
+    return value
+
+
+def checked_matrix(value, name: str, error: type = OptionError) -> np.ndarray:
+    """``value`` as a 4x4 float64 matrix; ``error`` (default OptionError) naming ``name`` (e.g.
+    ``camera world_from_camera``, ``shapes[0] world_from_local``) for a value that is not a 4x4
+    matrix of numbers, or naming its first entry that is not finite (a camera's drew a blank image,
+    a shape's blanked the whole image)."""
+    try:
+        m = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        m = None
+    if m is None or m.shape != (4, 4):
+        what = shown(value) if m is None else f"of shape {m.shape}"
+        raise error(f"{name} {what}: expected a 4x4 matrix of numbers")
+    bad = np.argwhere(~np.isfinite(m))
+    if len(bad):
+        i, j = (int(k) for k in bad[0])
+        raise error(f"{name}[{i}][{j}] = {m[i, j]:g}: not finite")
+    return m
 
 
 @dataclass
@@ -85,17 +97,7 @@ class Camera:
         not finite, not 0 <= near < far (far may be infinite), an unknown projection. (Such
         cameras drew a blank or NaN image, or a perspective one, without a word.)"""
         where = f"camera {self.path}: " if self.path else "camera "
-        try:
-            m = np.asarray(self.world_from_camera, dtype=np.float64)
-        except (TypeError, ValueError):
-            m = None
-        if m is None or m.shape != (4, 4):
-            what = _shown(self.world_from_camera) if m is None else f"of shape {m.shape}"
-            raise OptionError(f"{where}world_from_camera {what}: expected a 4x4 matrix of numbers")
-        bad = np.argwhere(~np.isfinite(m))
-        if len(bad):
-            i, j = (int(k) for k in bad[0])
-            raise OptionError(f"{where}world_from_camera[{i}][{j}] = {m[i, j]:g}: not finite")
+        checked_matrix(self.world_from_camera, f"{where}world_from_camera")
         for name in ("focal_length", "horizontal_aperture", "vertical_aperture"):
             value = _number(where, name, getattr(self, name))
             if not math.isfinite(value):

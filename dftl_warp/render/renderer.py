@@ -28,6 +28,7 @@ from ..core.layout import strand_offsets
 from ..kernels.render import pixel
 from ..kernels.render import tracer as rk
 from ..options import OptionError
+from ..usd.values import number
 from .camera import CONFORM_POLICIES, Camera, auto_frame
 from .scene import RenderScene
 
@@ -72,10 +73,10 @@ class Lighting:
             v = _vector3(name, getattr(self, name))
             if (v < 0).any():
                 raise OptionError(f"lighting {name} {_shown3(v)}: must not be negative")
-        t = _finite_number("hair_shadow_transmittance", self.hair_shadow_transmittance)
+        t = number(self.hair_shadow_transmittance, "lighting hair_shadow_transmittance", error=OptionError, finite=True)
         if not 0 <= t <= 1:
             raise OptionError(f"lighting hair_shadow_transmittance = {t:g}: must be from 0 to 1")
-        if _finite_number("roughness", self.roughness) < 0:
+        if number(self.roughness, "lighting roughness", error=OptionError, finite=True) < 0:
             raise OptionError(f"lighting roughness = {self.roughness:g}: must be >= 0")
 
 
@@ -94,13 +95,6 @@ def _vector3(name: str, value) -> np.ndarray:
     if not np.isfinite(v).all():
         raise OptionError(f"lighting {name} {_shown3(v)}: must be finite")
     return v
-
-
-def _finite_number(name: str, value) -> float:
-    numeric = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not numeric or not math.isfinite(value):
-        raise OptionError(f"lighting {name} = {value!r}: expected a finite number")
-    return float(value)
 
 
 def parse_device(name: str) -> str:

@@ -15,7 +15,7 @@ from ..core.bounds import box
 from ..errors import plural
 from ..core.layout import strand_offsets
 from ..core.model import check_strand_arrays
-from .camera import checked_up_axis
+from .camera import checked_matrix, checked_up_axis
 
 #: default linear hair colour at the root and at the tip (a mid brown)
 DEFAULT_ROOT_COLOR = (0.045, 0.022, 0.010)
@@ -190,13 +190,7 @@ def check_shapes(shapes) -> None:
         kind = shape.kind
         if isinstance(kind, (bool, np.bool_)) or not isinstance(kind, (int, np.integer)) or int(kind) not in SHAPE_KINDS:
             raise ValueError(f"{where} kind {kind!r}: must be 0 (sphere), 1 (capsule) or 2 (box)")
-        m = _float_array(shape.world_from_local, f"{where} world_from_local")
-        if m.shape != (4, 4):
-            raise ValueError(f"{where} world_from_local of shape {m.shape}: expected a 4x4 matrix")
-        bad = np.argwhere(~np.isfinite(m))
-        if len(bad):
-            r, c = (int(k) for k in bad[0])
-            raise ValueError(f"{where} world_from_local[{r}][{c}] = {m[r, c]:g}: not finite")
+        checked_matrix(shape.world_from_local, f"{where} world_from_local", ValueError)
         p = _float_array(shape.params, f"{where} params").reshape(-1)
         if p.size != 3:
             raise ValueError(f"{where} params of {p.size} numbers: expected 3")

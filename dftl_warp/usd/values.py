@@ -5,11 +5,14 @@
 - :func:`number` and :func:`numbers3`: a schema attribute's value (``radius``, ``size``,
   ``physics:gravityMagnitude``, ``physics:gravityDirection`` ...) as a float, or 3 floats; a value that
   is not numeric (``string radius = "big"``, authored against the schema's type) raises
-  :class:`~dftl_warp.errors.UserError` naming the file, the prim, the attribute and the value;
+  :class:`~dftl_warp.errors.UserError` naming the file, the prim, the attribute and the value (the
+  renderer's Camera and Lighting fields go through :func:`number` too, with its OptionError);
 - :func:`boolean`: the same for a ``bool`` attribute (``physics:collisionEnabled``).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -60,11 +63,15 @@ def _numeric(value) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating))
 
 
-def number(value, name: str, where: str) -> float:
-    """``value`` (an attribute's value, e.g. ``radius``) as a float, not yet checked for range;
-    UserError ``WHERE: name = VALUE: expected a number`` when it is not a number."""
-    if not _numeric(value):
-        raise UserError(f"{where}: {name} = {shown(value)}: expected a number")
+def number(value, name: str, where: str = "", error: type = UserError, finite: bool = False) -> float:
+    """``value`` (an attribute's value, e.g. ``radius``, or an API field, e.g. a camera's
+    ``focal_length``) as a float, not yet checked for range; UserError (or ``error``) ``WHERE: name =
+    VALUE: expected a number`` when it is not a number (a string, a bool, an array), and with
+    ``finite`` ``... expected a finite number`` for NaN and infinities too. An empty ``where``
+    leaves the message's prefix out (the renderer's API fields name themselves in ``name``)."""
+    if not _numeric(value) or (finite and not math.isfinite(value)):
+        raise error(f"{where + ': ' if where else ''}{name} = {shown(value)}: "
+                    f"expected {'a finite number' if finite else 'a number'}")
     return float(value)
 
 
