@@ -213,3 +213,90 @@ def test_roots_moved_in_place_between_frames_move():
     control.set_root_targets(start, roots)
     np.testing.assert_allclose(control.root_start.numpy(), model.roots_to_device(start))
     np.testing.assert_allclose(control.root_end.numpy(), model.roots_to_device(roots))
+
+
+# -- a step that blows up: advance stays silent (no read-back), the run-level APIs warn ---------------
+
+def _two_chains():
+    return np.concatenate([chain(5, 0.01), chain(5, 0.01, origin=(0.5, 0, 0))]), [5, 5]
+
+
+def test_advance_does_not_read_back_and_diagnostics_show_the_blow_up():
+    """``advance`` checks its arguments, not its results (it would have to wait for the device):
+    the reference solver at dt = 1e6 s goes to NaN without a word there, as documented, and
+    ``diagnostics`` reports it."""
+    import warnings
+
+    model = dw.Model.from_strands(*_two_chains(), precision="float64")
+    solver = dw.make_solver(model, "reference")
+    assert "results are not checked" in " ".join(type(solver).advance.__doc__.split())
+    state = solver.state()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        solver.advance(state, model.control(), 1.0e6, 4)
+    assert not np.isfinite(model.points_from_device(state.positions)).all()
+    assert solver.diagnostics(state)["max_stretch"] == np.inf
+
+
+@pytest.mark.parametrize("record_every, step", [(1, 1), (2, 2)])
+def test_simulate_strands_warns_when_its_recording_is_not_finite(record_every, step):
+    """simulate_strands(dt=1e6) returned NaN frames without a word; it reads every recorded frame
+    back anyway, so it now says so once, with the energy monitor's warning class and words."""
+    from dftl_warp.simulation.monitor import EnergyGrowthWarning
+
+    points, counts = _two_chains()
+    with pytest.warns(EnergyGrowthWarning, match=rf"^simulate_strands: reference, dt=1e\+06 s: strand 0.*: "
+                                                 rf"non-finite positions or velocities at step {step}; this "
+                                                 r"setting is unstable \(a smaller dt may hold it\)$") as caught:
+        rec = dw.simulate_strands(points, counts, steps=4, dt=1.0e6, solver="reference", precision="float64",
+                                  record_every=record_every)
+    assert len([w for w in caught if w.category is EnergyGrowthWarning]) == 1
+    assert not np.isfinite(rec.positions[-1]).all()
+
+
+def test_simulate_strands_names_the_first_step_and_strand_that_is_not_finite():
+    from dftl_warp.simulation.strands import Recording, nonfinite_note
+
+    positions, velocities = np.zeros((4, 12, 3)), np.zeros((4, 12, 3))
+    velocities[2, 7, 1] = np.inf            # frame 2, point 7: strand 1 of counts [5, 3, 4]
+    positions[3, 9, 0] = np.nan             # later, strand 2 as well
+    line = nonfinite_note(Recording(positions, velocities), np.array([5, 3, 4]), 3, "run")
+    assert line == ("run: strand 1: non-finite positions or velocities at step 6; this setting is unstable "
+                    "(a smaller dt may hold it)")
+    positions[2, 0, 2] = np.nan
+    assert "strand 0 (and 1 more): non-finite positions or velocities at step 6" in nonfinite_note(
+        Recording(positions, velocities), np.array([5, 3, 4]), 3, "run")
+    assert nonfinite_note(Recording(np.zeros((2, 12, 3)), np.zeros((2, 12, 3))), np.array([5, 3, 4]), 1, "run") is None
+
+
+def test_a_stable_simulate_strands_run_does_not_warn():
+    import warnings
+
+    from dftl_warp.simulation.monitor import EnergyGrowthWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EnergyGrowthWarning)
+        dw.simulate_strands(*_two_chains(), steps=3, dt=1.0 / 240)
+
+
+def test_a_simulation_warns_when_its_state_goes_non_finite(tmp_path):
+    """The Simulation's energy monitor, checked once a frame when the samples are read back, names
+    a non-finite state (gravity of 1e30 stage units/s^2 takes the float64 reference solver to NaN)."""
+    from pxr import UsdPhysics
+    from usd_stages import add_curves, new_stage
+
+    from dftl_warp.simulation.settings import SimulationOptions
+    from dftl_warp.simulation.simulate import Simulation
+
+    stage = new_stage(tmp_path / "blow.usda", start=1, end=4)
+    add_curves(stage, "/World/Hair", *_two_chains())
+    UsdPhysics.Scene.Define(stage, "/World/Physics").CreateGravityMagnitudeAttr(1.0e30)
+    stage.GetRootLayer().Save()
+    sim = Simulation(dw.read_scene(str(tmp_path / "blow.usda")),
+                     SimulationOptions(solver="reference", precision="float64", device="cpu"), 1)
+    for _ in range(2):
+        sim.advance()
+        sim.samples()
+    assert len(sim.warnings) == 1, sim.warnings
+    assert sim.warnings[0].startswith(f"{tmp_path / 'blow.usda'}: /World/Hair: reference")
+    assert "non-finite positions or velocities at frame 2; this setting is unstable" in sim.warnings[0]

@@ -80,8 +80,8 @@ from ..kernels.simulation.energy import elastic_terms_struct, energy_budget_kern
 
 
 class EnergyGrowthWarning(RuntimeWarning):
-    """A run created energy beyond what it started with and its roots (and moving colliders) can supply:
-    the setting is unstable."""
+    """A run created energy beyond what it started with and its roots (and moving colliders) can supply,
+    or its positions or velocities went non-finite: the setting is unstable."""
 
 
 class EnergyMonitor:

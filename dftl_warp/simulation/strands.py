@@ -15,6 +15,7 @@ from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, build_solver, carries_corrections
 from ..solvers.base import check_gravity, check_step
 from ..checks import check_lengths
+from .monitor import EnergyGrowthWarning
 from .settings import unused_solver_options
 
 
@@ -58,6 +59,12 @@ def simulate_strands(
 
     Returns:
         :class:`Recording` with frame 0 the initial state and ``steps // record_every`` more.
+
+    Warns:
+        :class:`~dftl_warp.simulation.monitor.EnergyGrowthWarning` (once, naming the step and the
+        strand) when a recorded frame holds a non-finite position or velocity: the setting blew up
+        (e.g. a ``dt`` far beyond the solver's stable range). The check reads the recording, which
+        is on the host anyway; finite but absurd results are not judged here.
 
     Raises:
         ValueError naming the argument: ``dt`` not a finite number > 0, ``gravity`` not 3 finite
@@ -112,7 +119,27 @@ def simulate_strands(
             sim.step(state, state, control, dt)
             if k % record_every == 0:
                 record()
-    return Recording(np.stack(positions), np.stack(vels))
+    recording = Recording(np.stack(positions), np.stack(vels))
+    line = nonfinite_note(recording, counts, record_every, f"simulate_strands: {solver}, dt={dt:g} s")
+    if line is not None:
+        warnings.warn(line, EnergyGrowthWarning, stacklevel=2)
+    return recording
+
+
+def nonfinite_note(recording: Recording, counts: np.ndarray, record_every: int, setting: str) -> str | None:
+    """The warning for the first recorded frame holding a non-finite position or velocity (the
+    run blew up), naming its step and strand as the energy monitor does; None when every frame is
+    finite. Reads the host recording only."""
+    finite = np.isfinite(recording.positions).all(axis=2) & np.isfinite(recording.velocities).all(axis=2)
+    frames = np.flatnonzero(~finite.all(axis=1))
+    if not frames.size:
+        return None
+    f = int(frames[0])
+    strands = np.unique(np.searchsorted(strand_offsets(counts, with_end=True), np.flatnonzero(~finite[f]),
+                                        side="right") - 1)
+    more = f" (and {strands.size - 1} more)" if strands.size > 1 else ""
+    return (f"{setting}: strand {int(strands[0])}{more}: non-finite positions or velocities at step "
+            f"{f * record_every}; this setting is unstable (a smaller dt may hold it)")
 
 
 def _checked_rows(name: str, values, shape: tuple, what: str) -> np.ndarray:

@@ -22,6 +22,15 @@ their end by the kernels) raises TypeError or ValueError naming it. Every subcla
 ``advance`` and ``diagnostics`` are wrapped with the checks (:meth:`Solver.__init_subclass__`), so a
 new solver gets them without a line of its own; they cost a few comparisons per call, nothing on
 the device.
+
+The results are not checked: ``advance`` and ``step`` never read the device back (on CUDA they
+only launch), so a setting that blows up (a ``dt`` far beyond the solver's stable range: the
+reference solver at dt = 1e6 s goes to NaN, pbd to 1e13 m) is silent here. ``diagnostics(state)``
+measures a State (its stretch and speed infinite, its energy NaN, when it is not finite); the
+:class:`~dftl_warp.simulation.simulate.Simulation` (its energy monitor,
+:mod:`dftl_warp.simulation.monitor`) and :func:`~dftl_warp.simulation.strands.simulate_strands`, which
+read the state back anyway, warn with an
+:class:`~dftl_warp.simulation.monitor.EnergyGrowthWarning` when it is not finite.
 """
 
 from __future__ import annotations
@@ -286,10 +295,13 @@ class Solver:
             self.step(state, state, control, dt, float(real(k + 1) / real(substeps)))
 
     def advance(self, state, control, dt: float, substeps: int) -> None:
-        """``substeps`` steps of ``dt`` in place, roots moving along the Control's root path.
+        """``substeps`` steps of ``dt`` (s) in place, roots moving along the Control's root path.
 
         On CUDA the substeps are captured once per (state, control, dt, substeps) in a CUDA graph
-        and replayed afterwards.
+        and replayed afterwards, and ``advance`` returns before the device is done. The arguments
+        are checked, the results not: a blow-up (non-finite or absurd positions from a ``dt`` far
+        beyond the stable range) is silent here; :meth:`diagnostics` measures it, and
+        ``Simulation`` and ``simulate_strands`` warn of non-finite states (module docstring).
         """
         check_step(dt, substeps)
         check_bound(self.model, state, control)

@@ -149,7 +149,8 @@ class DFTLSolver(Solver):
     def advance(self, state, control, dt: float, substeps: int) -> None:
         """``substeps`` steps of ``dt`` in place, roots moving along the Control's root path: fused into one
         launch per run of strands where that pays (:func:`fused_pays`), else one launch per
-        substep. On CUDA the frame is captured once in a CUDA graph and replayed afterwards.
+        substep. On CUDA the frame is captured once in a CUDA graph and replayed afterwards. The
+        results are not checked (no read-back: :meth:`Solver.advance <dftl_warp.solvers.base.Solver.advance>`).
         """
         m = self.model
         if m.num_strands == 0:

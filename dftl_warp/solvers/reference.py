@@ -138,7 +138,9 @@ class ReferenceSolver(Solver):
 
     def advance(self, state, control, dt: float, substeps: int) -> None:
         """``substeps`` steps of ``dt`` in place, roots moving linearly across them (one launch:
-        the substep loop runs inside the kernel, in float64 throughout)."""
+        the substep loop runs inside the kernel, in float64 throughout). The results are not checked
+        (no read-back: :meth:`Solver.advance <dftl_warp.solvers.base.Solver.advance>`): a dt far beyond
+        the stable range leaves NaN without a word."""
         self._launch(state, state, control, dt, 1.0 / substeps, 1.0 / substeps, substeps)
 
     def state(self):
