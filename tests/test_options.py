@@ -107,11 +107,12 @@ def test_options_is_a_foundation_module():
     assert own <= {"dftl_warp.errors", "dftl_warp.errors.UserError"}, own
 
 
-def test_the_usd_reader_imports_only_errors_options_and_usd():
+def test_the_usd_reader_imports_only_errors_options_checks_and_usd():
+    """The foundation (errors, options, checks: check_lengths) and itself."""
     for path in (ROOT / "usd").glob("*.py"):
         own = {n for n in _imports(path) if n.startswith("dftl_warp")}
-        bad = {n for n in own if not (n.startswith(("dftl_warp.errors", "dftl_warp.options", "dftl_warp.usd"))
-                                      or n == "dftl_warp")}
+        bad = {n for n in own if not (n.startswith(("dftl_warp.errors", "dftl_warp.options", "dftl_warp.checks",
+                                                    "dftl_warp.usd")) or n == "dftl_warp")}
         assert not bad, (path.name, bad)
 
 
