@@ -14,8 +14,9 @@ Gravity -9.81 m/s^2 along y, 24 frames a second.
 
 Runs, on ``--device`` (the CPU by default; the numpy runs on the host):
 - ``dftl``: DFTL, s = 1, the prior form (the default), as the kernels run it: a follower's
-  correction that pushes its leader is scaled by how far short of a segment it moved in the step
-  (``kernels/solvers/ftl.py``, ``carried_func``); ``dftl posterior``: the paper's velocity form;
+  correction that pushes its leader is scaled by ``max(1 - a m, 0)``, ``m`` its motion in the step
+  over its rest length (``kernels/solvers/ftl.py``, ``carried_func``; ``a`` from
+  ``scripts/push_scale_study.py``); ``dftl posterior``: the paper's velocity form;
 - ``dftl, scale_pushes=False``: the kernels with the paper's whole correction;
 - ``elastic``: the elastic solver (its rest shape is the folded start);
 - ``paper's correction`` (numpy, ``dftl_warp.solvers.numpy_baseline.step`` with
@@ -111,6 +112,19 @@ def run_paper(points, velocities, count: int, substeps: int, pulls_only: bool = 
     return np.array(energies), np.array(speeds), None
 
 
+def write_rows(path: Path, rows: list[dict], script: str, argv, machine: str, started: float) -> str:
+    """Write ``rows`` to the CSV ``path`` (its folder made); returns the provenance of a report:
+    the command, ``machine``, the date and the seconds since ``started``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    command = f"python scripts/{script} " + " ".join(argv if argv is not None else sys.argv[1:])
+    return f"`{command.strip()}` ({machine}, {stamp}, {time.time() - started:.0f} s)."
+
+
 def summarize(energies, speeds, flagged, true_energy, substeps):
     """(strands whose energy at some frame exceeded twice their true energy, median largest ratio,
     median of the last half second's RMS particle speed in segments per step, flagged)."""
@@ -158,9 +172,10 @@ def reading(rows, counts) -> str:
             f"that too (largest median ratio {pulls:.2f}): the pump is a "
             "follower's lagged push on its leader. Dropped outright, the pushes would cost the convergence to "
             "the constrained dynamics where links push (`tests/test_dftl_folded.py`: an inverted chain, whose "
-            "links push as it starts to fall); scaled by how far short of a segment the follower moved in the "
-            "step, they vanish only where the step is far outside that regime, and DFTL keeps its first-order "
-            "convergence there.")
+            "links push as it starts to fall); scaled by max(1 - a m, 0), m the follower's motion in the step "
+            "over its rest length, they vanish only where the step is far outside that regime, and DFTL keeps "
+            "its first-order convergence there. How large a is: [push-scale.md](push-scale.md) (1.5; with a = 1, "
+            "at commit ae1a2af, this table's prior row read 4 / 0.75 / 0.05 / 1 at 16 substeps).")
 
 
 def main(argv=None) -> int:
@@ -199,15 +214,8 @@ def main(argv=None) -> int:
                          "median_largest_ratio": round(median, 4), "segments_per_step": round(per_step, 4),
                          "monitor_flagged": "" if warned is None else warned})
             print(rows[-1], file=sys.stderr)
-    args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "folded.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    command = "python scripts/probe_dftl_folded.py " + " ".join(argv if argv is not None else sys.argv[1:])
     machine = f"{platform.machine()} CPU" if args.device == "cpu" else wp.get_device(args.device).name
-    lines = [f"`{command.strip()}` ({machine}, {stamp}, {time.time() - started:.0f} s). "
+    lines = [write_rows(args.out / "folded.csv", rows, "probe_dftl_folded.py", argv, machine, started) + " "
              f"{args.strands} strands of {POINTS} points {SEGMENT * 1e3:g} mm apart, folded by 100-175 degrees at "
              f"every joint, velocity components of deviation {args.speed:g} m/s; one second at {FPS} fps. "
              "Cells: strands whose energy at some frame exceeded twice their true energy / median of the largest "

@@ -5,8 +5,9 @@ them) hold their energy under the true dynamics: the RATTLE reference in float64
 keeps it to 1e-3. With the paper's correction carried whole, DFTL with s = 1 settles at 32
 substeps a frame into a thrash in which its particles move most of a segment every step and the
 strands hold several times that energy (the numpy baseline with ``scale_pushes=False``). The
-kernels scale a follower's push on its leader by how far short of a segment it moved in the step
-(``kernels/solvers/ftl.py``, ``carried_func``): from the same start their strands lose energy at
+kernels scale a follower's push on its leader by ``max(1 - a m, 0)``, ``m`` its motion in the step
+over its rest length (``kernels/solvers/ftl.py``, ``carried_func``; ``a = PUSH_MOTION_SCALE``, 1.5:
+docs/accuracy/push-scale.md): from the same start their strands lose energy at
 8 to 64 substeps, in both correction forms, and the monitor stays silent. The scaling vanishes as
 the step shrinks: on an inverted chain, whose links push as it starts to fall, DFTL still
 converges to the reference at first order, as with the paper's correction, where dropping the
@@ -176,3 +177,26 @@ def test_scale_pushes_false_is_the_papers_correction():
     # after 6 frames at 32 substeps: the whole pushes keep the particles near a segment per step
     # (0.69 of one), the scaled ones have let them settle (0.06)
     assert speeds[False] * dt / SEGMENT > 0.4 and speeds[True] * dt / SEGMENT < 0.15, speeds
+
+
+@pytest.mark.parametrize("seed, speed, substeps", [(2, 0.7, 24), (3, 1.2, 32)])
+def test_the_push_scale_keeps_the_monitor_silent_on_folded_fast_strands(seed, speed, substeps):
+    """Two of the starts of docs/accuracy/push-scale.md (96 strands, one second) where pushes scaled
+    by max(1 - m, 0) (a = 1) still pumped strands past the energy monitor's budget; with the
+    default a = 1.5 no strand is flagged."""
+    from dftl_warp.kernels.solvers import ftl, fused
+
+    positions, velocities = folded_strands(96, POINTS, SEGMENT, speed=speed, seed=seed)
+    flagged = {}
+    default = ftl.PUSH_MOTION_SCALE
+    try:
+        for a in (1.0, default):
+            ftl.PUSH_MOTION_SCALE = a
+            for factory in (ftl.carried_func, ftl.bare_step_kernel, fused.fused_step_kernel):
+                factory.cache_clear()
+            flagged[a] = int(PROBE.run_solver("dftl", positions, velocities, 96, substeps, device="cpu")[2].sum())
+    finally:
+        ftl.PUSH_MOTION_SCALE = default
+        for factory in (ftl.carried_func, ftl.bare_step_kernel, fused.fused_step_kernel):
+            factory.cache_clear()
+    assert default == 1.5 and flagged[default] == 0 and flagged[1.0] >= 4, flagged

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.layout import strand_offsets
+from ..kernels.solvers import ftl
 
 def pad_strands(points, counts):
     """(N, 3) concatenated points -> (S, n_max, 3) padded array (padding repeats the last vertex)."""
@@ -41,8 +42,8 @@ def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correctio
 
     x, v, corr: (S, n, 3); rest: (S, n) rest length of the segment ending at each particle;
     roots: (S, 3) root targets after the step. ``scale_pushes``: a follower's correction that
-    pushes its leader is scaled by ``max(1 - m, 0)``, ``m`` its motion in the step over its rest
-    length, as the kernels do (``kernels/solvers/ftl.py``; a push: the prediction within a rest
+    pushes its leader is scaled by ``max(1 - a m, 0)``, ``m`` its motion in the step over its rest
+    length and ``a`` ``ftl.PUSH_MOTION_SCALE``, as the kernels do (``kernels/solvers/ftl.py``; a push: the prediction within a rest
     length of the new leader); False: the paper's ``x - p``.
     """
     S, n, _ = x.shape
@@ -75,7 +76,7 @@ def step(x, v, corr, rest, counts, roots, *, dt, gravity, damping=1.0, correctio
     if scale_pushes:
         pushes = pushes[:, 1:]
         moved = np.linalg.norm(xn[:, 1:] - x[:, 1:], axis=2)
-        share = np.maximum(rest[:, 1:] - moved, 0.0) / np.where(pushes, rest[:, 1:], 1.0)
+        share = np.maximum(rest[:, 1:] - ftl.PUSH_MOTION_SCALE * moved, 0.0) / np.where(pushes, rest[:, 1:], 1.0)
         cn[:, 1:] *= np.where(pushes, share, 1.0)[..., None]
     vn[:, 1:] = (xn[:, 1:] - x[:, 1:]) / dt
     if correction == "posterior":

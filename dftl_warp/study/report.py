@@ -370,8 +370,9 @@ that is wrong. s = 1 never blew up on this map (largest energy/budget {s1_ratio:
 straight and at rest. Strands folded tighter than a right angle and moving fast, as a collider
 leaves them, made s = 1 thrash with the paper's correction, at some substep counts and not at
 others, its particles moving about a segment every step: a follower's lagged push on its leader
-pumped energy in. The kernels now scale that push by how far short of a segment the follower moved
-in the step, which vanishes as the step shrinks; those strands then no longer thrash at any count
+pumped energy in. The kernels now scale that push by max(1 - a m, 0), m the follower's motion in the
+step over its segment's length (a = 1.5: [push-scale.md]({img}push-scale.md)), which vanishes as the
+step shrinks; those strands then no longer thrash at any count
 ([folded, fast strands]({img}folded.md), `scripts/probe_dftl_folded.py`, `tests/test_dftl_folded.py`).
 
 ## 7. Stability at the extremes

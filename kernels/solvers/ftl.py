@@ -17,11 +17,12 @@ Each kernel advances every strand by one substep ``dt`` (s):
 
    The correction a follower hands its leader (:func:`carried_func`) is ``x - p`` where the link
    pulls; where it *pushes* (``x - p`` points away from the leader) it is scaled by
-   ``max(1 - m, 0)``, ``m`` the follower's motion in the step over its rest length. Unscaled, the
-   lagged push of a follower that moves most of a segment every step pumps energy into folded,
-   fast strands (docs/accuracy/folded.md); ``m`` is ``|v| dt / l``, so the scaling vanishes as
-   ``dt -> 0`` and the convergence to the constrained dynamics is kept (a change of order ``dt``
-   in a push of order ``dt^2``: below DFTL's own first-order error).
+   ``max(1 - a m, 0)``, ``m`` the follower's motion in the step over its rest length and ``a``
+   :data:`PUSH_MOTION_SCALE`. Unscaled, the lagged push of a follower that moves most of a segment
+   every step pumps energy into folded, fast strands (docs/accuracy/folded.md); ``m`` is
+   ``|v| dt / l``, so the scaling vanishes as ``dt -> 0`` and the convergence to the constrained
+   dynamics is kept (a change of order ``dt`` in a push of order ``dt^2``: below DFTL's own
+   first-order error).
 
 Both forms produce the same positions. The kernels are made per precision (``wp.float32`` or
 ``wp.float64``) by :func:`step_kernel`; they may run in place (``*_in`` and ``*_out`` the same
@@ -39,6 +40,13 @@ from ..core.layout import particle
 from ..core.root_path import root_on_path
 
 CORRECTIONS = ("prior", "posterior")
+
+#: ``a`` of the push scaling ``max(1 - a m, 0)`` (:func:`carried_func`): a follower's push on its
+#: leader is gone once it moved ``1 / a`` of a segment in the step. 1.5 from folded, fast strands
+#: (``python scripts/push_scale_study.py``, docs/accuracy/push-scale.md: 15 starts, 6 substep counts):
+#: the strand-runs the energy monitor flags fell from 36 at ``a = 1`` to 3, near the floor of
+#: dropping every push, and an inverted chain keeps its first-order convergence (tests/test_dftl_folded.py).
+PUSH_MOTION_SCALE = 1.5
 
 #: Module options of the step kernels and of the fused kernels (:mod:`.fused`). Floating-point
 #: contraction (FMA) is off so that both compute each value with the same roundings and agree
@@ -98,6 +106,7 @@ def carried_func(scalar, scale_pushes: bool = True):
     ``scale_pushes=False``: the paper's ``x - p`` whole (the kernels of before 2026-11-28, for their
     speed: docs/accuracy/folded.md)."""
     vec3 = wp.types.vector(3, scalar)
+    push_motion_scale = PUSH_MOTION_SCALE   # read when the kernels are built (studies change it)
     if not scale_pushes:
 
         @wp.func
@@ -111,7 +120,8 @@ def carried_func(scalar, scale_pushes: bool = True):
     def carried(x: vec3, p: vec3, leader: vec3, x_old: vec3, rest: scalar):
         """``x - p`` of a follower now at ``x`` (predicted ``p``, before the step at ``x_old``)
         behind ``leader``: whole where the link pulls it toward the leader; where the link pushes it
-        away, times ``max(1 - |x - x_old| / rest, 0)`` (none once it moved a segment in the step).
+        away, times ``max(1 - a |x - x_old| / rest, 0)``, ``a`` :data:`PUSH_MOTION_SCALE` (none once
+        it moved ``1 / a`` of a segment in the step).
         A push is a prediction within ``rest`` of the leader, ``|p - leader|^2 < rest^2``: the
         compiler shares ``|p - leader|^2`` with :func:`follow_func`'s, so a sweep without pushes
         pays one multiply and a compare (on the H200 the test ``(x - p) . (x - leader) > 0``, the
@@ -121,8 +131,8 @@ def carried_func(scalar, scale_pushes: bool = True):
         c = x - p
         if norm2(p - leader) < rest * rest:
             moved2 = norm2(x - x_old)
-            c = c * wp.max(scalar(1.0) - moved2 * rsqrt(wp.max(moved2 * (rest * rest), scalar(1.0e-30))),
-                           scalar(0.0))
+            motion = moved2 * rsqrt(wp.max(moved2 * (rest * rest), scalar(1.0e-30)))
+            c = c * wp.max(scalar(1.0) - scalar(push_motion_scale) * motion, scalar(0.0))
         return c
 
     return carried
