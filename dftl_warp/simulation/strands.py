@@ -120,26 +120,48 @@ def simulate_strands(
             if k % record_every == 0:
                 record()
     recording = Recording(np.stack(positions), np.stack(vels))
-    line = nonfinite_note(recording, counts, record_every, f"simulate_strands: {solver}, dt={dt:g} s")
+    line = blow_up_note(recording, counts, record_every, f"simulate_strands: {solver}, dt={dt:g} s")
     if line is not None:
         warnings.warn(line, EnergyGrowthWarning, stacklevel=2)
     return recording
 
 
-def nonfinite_note(recording: Recording, counts: np.ndarray, record_every: int, setting: str) -> str | None:
-    """The warning for the first recorded frame holding a non-finite position or velocity (the
-    run blew up), naming its step and strand as the energy monitor does; None when every frame is
-    finite. Reads the host recording only."""
+#: a particle farther from its strand's root than this many strand lengths has blown up (an
+#: inextensible strand reaches one length; the pbd solver's stretch at its coarsest steps, about 15)
+BLOWN_UP_LENGTHS = 100.0
+
+
+def blow_up_note(recording: Recording, counts: np.ndarray, record_every: int, setting: str) -> str | None:
+    """The warning for the first recorded frame in which the run blew up, naming its step and
+    strand as the energy monitor does: a non-finite position or velocity, or a particle farther
+    from its root than :data:`BLOWN_UP_LENGTHS` times its strand's length (on CUDA the reference
+    solver at an absurd step gives 1e152 m where the CPU gives NaN). None when no frame did. Reads
+    the host recording only."""
+    counts = np.asarray(counts)
+    offsets = strand_offsets(counts, with_end=True)
+    strand_of = np.repeat(np.arange(counts.size), counts)
+    start = recording.positions[0]
+    inside = np.ones(len(start), dtype=bool)   # the segment ending at each particle lies in its strand
+    inside[offsets[:-1]] = False
+    segments = np.linalg.norm(np.diff(start, axis=0, prepend=start[:1]), axis=1)
+    lengths = np.bincount(strand_of, weights=np.where(inside, segments, 0.0), minlength=counts.size)
     finite = np.isfinite(recording.positions).all(axis=2) & np.isfinite(recording.velocities).all(axis=2)
-    frames = np.flatnonzero(~finite.all(axis=1))
+    with np.errstate(invalid="ignore", over="ignore"):
+        reach = np.linalg.norm(recording.positions - recording.positions[:, offsets[:-1]][:, strand_of], axis=2)
+        far = reach > BLOWN_UP_LENGTHS * lengths[strand_of]
+    bad = ~finite | (far & (lengths[strand_of] > 0.0))
+    frames = np.flatnonzero(bad.any(axis=1))
     if not frames.size:
         return None
     f = int(frames[0])
-    strands = np.unique(np.searchsorted(strand_offsets(counts, with_end=True), np.flatnonzero(~finite[f]),
-                                        side="right") - 1)
+    which = ~finite[f] if not finite[f].all() else bad[f]
+    strands = np.unique(strand_of[np.flatnonzero(which)])
     more = f" (and {strands.size - 1} more)" if strands.size > 1 else ""
-    return (f"{setting}: strand {int(strands[0])}{more}: non-finite positions or velocities at step "
-            f"{f * record_every}; this setting is unstable (a smaller dt may hold it)")
+    what = ("non-finite positions or velocities" if not finite[f].all() else
+            f"a particle {np.nanmax(reach[f][strand_of == strands[0]]) / lengths[strands[0]]:.3g} times its length "
+            "from its root")
+    return (f"{setting}: strand {int(strands[0])}{more}: {what} at step {f * record_every}; this setting is "
+            "unstable (a smaller dt may hold it)")
 
 
 def _checked_rows(name: str, values, shape: tuple, what: str) -> np.ndarray:
