@@ -134,9 +134,8 @@ BLOWN_UP_LENGTHS = 100.0
 def blow_up_note(recording: Recording, counts: np.ndarray, record_every: int, setting: str) -> str | None:
     """The warning for the first recorded frame in which the run blew up, naming its step and
     strand as the energy monitor does: a non-finite position or velocity, or a particle farther
-    from its root than :data:`BLOWN_UP_LENGTHS` times its strand's length (on CUDA the reference
-    solver at an absurd step gives 1e152 m where the CPU gives NaN). None when no frame did. Reads
-    the host recording only."""
+    from its root than :data:`BLOWN_UP_LENGTHS` times its strand's length (pbd at an absurd step
+    flies off to 1e13 m, finite). None when no frame did. Reads the host recording only."""
     counts = np.asarray(counts)
     offsets = strand_offsets(counts, with_end=True)
     strand_of = np.repeat(np.arange(counts.size), counts)

@@ -24,10 +24,9 @@ new solver gets them without a line of its own; they cost a few comparisons per 
 the device.
 
 The results are not checked: ``advance`` and ``step`` never read the device back (on CUDA they
-only launch), so a setting that blows up (a ``dt`` far beyond the solver's stable range: the
-reference solver at dt = 1e6 s goes to NaN on the CPU and to 1e152 m on CUDA, pbd to 1e13 m) is
-silent here. ``diagnostics(state)`` measures a State (its stretch and speed infinite, its energy
-NaN, when it is not finite); the :class:`~dftl_warp.simulation.simulate.Simulation` (its energy
+only launch), so a setting that blows up (a ``dt`` far beyond the solver's stable range: the pbd
+solver at dt = 1e6 s flies off to 1e13 m) is silent here. ``diagnostics(state)`` measures a State
+(its stretch and speed infinite, its energy NaN, when it is not finite); the :class:`~dftl_warp.simulation.simulate.Simulation` (its energy
 monitor, :mod:`dftl_warp.simulation.monitor`) and
 :func:`~dftl_warp.simulation.strands.simulate_strands`, which read the state back anyway, warn with
 an :class:`~dftl_warp.simulation.monitor.EnergyGrowthWarning` when it is not finite (and
@@ -300,7 +299,7 @@ class Solver:
 
         On CUDA the substeps are captured once per (state, control, dt, substeps) in a CUDA graph
         and replayed afterwards, and ``advance`` returns before the device is done. The arguments
-        are checked, the results not: a blow-up (non-finite or absurd positions from a ``dt`` far
+        are checked; the results are not checked: a blow-up (non-finite or absurd positions from a ``dt`` far
         beyond the stable range) is silent here; :meth:`diagnostics` measures it, and
         ``Simulation`` and ``simulate_strands`` warn of blown-up states (module docstring).
         """

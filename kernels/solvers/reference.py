@@ -19,6 +19,11 @@ Where Newton's method does not reach ``accept`` (a SHAKE-type position step has 
 along the old segment directions once a segment turns too far in one step), the step is redone
 as two halves, recursively (down to ``dt * 1e-6``); the piece length doubles again after each
 success. Converged steps are untouched by this, so the scheme stays RATTLE wherever it can.
+Where even the shortest piece has no solution (a step far beyond any stable one: dt of a second or
+more for centimetre segments), the rest of the substep is one follow-the-leader projection of the
+predictions (exact lengths; a degenerate prediction keeps the old segment's direction), then the
+velocity step 2, and the strand's residual becomes infinite: before, the failed Newton result
+was taken and the strand went to NaN (dt = 1 s on the CPU) or to 1e152 m (dt = 1e6 s on CUDA).
 
 The root is kinematic (infinite mass): it sits on its target on the frame's root path that
 :class:`~dftl_warp.core.state.Control` describes (:func:`~dftl_warp.kernels.core.root_path.root_on_path`),
@@ -177,17 +182,33 @@ def rattle_kernel(scalar):
                     # no solution reachable along the old segments at this step: halve it
                     h = f64(0.5) * h
                     continue
-                worst = max_keep_nan(worst, res)
-
-                # new positions x' = q + mu_i r_i - mu_{i+1} r_{i+1} (old segments), kept in q
-                for i in range(1, n):
-                    k = particle(base, stride, i)
-                    km = particle(base, stride, i - 1)
-                    xi = q[k] + mu[k] * (x[k] - x[km])
-                    if i < m:
-                        kp = particle(base, stride, i + 1)
-                        xi = xi - mu[kp] * (x[kp] - x[k])
-                    q[k] = xi
+                if res < accept:
+                    worst = max_keep_nan(worst, res)
+                    # new positions x' = q + mu_i r_i - mu_{i+1} r_{i+1} (old segments), kept in q
+                    for i in range(1, n):
+                        k = particle(base, stride, i)
+                        km = particle(base, stride, i - 1)
+                        xi = q[k] + mu[k] * (x[k] - x[km])
+                        if i < m:
+                            kp = particle(base, stride, i + 1)
+                            xi = xi - mu[kp] * (x[kp] - x[k])
+                        q[k] = xi
+                else:
+                    # not even the shortest piece: the rest of the substep follows the leader
+                    worst = f64(wp.inf)
+                    h = dt - elapsed
+                    root = target
+                    half_h_g = gravity * (f64(0.5) * h)
+                    q[k0] = root
+                    for i in range(1, n):
+                        k = particle(base, stride, i)
+                        km = particle(base, stride, i - 1)
+                        d = x[k] + h * (v[k] + half_h_g) - q[km]
+                        if not (wp.dot(d, d) > f64(1.0e-300)):
+                            d = x[k] - x[km]
+                        if not (wp.dot(d, d) > f64(1.0e-300)):
+                            d = wp.vec3d(f64(1.0), f64(0.0), f64(0.0))
+                        q[k] = q[km] + (f64(rest_lengths[k]) / wp.length(d)) * d
                 # half-step velocities plus the second half kick: u = (x' - x)/h + h/2 g
                 inv_h = f64(1.0) / h
                 v[k0] = (root - x[k0]) * inv_h
