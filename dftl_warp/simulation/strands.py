@@ -62,9 +62,10 @@ def simulate_strands(
 
     Warns:
         :class:`~dftl_warp.simulation.monitor.EnergyGrowthWarning` (once, naming the step and the
-        strand) when a recorded frame holds a non-finite position or velocity: the setting blew up
-        (e.g. a ``dt`` far beyond the solver's stable range). The check reads the recording, which
-        is on the host anyway; finite but absurd results are not judged here.
+        strand) when a recorded frame holds a non-finite position or velocity, or a particle farther
+        from its root than :data:`BLOWN_UP_LENGTHS` strand lengths: the setting blew up (e.g. a
+        ``dt`` far beyond the solver's stable range). The check reads the recording, which is on
+        the host anyway (:func:`blow_up_note`).
 
     Raises:
         ValueError naming the argument: ``dt`` not a finite number > 0, ``gravity`` not 3 finite
