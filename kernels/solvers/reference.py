@@ -21,7 +21,7 @@ as two halves, recursively (down to ``dt * 1e-6``); the piece length doubles aga
 success. Converged steps are untouched by this, so the scheme stays RATTLE wherever it can.
 Where even the shortest piece has no solution (a step far beyond any stable one: dt of a second or
 more for centimetre segments), the rest of the substep is one follow-the-leader projection of the
-predictions (exact lengths; a degenerate prediction keeps the old segment's direction), then the
+predictions (DFTL's :func:`~.ftl.follow_func`: exact lengths; a degenerate prediction keeps the old segment's direction), then the
 velocity step 2, and the strand's residual becomes infinite: before, the failed Newton result
 was taken and the strand went to NaN (dt = 1 s on the CPU) or to 1e152 m (dt = 1e6 s on CUDA).
 
@@ -46,6 +46,7 @@ import warp as wp
 from ..core.arith import max_keep_nan
 from ..core.layout import particle
 from ..core.root_path import root_on_path
+from .ftl import follow_func
 
 
 @wp.func
@@ -63,6 +64,7 @@ def rattle_kernel(scalar):
     """The RATTLE kernel for states stored in ``scalar`` precision (computation in float64)."""
     vec3 = wp.types.vector(3, scalar)
     f64 = wp.float64
+    follow = follow_func(wp.float64)   # DFTL's projection: the fallback where no piece converges
 
     @wp.kernel(enable_backward=False, module="unique")
     def rattle_steps(
@@ -203,12 +205,7 @@ def rattle_kernel(scalar):
                     for i in range(1, n):
                         k = particle(base, stride, i)
                         km = particle(base, stride, i - 1)
-                        d = x[k] + h * (v[k] + half_h_g) - q[km]
-                        if not (wp.dot(d, d) > f64(1.0e-300)):
-                            d = x[k] - x[km]
-                        if not (wp.dot(d, d) > f64(1.0e-300)):
-                            d = wp.vec3d(f64(1.0), f64(0.0), f64(0.0))
-                        q[k] = q[km] + (f64(rest_lengths[k]) / wp.length(d)) * d
+                        q[k] = follow(q[km], x[k] + h * (v[k] + half_h_g), f64(rest_lengths[k]), x[km], x[k])
                 # half-step velocities plus the second half kick: u = (x' - x)/h + h/2 g
                 inv_h = f64(1.0) / h
                 v[k0] = (root - x[k0]) * inv_h
