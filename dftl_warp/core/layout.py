@@ -67,6 +67,16 @@ def zero_length_segment(points, counts):
     return strand, j - int(strand_offsets(counts)[strand])
 
 
+def incoming_lengths(points, counts) -> np.ndarray:
+    """Per point of strands ``points`` (N, 3) with vertex ``counts``: the length of the segment
+    ending at it (its rest length when ``points`` are the rest shape), 0 at each strand's root."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    lengths = np.zeros(points.shape[0])
+    lengths[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    lengths[strand_offsets(counts)[np.asarray(counts).reshape(-1) > 0]] = 0.0   # roots have no incoming segment
+    return lengths
+
+
 def strand_offsets(counts, *, with_end: bool = False) -> np.ndarray:
     """Index of each strand's first point in the concatenated points of strands with vertex
     ``counts`` (int64, one per strand); ``with_end``: one more entry, the total point count (so

@@ -20,8 +20,8 @@ import warp as wp
 from ..checks import check_lengths
 from .bounds import box
 from .devices import device_argument
-from .layout import (LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, make_layout, read_only,
-                     strand_offsets)
+from .layout import (LAYOUTS, MAX_SLOTS, Layout, default_interleave, default_layout, incoming_lengths, make_layout,
+                     read_only, strand_offsets)
 from .precision import numpy_type, scalar_type, vec3_type
 from .state import feature_hook
 
@@ -176,9 +176,7 @@ class Model:
         local = points - origin
 
         starts = strand_offsets(counts)
-        seg = np.zeros(points.shape[0])
-        seg[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1)
-        seg[starts] = 0.0  # roots have no incoming segment
+        seg = incoming_lengths(points, counts)
 
         ftype = numpy_type(precision)
         rest = np.zeros(lay.num_slots, dtype=ftype)

@@ -9,7 +9,7 @@ import numpy as np
 import warp as wp
 
 from ..core.devices import device_argument
-from ..core.layout import strand_offsets
+from ..core.layout import incoming_lengths, strand_offsets
 from ..core.model import Model, check_strand_arrays
 from ..options import check_api
 from ..solvers import DEFAULT_GRAVITY, build_solver, carries_corrections
@@ -140,11 +140,7 @@ def blow_up_note(recording: Recording, counts: np.ndarray, record_every: int, se
     counts = np.asarray(counts)
     offsets = strand_offsets(counts, with_end=True)
     strand_of = np.repeat(np.arange(counts.size), counts)
-    start = recording.positions[0]
-    inside = np.ones(len(start), dtype=bool)   # the segment ending at each particle lies in its strand
-    inside[offsets[:-1]] = False
-    segments = np.linalg.norm(np.diff(start, axis=0, prepend=start[:1]), axis=1)
-    lengths = np.bincount(strand_of, weights=np.where(inside, segments, 0.0), minlength=counts.size)
+    lengths = np.bincount(strand_of, weights=incoming_lengths(recording.positions[0], counts), minlength=counts.size)
     finite = np.isfinite(recording.positions).all(axis=2) & np.isfinite(recording.velocities).all(axis=2)
     with np.errstate(invalid="ignore", over="ignore"):
         reach = np.linalg.norm(recording.positions - recording.positions[:, offsets[:-1]][:, strand_of], axis=2)
