@@ -27,14 +27,14 @@ SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "probe_dftl_folded.py
 STRANDS, POINTS, SEGMENT, FPS, FRAMES = 4, 16, 0.005, 24, 8
 
 
-def _probe():
-    spec = importlib.util.spec_from_file_location("probe_dftl_folded", SCRIPT)
+def _script(name: str):
+    spec = importlib.util.spec_from_file_location(name, SCRIPT.with_name(f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-PROBE = _probe()
+PROBE = _script("probe_dftl_folded")
 
 
 def run(kind, substeps):
@@ -185,19 +185,16 @@ def test_the_push_scale_keeps_the_monitor_silent_on_folded_fast_strands(seed, sp
     by max(1 - m, 0) (a = 1) still pumped strands past the energy monitor's budget (at least 4);
     with the default a = 1.5 the monitor flags at most a quarter as many (the CPU: none; the H200,
     whose float32 round-off differs: 1 against 5 at 32 substeps, docs/gpu-checks.md)."""
-    from dftl_warp.kernels.solvers import ftl, fused
+    from dftl_warp.kernels.solvers import ftl
 
+    study = _script("push_scale_study")   # its use_scale rebuilds the step kernels with another a
     positions, velocities = folded_strands(96, POINTS, SEGMENT, speed=speed, seed=seed)
     flagged = {}
     default = ftl.PUSH_MOTION_SCALE
     try:
         for a in (1.0, default):
-            ftl.PUSH_MOTION_SCALE = a
-            for factory in (ftl.carried_func, ftl.bare_step_kernel, fused.fused_step_kernel):
-                factory.cache_clear()
+            study.use_scale(a)
             flagged[a] = int(PROBE.run_solver("dftl", positions, velocities, 96, substeps, device="cpu")[2].sum())
     finally:
-        ftl.PUSH_MOTION_SCALE = default
-        for factory in (ftl.carried_func, ftl.bare_step_kernel, fused.fused_step_kernel):
-            factory.cache_clear()
+        study.use_scale(default)
     assert default == 1.5 and flagged[1.0] >= 4 and flagged[default] <= flagged[1.0] // 4, flagged
